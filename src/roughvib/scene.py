@@ -1,0 +1,827 @@
+"""Scene description: frozen, validated dataclasses in SI units, TOML load/save.
+
+This module owns the *contract* of a scene file. Every value has a default taken from the
+paper scene of ``physics.md`` §7, so an empty TOML file is the paper scene. A bad value raises
+:class:`SceneError` (a ``ValueError``) whose message names the field path, the rule, the unit
+and the value, e.g. ``plate.thickness must be > 0 m, got -0.003``.
+
+Nothing in here knows about solvers; later pipeline stages read these objects and turn them
+into flat arrays once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field, fields, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "Block",
+    "Contact",
+    "Excitation",
+    "Friction",
+    "Output",
+    "Plate",
+    "Roughness",
+    "Scene",
+    "SceneError",
+    "Solver",
+    "builtin_scenes",
+    "load_scene",
+    "scene_to_toml",
+]
+
+
+class SceneError(ValueError):
+    """A scene value is invalid; the message is one line naming field, rule, unit and value."""
+
+
+# --------------------------------------------------------------------------------------------
+# validation helpers
+# --------------------------------------------------------------------------------------------
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, str):
+        return repr(value)
+    return str(value)
+
+
+def _u(unit: str) -> str:
+    return f" {unit}" if unit else ""
+
+
+def _number(path: str, value: Any, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise SceneError(f"{path} must be a number{_u(unit)}, got {_fmt(value)}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}")
+    return value
+
+
+def _positive(path: str, value: Any, unit: str) -> float:
+    v = _number(path, value, unit)
+    if v <= 0.0:
+        raise SceneError(f"{path} must be > 0{_u(unit)}, got {_fmt(value)}")
+    return v
+
+
+def _nonneg(path: str, value: Any, unit: str) -> float:
+    v = _number(path, value, unit)
+    if v < 0.0:
+        raise SceneError(f"{path} must be >= 0{_u(unit)}, got {_fmt(value)}")
+    return v
+
+
+def _range(path: str, value: Any, lo: float, hi: float, unit: str, *, lo_open=False,
+           hi_open=False) -> float:
+    v = _number(path, value, unit)
+    bad = (v <= lo if lo_open else v < lo) or (v >= hi if hi_open else v > hi)
+    if bad:
+        lb = "(" if lo_open else "["
+        hb = ")" if hi_open else "]"
+        raise SceneError(f"{path} must be in {lb}{lo}, {hi}{hb}{_u(unit)}, got {_fmt(value)}")
+    return v
+
+
+def _integer(path: str, value: Any, lo: int, hi: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            raise SceneError(f"{path} must be an integer, got {_fmt(value)}")
+    if value < lo or (hi is not None and value > hi):
+        rule = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise SceneError(f"{path} must be an integer {rule}, got {_fmt(value)}")
+    return value
+
+
+def _choice(path: str, value: Any, choices: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        opts = ", ".join(repr(c) for c in choices)
+        raise SceneError(f"{path} must be one of {opts}, got {_fmt(value)}")
+    return value
+
+
+def _boolean(path: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise SceneError(f"{path} must be true or false, got {_fmt(value)}")
+    return value
+
+
+def _pair(path: str, value: Any, unit: str) -> tuple[float, float]:
+    if not isinstance(value, list | tuple) or len(value) != 2:
+        raise SceneError(f"{path} must be a pair [x, y]{_u(unit)}, got {_fmt(value)}")
+    return (_number(f"{path}[0]", value[0], unit), _number(f"{path}[1]", value[1], unit))
+
+
+def _set(obj: Any, name: str, value: Any) -> None:
+    object.__setattr__(obj, name, value)
+
+
+def _opt_positive(path: str, value: Any, unit: str) -> float | None:
+    return None if value is None else _positive(path, value, unit)
+
+
+# --------------------------------------------------------------------------------------------
+# sections
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Block:
+    """The sliding mass-block (rigid, one vertical and one tangential degree of freedom).
+
+    Attributes
+    ----------
+    mass : float
+        Block mass m [kg]. Paper: 0.221 or 0.543.
+    length, width : float
+        Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
+    vertical_damping : float
+        Viscous damper r1 on the absolute vertical block velocity [N s/m] (physics.md §1.5(f)).
+    tangential_damping : float
+        Viscous damper r2 on the absolute tangential block velocity [N s/m].
+    """
+
+    mass: float = 0.221
+    length: float = 0.04
+    width: float = 0.04
+    vertical_damping: float = 83.0
+    tangential_damping: float = 0.5
+
+    def __post_init__(self) -> None:
+        _set(self, "mass", _positive("block.mass", self.mass, "kg"))
+        _set(self, "length", _positive("block.length", self.length, "m"))
+        _set(self, "width", _positive("block.width", self.width, "m"))
+        _set(self, "vertical_damping",
+             _nonneg("block.vertical_damping", self.vertical_damping, "N s/m"))
+        _set(self, "tangential_damping",
+             _nonneg("block.tangential_damping", self.tangential_damping, "N s/m"))
+
+
+@dataclass(frozen=True)
+class Plate:
+    """Simply supported Kirchhoff plate (``kind="modal"``) or an immovable base (``"rigid"``).
+
+    Attributes
+    ----------
+    kind : {"modal", "rigid"}
+        ``rigid`` drops all plate states.
+    length, width, thickness : float
+        a, b, h [m]. Sliding is along the plate length (x).
+    youngs_modulus : float
+        E [Pa].
+    poisson_ratio : float
+        nu [-], in [0, 0.5).
+    density : float
+        rho [kg/m^3].
+    loss_factor : float
+        delta_p [-]; modal damping ratio zeta = loss_factor / 2.
+    max_frequency : float
+        All modes with f <= max_frequency are kept [Hz].
+    block_position : tuple of float
+        Plate coordinates (x0, y0) of the block centre [m].
+    observation_position : tuple of float
+        Plate coordinates of the plate accelerometer [m]; keep it away from the contacts.
+    residual_compliance : bool
+        Add the static compliance of the truncated modes at the contacts (physics.md §2.4).
+    """
+
+    kind: str = "modal"
+    length: float = 0.30
+    width: float = 0.26
+    thickness: float = 0.003
+    youngs_modulus: float = 2.1e11
+    poisson_ratio: float = 0.3
+    density: float = 7850.0
+    loss_factor: float = 0.003
+    max_frequency: float = 50e3
+    block_position: tuple[float, float] = (0.12, 0.11)
+    observation_position: tuple[float, float] = (0.20, 0.08)
+    residual_compliance: bool = True
+
+    def __post_init__(self) -> None:
+        _set(self, "kind", _choice("plate.kind", self.kind, ("modal", "rigid")))
+        _set(self, "length", _positive("plate.length", self.length, "m"))
+        _set(self, "width", _positive("plate.width", self.width, "m"))
+        _set(self, "thickness", _positive("plate.thickness", self.thickness, "m"))
+        _set(self, "youngs_modulus", _positive("plate.youngs_modulus", self.youngs_modulus, "Pa"))
+        _set(self, "poisson_ratio",
+             _range("plate.poisson_ratio", self.poisson_ratio, 0.0, 0.5, "", hi_open=True))
+        _set(self, "density", _positive("plate.density", self.density, "kg/m^3"))
+        _set(self, "loss_factor", _range("plate.loss_factor", self.loss_factor, 0.0, 2.0, ""))
+        _set(self, "max_frequency", _positive("plate.max_frequency", self.max_frequency, "Hz"))
+        _set(self, "residual_compliance",
+             _boolean("plate.residual_compliance", self.residual_compliance))
+        for name in ("block_position", "observation_position"):
+            x, y = _pair(f"plate.{name}", getattr(self, name), "m")
+            if not (0.0 < x < self.length):
+                raise SceneError(f"plate.{name}[0] must be inside (0, plate.length="
+                                 f"{self.length}) m, got {x}")
+            if not (0.0 < y < self.width):
+                raise SceneError(f"plate.{name}[1] must be inside (0, plate.width="
+                                 f"{self.width}) m, got {y}")
+            _set(self, name, (x, y))
+        if self.kind == "modal":
+            # the number of modes is bounded to keep a typo (1e9 Hz) from exhausting memory
+            b = self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson_ratio**2))
+            c = math.sqrt(b / (self.density * self.thickness))
+            kmax2 = 2 * math.pi * self.max_frequency / c
+            n_est = self.length * self.width * kmax2 / (4 * math.pi)
+            if n_est > 20000:
+                raise SceneError(f"plate.max_frequency gives about {n_est:.0f} modes (limit "
+                                 f"20000), lower it, got {self.max_frequency} Hz")
+
+    @property
+    def bending_stiffness(self) -> float:
+        """B' = E h^3 / (12 (1 - nu^2)) [N m]."""
+        return self.youngs_modulus * self.thickness**3 / (12.0 * (1.0 - self.poisson_ratio**2))
+
+    @property
+    def mass_per_area(self) -> float:
+        """m'' = rho h [kg/m^2]."""
+        return self.density * self.thickness
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Unilateral linear contact springs between block and plate.
+
+    Attributes
+    ----------
+    points : int
+        Number of contact springs N_c (the N highest profile maxima under the block).
+    stiffness : float or "auto"
+        Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
+        from the surface statistics (Greenwood-Williamson / Greenwood-Tripp, roughvib.surface).
+    min_separation : float
+        Minimum distance between two chosen maxima [m] (so two maxima of one asperity are not
+        both taken).
+    model : {"gw", "gt"}
+        Statistical contact model used when ``stiffness = "auto"``.
+    summit_density, summit_radius, summit_std : float or None
+        Summit parameters eta_s [1/m^2], R [m], sigma_s [m]; ``None`` derives them from the
+        spectral moments of the raw surface (Nayak / McCool).
+    hardness : float
+        Hardness of the softer surface [Pa], for the plasticity index.
+    velocity_factor : bool
+        Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
+    """
+
+    points: int = 10
+    stiffness: float | str = 3.1e6
+    min_separation: float = 0.2e-3
+    model: str = "gw"
+    summit_density: float | None = None
+    summit_radius: float | None = None
+    summit_std: float | None = None
+    hardness: float = 3e9
+    velocity_factor: bool = False
+
+    def __post_init__(self) -> None:
+        _set(self, "points", _integer("contact.points", self.points, 1, 200))
+        if isinstance(self.stiffness, str):
+            _choice("contact.stiffness", self.stiffness, ("auto",))
+        else:
+            _set(self, "stiffness", _positive("contact.stiffness", self.stiffness, "N/m"))
+        _set(self, "min_separation",
+             _nonneg("contact.min_separation", self.min_separation, "m"))
+        _set(self, "model", _choice("contact.model", self.model, ("gw", "gt")))
+        _set(self, "summit_density",
+             _opt_positive("contact.summit_density", self.summit_density, "1/m^2"))
+        _set(self, "summit_radius",
+             _opt_positive("contact.summit_radius", self.summit_radius, "m"))
+        _set(self, "summit_std", _opt_positive("contact.summit_std", self.summit_std, "m"))
+        _set(self, "hardness", _positive("contact.hardness", self.hardness, "Pa"))
+        _set(self, "velocity_factor", _boolean("contact.velocity_factor", self.velocity_factor))
+
+
+@dataclass(frozen=True)
+class Roughness:
+    """Roughness profile z(s) (height, positive up) along the sliding direction.
+
+    Attributes
+    ----------
+    kind : {"none", "sinusoid", "synthetic", "file"}
+    interpolation : {"cubic", "linear", "quintic"}
+        Interpolant handed to the solver; cubic is C2 (default), linear is paper-like (C0).
+    amplitude, wavelength : float
+        ``sinusoid``: z = amplitude cos(2 pi s / wavelength) [m], [m].
+    rms : float
+        ``synthetic``: rms of the kinematic input profile [m] (the 2-D reduced profile).
+    seed : int
+        ``synthetic``: random seed.
+    hurst : float
+        Hurst exponent H of the self-affine PSD tail, slope -(1 + 2H).
+    rolloff_wavelength : float
+        lambda_0 [m]: flat PSD above it, power law below it.
+    shortest_wavelength, longest_wavelength : float
+        Band limits [m] (50 um ... 40 mm in the paper).
+    spacing : float
+        Profile grid spacing [m] (synthetic and ``file`` with one column).
+    trace_length : float
+        Length of the synthetic trace [m].
+    raw_rms : float
+        Combined rms of the raw (3-D) surface [m]; feeds contact stiffness "auto" and the
+        3-D surface generated when ``reduce_3d`` is true.
+    reduce_3d : bool
+        Generate an isotropic 2-D surface of rms ``raw_rms`` and reduce it to the input profile
+        by span-averaging across the block width (then ``rms`` is not used).
+    filter : {"highpass", "block-lowpass", "none"}
+        Functional filter over the block length (physics.md §5.3).
+    path : str
+        ``file``: path of a text/CSV profile (relative paths are relative to the scene file).
+    units : {"m", "um", "nm"}
+        ``file``: height unit of the file (and of the x column, if given).
+    """
+
+    kind: str = "synthetic"
+    interpolation: str = "cubic"
+    amplitude: float = 0.35e-6
+    wavelength: float = 1e-3
+    rms: float = 0.35e-6
+    seed: int = 1
+    hurst: float = 0.8
+    rolloff_wavelength: float = 0.5e-3
+    shortest_wavelength: float = 50e-6
+    longest_wavelength: float = 0.04
+    spacing: float = 10e-6
+    trace_length: float = 0.16
+    raw_rms: float = 3.5e-6
+    reduce_3d: bool = False
+    filter: str = "highpass"
+    path: str = ""
+    units: str = "m"
+
+    def __post_init__(self) -> None:
+        p = "roughness"
+        _set(self, "kind", _choice(f"{p}.kind", self.kind,
+                                   ("none", "sinusoid", "synthetic", "file")))
+        _set(self, "interpolation", _choice(f"{p}.interpolation", self.interpolation,
+                                            ("cubic", "linear", "quintic")))
+        _set(self, "amplitude", _nonneg(f"{p}.amplitude", self.amplitude, "m"))
+        _set(self, "wavelength", _positive(f"{p}.wavelength", self.wavelength, "m"))
+        _set(self, "rms", _nonneg(f"{p}.rms", self.rms, "m"))
+        _set(self, "seed", _integer(f"{p}.seed", self.seed, 0))
+        _set(self, "hurst", _range(f"{p}.hurst", self.hurst, 0.0, 1.0, "", lo_open=True))
+        _set(self, "rolloff_wavelength",
+             _positive(f"{p}.rolloff_wavelength", self.rolloff_wavelength, "m"))
+        _set(self, "shortest_wavelength",
+             _positive(f"{p}.shortest_wavelength", self.shortest_wavelength, "m"))
+        _set(self, "longest_wavelength",
+             _positive(f"{p}.longest_wavelength", self.longest_wavelength, "m"))
+        _set(self, "spacing", _positive(f"{p}.spacing", self.spacing, "m"))
+        _set(self, "trace_length", _positive(f"{p}.trace_length", self.trace_length, "m"))
+        _set(self, "raw_rms", _nonneg(f"{p}.raw_rms", self.raw_rms, "m"))
+        _set(self, "reduce_3d", _boolean(f"{p}.reduce_3d", self.reduce_3d))
+        _set(self, "filter", _choice(f"{p}.filter", self.filter,
+                                     ("highpass", "block-lowpass", "none")))
+        if not isinstance(self.path, str):
+            raise SceneError(f"{p}.path must be a string (file path), got {_fmt(self.path)}")
+        _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))
+        if self.shortest_wavelength >= self.longest_wavelength:
+            raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
+                             f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")
+        if self.kind == "synthetic" and self.shortest_wavelength < 2 * self.spacing:
+            raise SceneError(f"{p}.shortest_wavelength must be >= 2 * roughness.spacing "
+                             f"({2 * self.spacing} m), got {self.shortest_wavelength} m")
+        if self.kind == "file" and not self.path:
+            raise SceneError(f"{p}.path must name a profile file when roughness.kind = "
+                             f"'file', got ''")
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction law between block and plate.
+
+    Attributes
+    ----------
+    law : {"feldmann"}
+        The paper's Eq. 10 with the latched hysteresis of physics.md §1.5(g).
+    mu_slip, mu_stick : float
+        Quasi-static kinetic and static coefficients [-].
+    a1, a2 : float
+        Exponential constants of Eq. 10 [s/m].
+    hysteresis_velocity : float
+        v_h, the shift of the zero crossing [m/s].
+    latch_velocity : float
+        epsilon_v: the latch flips once the velocity has moved back from its running extremum
+        by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
+    stick_velocity : float
+        |v| below this counts as stick for phase logging and the stick fraction [m/s].
+    """
+
+    law: str = "feldmann"
+    mu_slip: float = 0.30
+    mu_stick: float = 0.40
+    a1: float = 500.0
+    a2: float = 2e4
+    hysteresis_velocity: float = 5e-5
+    latch_velocity: float = 1e-4
+    stick_velocity: float = 5e-4
+
+    def __post_init__(self) -> None:
+        p = "friction"
+        _set(self, "law", _choice(f"{p}.law", self.law, ("feldmann",)))
+        _set(self, "mu_slip", _nonneg(f"{p}.mu_slip", self.mu_slip, ""))
+        _set(self, "mu_stick", _nonneg(f"{p}.mu_stick", self.mu_stick, ""))
+        _set(self, "a1", _nonneg(f"{p}.a1", self.a1, "s/m"))
+        _set(self, "a2", _positive(f"{p}.a2", self.a2, "s/m"))
+        _set(self, "hysteresis_velocity",
+             _nonneg(f"{p}.hysteresis_velocity", self.hysteresis_velocity, "m/s"))
+        _set(self, "latch_velocity", _positive(f"{p}.latch_velocity", self.latch_velocity, "m/s"))
+        _set(self, "stick_velocity", _positive(f"{p}.stick_velocity", self.stick_velocity, "m/s"))
+        if self.mu_stick < self.mu_slip:
+            raise SceneError(f"{p}.mu_stick must be >= friction.mu_slip ({self.mu_slip}), "
+                             f"got {self.mu_stick}")
+        if self.a2 <= self.a1:
+            raise SceneError(f"{p}.a2 must be > friction.a1 ({self.a1} s/m), got {self.a2} s/m")
+
+    @property
+    def effective_latch_velocity(self) -> float:
+        """epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s]."""
+        return max(self.latch_velocity, self.hysteresis_velocity)
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """Tangential drive of the block.
+
+    Attributes
+    ----------
+    kind : {"force", "prescribed"}
+        ``force``: T_exc = T0 cos(2 pi f t). ``prescribed``: x(t) = velocity t +
+        amplitude sin(2 pi f t) is imposed and the tangential dynamics leave the state.
+    frequency : float
+        f [Hz] (7 in the paper).
+    force_amplitude : float or None
+        T0 [N]; exactly one of force_amplitude / target_rms_velocity must be set.
+    target_rms_velocity : float or None
+        Target rms of the block's tangential velocity [m/s]; T0 is calibrated to it.
+    velocity : float
+        ``prescribed``: constant sliding velocity [m/s].
+    amplitude : float
+        ``prescribed``: displacement amplitude [m].
+    """
+
+    kind: str = "force"
+    frequency: float = 7.0
+    force_amplitude: float | None = None
+    target_rms_velocity: float | None = 0.01
+    velocity: float = 0.0
+    amplitude: float = 0.227e-3
+
+    def __post_init__(self) -> None:
+        p = "excitation"
+        _set(self, "kind", _choice(f"{p}.kind", self.kind, ("force", "prescribed")))
+        _set(self, "frequency", _nonneg(f"{p}.frequency", self.frequency, "Hz"))
+        if self.force_amplitude is not None:
+            _set(self, "force_amplitude",
+                 _nonneg(f"{p}.force_amplitude", self.force_amplitude, "N"))
+        if self.target_rms_velocity is not None:
+            _set(self, "target_rms_velocity",
+                 _positive(f"{p}.target_rms_velocity", self.target_rms_velocity, "m/s"))
+        _set(self, "velocity", _number(f"{p}.velocity", self.velocity, "m/s"))
+        _set(self, "amplitude", _nonneg(f"{p}.amplitude", self.amplitude, "m"))
+        if self.kind == "force":
+            if (self.force_amplitude is None) == (self.target_rms_velocity is None):
+                raise SceneError(
+                    f"{p}: set exactly one of force_amplitude [N] or target_rms_velocity "
+                    f"[m/s], got force_amplitude={self.force_amplitude}, "
+                    f"target_rms_velocity={self.target_rms_velocity}")
+            if self.target_rms_velocity is not None and self.frequency <= 0:
+                raise SceneError(f"{p}.frequency must be > 0 Hz to calibrate "
+                                 f"target_rms_velocity, got {self.frequency}")
+
+    @property
+    def omega(self) -> float:
+        """Angular excitation frequency [rad/s]."""
+        return 2.0 * math.pi * self.frequency
+
+
+@dataclass(frozen=True)
+class Solver:
+    """Time integration.
+
+    Attributes
+    ----------
+    method : {"ida"}
+    rtol : float
+        Relative tolerance.
+    atol : float
+        Absolute tolerance of displacement-like states [m]; velocities, forces and modal
+        states get tolerances scaled from it (docs/theory.md).
+    max_step : float
+        Largest internal step [s]; 0 means unbounded.
+    max_events : int
+        Event-storm guard: at most this many events within ``event_window``.
+    event_window : float
+        Window of the event-storm guard [s].
+    """
+
+    method: str = "ida"
+    rtol: float = 1e-6
+    atol: float = 1e-12
+    max_step: float = 0.0
+    max_events: int = 500
+    event_window: float = 1e-3
+
+    def __post_init__(self) -> None:
+        p = "solver"
+        _set(self, "method", _choice(f"{p}.method", self.method, ("ida",)))
+        _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
+        _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))
+        _set(self, "max_step", _nonneg(f"{p}.max_step", self.max_step, "s"))
+        _set(self, "max_events", _integer(f"{p}.max_events", self.max_events, 1))
+        _set(self, "event_window", _positive(f"{p}.event_window", self.event_window, "s"))
+
+
+@dataclass(frozen=True)
+class Output:
+    """What is simulated and stored.
+
+    Attributes
+    ----------
+    duration : float
+        Simulated time [s].
+    step : float
+        Uniform output grid spacing [s] (1e-5 s: spectra to 50 kHz).
+    transient : float
+        Run-in excluded from the summary metrics [s]; metrics use whole excitation periods
+        after it where possible.
+    progress : bool
+        Show a progress bar on stderr.
+    """
+
+    duration: float = 3.0 / 7.0
+    step: float = 1e-5
+    transient: float = 1.0 / 7.0
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        p = "output"
+        _set(self, "duration", _positive(f"{p}.duration", self.duration, "s"))
+        _set(self, "step", _positive(f"{p}.step", self.step, "s"))
+        _set(self, "transient", _nonneg(f"{p}.transient", self.transient, "s"))
+        _set(self, "progress", _boolean(f"{p}.progress", self.progress))
+        if self.step > self.duration:
+            raise SceneError(f"{p}.step must be <= output.duration ({self.duration} s), "
+                             f"got {self.step} s")
+        if self.duration / self.step > 2e7:
+            raise SceneError(f"{p}.step gives more than 2e7 output samples, got {self.step} s")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A complete, validated simulation scene (SI units throughout).
+
+    Build one with :func:`load_scene`; change a copy with :meth:`with_overrides`.
+    """
+
+    name: str = "paper"
+    description: str = ""
+    block: Block = field(default_factory=Block)
+    plate: Plate = field(default_factory=Plate)
+    contact: Contact = field(default_factory=Contact)
+    roughness: Roughness = field(default_factory=Roughness)
+    friction: Friction = field(default_factory=Friction)
+    excitation: Excitation = field(default_factory=Excitation)
+    solver: Solver = field(default_factory=Solver)
+    output: Output = field(default_factory=Output)
+    base_dir: str = field(default=".", compare=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise SceneError(f"name must be a string, got {_fmt(self.name)}")
+        if not isinstance(self.description, str):
+            raise SceneError(f"description must be a string, got {_fmt(self.description)}")
+        bx, by = self.plate.block_position
+        hl, hw = self.block.length / 2, self.block.width / 2
+        if bx - hl <= 0 or bx + hl >= self.plate.length or by - hw <= 0 or \
+                by + hw >= self.plate.width:
+            raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
+                             f"{self.block.width} m) on the plate, got {[bx, by]} m")
+
+    # ---- convenience -------------------------------------------------------------------
+    def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:
+        """Return a copy with dotted-path overrides applied (``{"block.mass": 0.543}``).
+
+        Keyword form uses a double underscore: ``with_overrides(block__mass=0.543)``.
+        """
+        data = scene_to_dict(self)
+        items = dict(overrides or {})
+        items.update({k.replace("__", "."): v for k, v in kw.items()})
+        for key, value in items.items():
+            _assign(data, key, value)
+        return scene_from_dict(data, base_dir=self.base_dir)
+
+    @property
+    def period(self) -> float:
+        """Excitation period [s] (inf for zero frequency)."""
+        f = self.excitation.frequency
+        return math.inf if f == 0 else 1.0 / f
+
+
+_SECTIONS: dict[str, type] = {
+    "block": Block,
+    "plate": Plate,
+    "contact": Contact,
+    "roughness": Roughness,
+    "friction": Friction,
+    "excitation": Excitation,
+    "solver": Solver,
+    "output": Output,
+}
+_TOP_KEYS = ("name", "description")
+
+
+def _assign(data: dict, key: str, value: Any) -> None:
+    parts = key.split(".")
+    if len(parts) == 1 and parts[0] in _TOP_KEYS:
+        data[parts[0]] = value
+        return
+    if len(parts) != 2 or parts[0] not in _SECTIONS:
+        raise SceneError(f"{key} is not a scene key (use section.key, sections: "
+                         f"{', '.join(_SECTIONS)}), got {_fmt(value)}")
+    data.setdefault(parts[0], {})[parts[1]] = value
+
+
+def scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """Plain nested dict of a scene (tuples become lists, ``None`` values are dropped)."""
+    out: dict[str, Any] = {"name": scene.name, "description": scene.description}
+    for sec in _SECTIONS:
+        obj = getattr(scene, sec)
+        d = {}
+        for f in fields(obj):
+            v = getattr(obj, f.name)
+            if v is None:
+                continue
+            d[f.name] = list(v) if isinstance(v, tuple) else v
+        out[sec] = d
+    return out
+
+
+def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scene:
+    """Build and validate a scene from a nested dict (as read from TOML).
+
+    Raises
+    ------
+    SceneError
+        Unknown section or key, wrong type or out-of-range value.
+    """
+    if not isinstance(data, dict):
+        raise SceneError(f"scene must be a table of sections, got {_fmt(data)}")
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in _TOP_KEYS:
+            kwargs[key] = value
+            continue
+        if key not in _SECTIONS:
+            raise SceneError(f"{key} is not a scene section (known: "
+                             f"{', '.join(_SECTIONS)}), got {_fmt(value)}")
+        cls = _SECTIONS[key]
+        if not isinstance(value, dict):
+            raise SceneError(f"{key} must be a table [{key}], got {_fmt(value)}")
+        known = {f.name for f in fields(cls)}
+        for k in value:
+            if k not in known:
+                raise SceneError(f"{key}.{k} is not a known key of [{key}] (known: "
+                                 f"{', '.join(sorted(known))}), got {_fmt(value[k])}")
+        sec = dict(value)
+        if cls is Excitation and "force_amplitude" in sec and "target_rms_velocity" not in sec:
+            sec["target_rms_velocity"] = None
+        if cls is Excitation and "target_rms_velocity" in sec and "force_amplitude" not in sec:
+            sec["force_amplitude"] = None
+        # "none" clears an optional value (TOML has no null)
+        for k, v in list(sec.items()):
+            if v == "none" and k in ("force_amplitude", "target_rms_velocity", "summit_density",
+                                     "summit_radius", "summit_std"):
+                sec[k] = None
+        try:
+            kwargs[key] = cls(**sec)
+        except TypeError as exc:  # pragma: no cover - guarded by the key check above
+            raise SceneError(f"{key}: {exc}") from None
+    return Scene(**kwargs, base_dir=str(base_dir))
+
+
+# --------------------------------------------------------------------------------------------
+# TOML
+# --------------------------------------------------------------------------------------------
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf")
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def scene_to_toml(scene: Scene, *, comments: dict[str, str] | None = None) -> str:
+    """Serialise a scene to TOML text that :func:`load_scene` reads back to an equal scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    comments : dict, optional
+        ``{"excitation.force_amplitude": "calibrated ..."}``: a comment after that key.
+    """
+    comments = comments or {}
+    d = scene_to_dict(scene)
+    lines = [f"name = {_toml_value(d['name'])}",
+             f"description = {_toml_value(d['description'])}"]
+    for sec in _SECTIONS:
+        lines.append("")
+        lines.append(f"[{sec}]")
+        for k, v in d[sec].items():
+            c = comments.get(f"{sec}.{k}")
+            lines.append(f"{k} = {_toml_value(v)}" + (f"  # {c}" if c else ""))
+    return "\n".join(lines) + "\n"
+
+
+def builtin_scenes() -> dict[str, str]:
+    """Names of the built-in scenes and their one-line descriptions."""
+    out = {}
+    for entry in sorted(resources.files("roughvib.scenes").iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".toml"):
+            data = tomllib.loads(entry.read_text())
+            out[entry.name[:-5]] = data.get("description", "")
+    return out
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise SceneError(f"scene file {path} cannot be read: {exc.strerror}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"scene file {path} is not valid TOML: {exc}") from None
+
+
+def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | None = None,
+               **kw: Any) -> Scene:
+    """Load a built-in scene by name or a TOML scene file, then apply overrides.
+
+    Parameters
+    ----------
+    source : str or Path, optional
+        A built-in name (``"paper"``, ``"paper-100mms"``, ...; see :func:`builtin_scenes`) or a
+        path to a ``.toml`` file. An empty file is the paper scene.
+    overrides : dict, optional
+        Dotted keys, e.g. ``{"block.mass": 0.543, "output.duration": 0.2}``.
+    **kw
+        More overrides: ``load_scene("paper", **{"block.mass": 0.543})`` or
+        ``load_scene("paper", block__mass=0.543)``.
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    SceneError
+        Unknown scene, unreadable file, unknown key or invalid value.
+
+    Examples
+    --------
+    >>> scene = load_scene("paper", **{"output.duration": 0.05})
+    >>> scene.block.mass
+    0.221
+    """
+    if source is None:
+        source = "paper"
+    builtins = builtin_scenes()
+    if isinstance(source, str) and source in builtins:
+        text = resources.files("roughvib.scenes").joinpath(f"{source}.toml").read_text()
+        data = tomllib.loads(text)
+        base = Path.cwd()
+    else:
+        path = Path(source)
+        if not path.exists():
+            raise SceneError(f"scene {str(source)!r} is neither a built-in scene "
+                             f"({', '.join(builtins)}) nor an existing file")
+        data = _read_toml(path)
+        base = path.resolve().parent
+    scene = scene_from_dict(data, base_dir=base)
+    if overrides or kw:
+        scene = scene.with_overrides(overrides, **kw)
+    return scene
+
+
+def replace_section(scene: Scene, section: str, **changes: Any) -> Scene:
+    """Return a copy of ``scene`` with fields of one section replaced (validated)."""
+    return dataclasses.replace(scene, **{section: replace(getattr(scene, section), **changes)})
