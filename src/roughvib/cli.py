@@ -1,0 +1,170 @@
+"""Command-line interface: thin argument parsing around the public API (no physics here).
+
+Exit status: 0 success, 1 solver failure (status and message in summary.json and on
+stderr), 2 bad input (one line naming the field, rule, unit and value; no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tomllib
+from pathlib import Path
+from typing import Any
+
+EXIT_OK = 0
+EXIT_SOLVER = 1
+EXIT_INPUT = 2
+
+
+class InputError(Exception):
+    """Bad command-line input (exit status 2)."""
+
+
+def _parse_value(text: str) -> Any:
+    """A --set value: TOML syntax (numbers, true/false, [a, b], "str"); bare words are strings."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _parse_sets(items: list[str] | None) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise InputError(f"--set expects section.key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        out[key.strip()] = _parse_value(value.strip())
+    return out
+
+
+def _fmt_db(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:6.1f} dB"
+
+
+def _print_summary(summary: dict, out_dir: Path) -> None:
+    m = summary.get("metrics", {})
+    s = summary.get("solver", {})
+    a = summary.get("energy_audit", {})
+    cal = summary.get("calibration", {})
+    lines = [
+        f"scene            {summary.get('scene')}  ->  {out_dir}",
+        f"status           {summary.get('status')}: {summary.get('message')}",
+        f"force amplitude  T0 = {summary.get('force_amplitude', float('nan')):.6g} N"
+        + (f"  (target {cal['target_rms_velocity']} m/s, achieved "
+           f"{cal.get('achieved_rms_velocity', float('nan')):.6g} m/s)"
+           if "target_rms_velocity" in cal else ""),
+    ]
+    if m:
+        lines += [
+            f"window           {m['window_start']:.4f} .. {m['window_end']:.4f} s",
+            f"velocity rms     {m.get('block_tangential_velocity_rms', float('nan')) * 1e3:.3f}"
+            f" mm/s, stick fraction {m.get('stick_fraction', float('nan')):.3f}",
+            f"block accel      {m.get('block_vertical_acceleration_rms', float('nan')):.4g} "
+            f"m/s^2 rms ({_fmt_db(m.get('block_vertical_acceleration_level_db_re_1e-6'))} "
+            f"re 1e-6 m/s^2)",
+            f"plate accel      {m.get('plate_vertical_acceleration_rms', float('nan')):.4g} "
+            f"m/s^2 rms ({_fmt_db(m.get('plate_vertical_acceleration_level_db_re_1e-6'))} "
+            f"re 1e-6 m/s^2)",
+            f"normal force     mean {m.get('normal_force_mean', float('nan')):.5g} N, "
+            f"min {m.get('normal_force_min', float('nan')):.4g} N",
+        ]
+    ev = summary.get("events_by_kind", {})
+    lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
+                                        or "none"))
+    lines.append(f"solver           {s.get('steps')} steps, {s.get('residual_evaluations')} "
+                 f"residuals, {s.get('jacobian_evaluations')} Jacobians, "
+                 f"{s.get('restarts', 0)} restarts, {s.get('wall_time', 0):.1f} s wall")
+    if a:
+        lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
+                     f"(relative {a.get('relative_residual', 0):.2e})")
+    print("\n".join(lines))
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from roughvib.api import simulate
+    from roughvib.scene import load_scene
+
+    scene = load_scene(args.scene, _parse_sets(args.set))
+    if args.no_progress:
+        scene = scene.with_overrides({"output.progress": False})
+    out_dir = Path(args.out) if args.out else Path("runs") / scene.name
+    result = simulate(scene)
+    result.save(out_dir)
+    if not args.quiet:
+        _print_summary(result.summary, out_dir)
+    if not result.ok:
+        print(f"roughvib: run failed ({result.status}): {result.summary.get('message')}",
+              file=sys.stderr)
+        return EXIT_SOLVER
+    return EXIT_OK
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    from roughvib.scene import builtin_scenes
+
+    scenes = builtin_scenes()
+    width = max(len(n) for n in scenes)
+    for name in sorted(scenes, key=lambda n: (n != "paper", n)):
+        print(f"{name:<{width}}  {scenes[name]}")
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = argparse.ArgumentParser(
+        prog="roughvib", formatter_class=fmt,
+        description="Roughness-induced vibration of a tangentially oscillating block on a "
+                    "plate (Feldmann 2012), solved event-driven with SUNDIALS IDA.",
+        epilog="examples:\n  roughvib run\n  roughvib run paper-100mms --out runs/fast\n"
+               "  roughvib scenes\n\nexit status: 0 success, 1 solver failure, 2 bad input")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser(
+        "run", formatter_class=fmt, help="run a scene and write its results",
+        description="Run a scene (built-in name or TOML file) and write result.nc, "
+                    "events.csv, summary.json and scene.toml into the output directory.",
+        epilog="examples:\n"
+               "  roughvib run                         # built-in 'paper' scene\n"
+               "  roughvib run paper-100mms --out runs/fast\n"
+               "  roughvib run my_scene.toml --set block.mass=0.543 "
+               "--set output.duration=0.2\n")
+    r.add_argument("scene", nargs="?", default="paper",
+                   help="built-in scene name (see 'roughvib scenes') or a .toml file "
+                        "(default: paper)")
+    r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--quiet", action="store_true", help="do not print the summary")
+    r.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("scenes", formatter_class=fmt, help="list the built-in scenes",
+                       description="List the built-in scenes with one line each.",
+                       epilog="example:\n  roughvib scenes\n")
+    s.set_defaults(func=cmd_scenes)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point ``roughvib``; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_INPUT
+    from roughvib.scene import SceneError
+
+    try:
+        return args.func(args)
+    except (SceneError, InputError) as exc:
+        print(f"roughvib: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("roughvib: interrupted; nothing was written", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,432 @@
+"""Event-driven SUNDIALS IDA solver (scikit-sundae): smooth segments + stop/switch/restart.
+
+The DAE of :mod:`roughvib.model.kernels` is integrated with IDA (variable-order BDF) using a
+sparse direct linear solver (SuperLU_MT) with an analytic CSC Jacobian. Every non-smooth
+change is a root of a regime-dependent *margin* function (positive while the regime holds):
+contact lift-off/touch-down, friction-law branch, hysteresis-latch flip, and stick/slip phase
+starts. At a root the solver stops, the regime is switched, consistent (y, yp) are computed
+(algebraic forces re-solved, yp = f(y)) and IDA is re-initialised at the event time. Output on
+the uniform grid comes from IDA's own interpolation (``step(t_k)`` in normal mode).
+
+Guards (docs/theory.md): a root that fires again within ``REFIRE_DT`` of the restart for the
+same function is ignored once; more than ``solver.max_events`` events within
+``solver.event_window`` stop the run with status ``event_storm``.
+
+scikit-sundae pitfalls handled here (shared/ida-notes.md §4): the eventsfn's event history is
+cleared after every event; step counts are read through SUNDIALS' ``IDAGetNumSteps`` (not
+exposed by sksundae; see :class:`_IdaCounters`); unknown return codes are caught.
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import glob
+import os
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import sksundae as sun
+
+from roughvib.model import kernels as kn
+from roughvib.model.system import Regime, System
+
+__all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
+
+REFIRE_DT = 1e-12  # s
+
+
+class SolverFailure(RuntimeError):
+    """The integration could not continue; ``status`` names the cause."""
+
+    def __init__(self, status: str, message: str, t: float):
+        super().__init__(message)
+        self.status = status
+        self.t = t
+
+
+@dataclass
+class EventRecord:
+    """One entry of the event log (the regime before and after, and the trigger values).
+
+    Attributes
+    ----------
+    time : float [s]
+    kind : str
+        ``lift_off``, ``touch_down``, ``stick``, ``slip``, ``friction_branch``,
+        ``latch_flip`` or ``event_storm``.
+    contact : int
+        Contact index for contact events, -1 for block-level events.
+    regime_before, regime_after : str
+        :meth:`Regime.describe` texts.
+    margin : float
+        Value of the root function that fired, at the event (≈ 0; m, m/s or m^2/s^2).
+    tangential_velocity : float [m/s]
+    normal_force : float [N]
+        Sum of contact forces after the switch.
+    contact_force : float [N]
+        Force of the event's contact after the switch (NaN for block-level events).
+    """
+
+    time: float
+    kind: str
+    contact: int
+    regime_before: str
+    regime_after: str
+    margin: float
+    tangential_velocity: float
+    normal_force: float
+    contact_force: float
+
+
+@dataclass
+class RawSolution:
+    """What a solver hands to :class:`roughvib.results.Result` (one contract for all)."""
+
+    time: np.ndarray                 # (n,) [s]
+    outputs: np.ndarray              # (n, N_OUT_FIXED + 2K)
+    events: list[EventRecord]
+    stats: dict
+    status: str
+    message: str
+    y_initial: np.ndarray
+    y_final: np.ndarray
+    t_final: float
+    extra: dict = field(default_factory=dict)
+
+
+class _IdaCounters:
+    """Read IDA's cumulative step count through the SUNDIALS C API.
+
+    scikit-sundae does not expose ``IDAGetNumSteps``. The IDA memory pointer is read from the
+    Cython object at a fixed offset and validated by comparing ``IDAGetNumResEvals`` through
+    it with sksundae's own ``nfev``; if the check ever fails (another sksundae layout), step
+    counts are reported as unavailable rather than wrong.
+    """
+
+    OFFSET = 24
+
+    def __init__(self, cy_solver) -> None:
+        self.ok = False
+        self._mem = None
+        self._lib = None
+        try:
+            libdir = os.path.join(os.path.dirname(os.path.dirname(sun.__file__)),
+                                  "scikit_sundae.libs")
+            cands = glob.glob(os.path.join(libdir, "libsundials_ida*.so*"))
+            if not cands:
+                return
+            self._lib = ctypes.CDLL(cands[0])
+            addr = id(cy_solver) + self.OFFSET
+            self._mem = ctypes.c_void_p.from_address(addr).value
+        except Exception:  # noqa: BLE001 - diagnostics only, never fatal
+            self._lib = None
+
+    def validate(self, nfev: int) -> None:
+        if self._lib is None or not self._mem:
+            return
+        self.ok = self._get("IDAGetNumResEvals") == nfev
+
+    def _get(self, name: str) -> int:
+        val = ctypes.c_long(0)
+        fn = getattr(self._lib, name)
+        fn.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)]
+        fn.restype = ctypes.c_int
+        if fn(self._mem, ctypes.byref(val)) != 0:
+            return -1
+        return int(val.value)
+
+    def steps(self) -> int | None:
+        return self._get("IDAGetNumSteps") if self.ok else None
+
+    def error_test_failures(self) -> int | None:
+        return self._get("IDAGetNumErrTestFails") if self.ok else None
+
+    def nonlinear_conv_failures(self) -> int | None:
+        return self._get("IDAGetNumNonlinSolvConvFails") if self.ok else None
+
+
+def _atol_vector(system: System) -> np.ndarray:
+    """Per-component absolute tolerances scaled from solver.atol (a displacement, m)."""
+    lay = system.layout
+    a = system.scene.solver.atol
+    atol = np.empty(lay.size)
+    if system.n_modes:
+        omega = np.sqrt(system.omega2)
+        acc = system.scene.solver.atol_acceleration
+        atol[lay.slice("plate.q")] = np.minimum(a, acc / system.omega2)
+        atol[lay.slice("plate.dq")] = np.minimum(a * omega, acc / omega)
+    atol[lay.index("block.z")] = a
+    atol[lay.index("block.vz")] = a * 2 * np.pi * 1e3
+    if lay.tangential:
+        atol[lay.index("block.x")] = a
+        atol[lay.index("block.vx")] = a * 1e3
+    atol[lay.slice("contact.force")] = a * system.stiff
+    for name in lay.names:
+        if name.startswith("energy."):
+            atol[lay.index(name)] = a * 1e-2
+    return atol
+
+
+def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
+    rows, cols = kn.jacobian_pattern(system.off)
+    n = system.layout.size
+    nnz = rows.size
+    if len(set(zip(rows.tolist(), cols.tolist(), strict=True))) != nnz:
+        raise AssertionError("duplicate Jacobian entries in the pattern")
+    order = sp.coo_matrix((np.arange(1, nnz + 1, dtype=float), (rows, cols)), shape=(n, n))
+    csc = order.tocsc()
+    csc.sort_indices()
+    perm = (csc.data.astype(np.int64) - 1)
+    pattern = sp.csc_matrix((np.ones(nnz), csc.indices.copy(), csc.indptr.copy()), shape=(n, n))
+    return pattern, perm
+
+
+def _describe_fire(system: System, idx: int) -> tuple[str, int]:
+    K = system.n_contacts
+    if idx < K:
+        return "contact", idx
+    return ("friction_branch", "latch_flip", "phase")[idx - K], -1
+
+
+def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
+    """Integrate a system over ``scene.output.duration`` with event-driven IDA.
+
+    Parameters
+    ----------
+    system : System
+        From :func:`roughvib.model.system.assemble`.
+    progress : bool, optional
+        Progress bar on stderr (default: scene.output.progress).
+
+    Returns
+    -------
+    RawSolution
+        Grid outputs, event log, statistics; ``status`` is ``"success"`` or the failure cause
+        (then the outputs end where the integration stopped).
+    """
+    from tqdm import tqdm
+
+    scene = system.scene
+    out_cfg = scene.output
+    scfg = scene.solver
+    if progress is None:
+        progress = out_cfg.progress
+    K = system.n_contacts
+    lay = system.layout
+    n = int(round(out_cfg.duration / out_cfg.step)) + 1
+    grid = np.arange(n) * out_cfg.step
+    n_out = kn.N_OUT_FIXED + 2 * K
+    outs = np.full((n, n_out), np.nan)
+
+    reg, rf = system.new_regime_arrays()
+    y0, closed = system.static_equilibrium()
+    regime = Regime(closed=closed.astype(np.int64))
+    if lay.tangential:
+        fp = system.fp
+        regime.latch = -1 if fp[kn.FP_T0] >= 0 else 1
+        x0 = regime.latch * fp[kn.FP_VH]
+        regime.branch = int(np.sign(x0)) if x0 != 0 else (1 if fp[kn.FP_T0] >= 0 else -1)
+        regime.v_ext = 0.0
+        regime.stick = True
+    regime.pack(reg, rf)
+    y, yp = system.consistent(0.0, y0, reg, rf)
+    y_initial = y.copy()
+
+    args = system.kernel_args(reg, rf)
+    ev_args = system.event_args(reg, rf)
+    (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
+    pattern, perm = _sparsity(system)
+    vals = np.zeros(perm.size)
+    residual = kn.residual
+    jacobian_values = kn.jacobian_values
+    scatter = kn.scatter
+    events_k = kn.events
+
+    def resfn(t, yy, yyp, res):
+        residual(t, yy, yyp, res, off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+                 prof, reg, rf, work)
+
+    def jacfn(t, yy, yyp, res, cj, jj):
+        jacobian_values(t, yy, yyp, cj, vals, off, fpa, omega2, cdamp, phi, phi_obs, stiff,
+                        cres, spos, prof, reg, rf, work)
+        scatter(vals, perm, jj)
+
+    def eventsfn(t, yy, yyp, ev):
+        events_k(t, yy, ev, *ev_args)
+
+    n_ev = K + 3
+    eventsfn.direction = [-1] * n_ev
+    eventsfn.terminal = [True] * n_ev
+
+    options = dict(
+        rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
+        linsolver="sparse", sparsity=pattern, jacfn=jacfn, eventsfn=eventsfn,
+        num_events=n_ev, max_num_steps=1_000_000, max_step=scfg.max_step,
+        max_order=scfg.max_order,
+    )
+    with warnings.catch_warnings():
+        # sksundae warns that its own sparse FD Jacobian is unused: we pass an analytic one
+        warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
+        solver = sun.ida.IDA(resfn, **options)
+    cy = solver._IDA__IDA  # the Cython object: skip one Python layer per step
+    cy.init_step(0.0, y, yp)
+    counters = _IdaCounters(cy)
+
+    stats = collections.Counter()
+    events: list[EventRecord] = []
+    recent: collections.deque[float] = collections.deque()
+    status, message = "success", "reached the end of the output grid"
+    t_last_restart = 0.0
+    last_fired: set[int] = set()
+    refire_ignored = 0
+    wall0 = time.perf_counter()
+    cpu0 = time.process_time()
+
+    kn.outputs(0.0, y, outs[0], *args)
+    bar = tqdm(total=float(out_cfg.duration), unit="s", unit_scale=False, disable=not progress,
+               file=sys.stderr, desc=f"roughvib {scene.name}", leave=False,
+               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+    bar_next = 0
+    bar_stride = max(1, n // 200)
+    vx_i = lay.index("block.vx")
+    first_result = True
+
+    def close_segment(r) -> None:
+        stats["residual_evaluations"] += int(r.nfev)
+        stats["jacobian_evaluations"] += int(r.njev)
+        s = counters.steps()
+        if s is not None:
+            stats["steps"] += s
+            stats["error_test_failures"] += counters.error_test_failures() or 0
+            stats["nonlinear_convergence_failures"] += counters.nonlinear_conv_failures() or 0
+
+    k = 1
+    r = None
+    try:
+        while k < n:
+            try:
+                r = cy.step(grid[k], "normal", None)
+            except KeyError as exc:  # unknown IDA return code (shared/ida-notes.md §4.3)
+                raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
+                                    f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
+            if first_result:
+                counters.validate(int(r.nfev))
+                first_result = False
+            if r.status == 2:
+                te = float(r.t)
+                row = np.asarray(r.i_events)[-1]
+                fired = {int(i) for i in np.flatnonzero(row)}
+                for a in ("_i", "_t", "_y", "_yp"):
+                    getattr(eventsfn, a).clear()
+                eventsfn._i_cnt[:] = 0
+                if te - t_last_restart <= REFIRE_DT * max(1.0, te) and fired <= last_fired:
+                    refire_ignored += 1
+                    last_fired = set()
+                    continue
+                ye = np.array(r.y, dtype=float)
+                before = regime.describe()
+                evbuf = np.empty(n_ev)
+                kn.events(te, ye, evbuf, *ev_args)
+                kinds = []
+                for idx in sorted(fired):
+                    what, c = _describe_fire(system, idx)
+                    if what == "contact":
+                        if regime.closed[c] == 1:
+                            regime.closed[c] = 0
+                            kinds.append(("lift_off", c, evbuf[idx]))
+                        else:
+                            regime.closed[c] = 1
+                            kinds.append(("touch_down", c, evbuf[idx]))
+                    elif what == "friction_branch":
+                        regime.branch = -regime.branch
+                        kinds.append(("friction_branch", -1, evbuf[idx]))
+                    elif what == "latch_flip":
+                        regime.latch = -regime.latch
+                        regime.v_ext = float(ye[vx_i])
+                        kinds.append(("latch_flip", -1, evbuf[idx]))
+                    else:
+                        regime.stick = not regime.stick
+                        kinds.append(("stick" if regime.stick else "slip", -1, evbuf[idx]))
+                regime.pack(reg, rf)
+                close_segment(r)
+                y, yp = system.consistent(te, ye, reg, rf)
+                after = regime.describe()
+                fsum = float(np.sum(y[lay.slice("contact.force")]))
+                vx = float(y[vx_i]) if vx_i >= 0 else float(
+                    kn.tangential_kinematics(te, y, off, fpa)[1])
+                for kind, c, margin in kinds:
+                    cf = float(y[lay.slice("contact.force")][c]) if c >= 0 else float("nan")
+                    events.append(EventRecord(te, kind, c, before, after, float(margin), vx,
+                                              fsum, cf))
+                    stats[f"events_{kind}"] += 1
+                    recent.append(te)
+                while recent and recent[0] < te - scfg.event_window:
+                    recent.popleft()
+                if len(recent) > scfg.max_events:
+                    kinds_txt = ", ".join(f"{kd}" + (f" (contact {c})" if c >= 0 else "")
+                                          for kd, c, _ in kinds)
+                    events.append(EventRecord(te, "event_storm", -1, before, after, 0.0, vx,
+                                              fsum, float("nan")))
+                    raise SolverFailure(
+                        "event_storm",
+                        f"event storm: more than {scfg.max_events} events within "
+                        f"{scfg.event_window:g} s at t = {te:.6g} s (last: {kinds_txt}; "
+                        f"regime {after}). Hint: raise solver.max_events or "
+                        f"solver.event_window if the events are physical, or check for "
+                        f"grazing contact (roughness much smaller than the static "
+                        f"compression changes).", te)
+                stats["restarts"] += 1
+                cy.init_step(te, y, yp)
+                t_last_restart = te
+                last_fired = fired
+                while k < n and grid[k] - te <= 1e-12 * max(1.0, te):
+                    kn.outputs(grid[k], y, outs[k], *args)
+                    k += 1
+                continue
+            if r.status < 0:
+                raise SolverFailure(
+                    "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "
+                    f"{r.message} (regime {regime.describe()})", grid[k - 1])
+            yk = r.y
+            kn.outputs(grid[k], yk, outs[k], *args)
+            if vx_i >= 0:
+                v = yk[vx_i]
+                if regime.latch < 0:
+                    if v > rf[0]:
+                        rf[0] = v
+                        regime.v_ext = v
+                elif v < rf[0]:
+                    rf[0] = v
+                    regime.v_ext = v
+            if k >= bar_next:
+                bar.n = float(grid[k])
+                bar.refresh()
+                bar_next = k + bar_stride
+            k += 1
+        if r is not None:
+            close_segment(r)
+            y = np.array(r.y, dtype=float) if r.status != 2 else y
+    except SolverFailure as exc:
+        status, message = exc.status, str(exc)
+        if r is not None:
+            close_segment(r)
+    finally:
+        bar.close()
+
+    stats["wall_time"] = time.perf_counter() - wall0
+    stats["cpu_time"] = time.process_time() - cpu0
+    stats["refires_ignored"] = refire_ignored
+    stats["events_total"] = len(events)
+    stats_d = dict(stats)
+    if not counters.ok:
+        stats_d["steps"] = None
+        stats_d["note"] = "step counts unavailable (sksundae layout changed)"
+    t_final = float(grid[k - 1]) if k > 0 else 0.0
+    return RawSolution(time=grid, outputs=outs, events=events, stats=stats_d, status=status,
+                       message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
+                       t_final=t_final, extra={"rows_filled": k})

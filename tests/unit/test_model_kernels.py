@@ -1,0 +1,143 @@
+"""Kernels of the hybrid DAE: analytic Jacobian vs finite differences, plain-Python parity."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import roughvib
+from roughvib.model import kernels as kn
+from roughvib.model.layout import StateLayout
+from roughvib.model.system import assemble
+from roughvib.solvers.ida import _sparsity
+
+
+def _small_scene(**kw):
+    over = {"plate.max_frequency": 3e3, "output.duration": 0.01,
+            "excitation.force_amplitude": 0.9, "excitation.target_rms_velocity": "none"}
+    over.update(kw)
+    return roughvib.load_scene("paper", over)
+
+
+def _fd_jacobian(system, t, y, yp, cj, reg, rf):
+    n = y.size
+    args = system.kernel_args(reg, rf)
+
+    def F(yy, yyp):
+        r = np.empty(n)
+        kn.residual(t, yy, yyp, r, *args)
+        return r
+
+    J = np.zeros((n, n))
+    for j in range(n):
+        h = 1e-6 * max(1e-6, abs(y[j]))
+        e = np.zeros(n)
+        e[j] = h
+        J[:, j] = (F(y + e, yp) - F(y - e, yp)) / (2 * h)
+        hp = 1e-6 * max(1.0, abs(yp[j]))
+        e[j] = hp
+        J[:, j] += cj * (F(y, yp + e) - F(y, yp - e)) / (2 * hp)
+    return J
+
+
+@pytest.mark.parametrize("overrides", [
+    {},
+    {"plate.kind": "rigid"},
+    {"excitation.kind": "prescribed", "excitation.velocity": 0.01,
+     "excitation.force_amplitude": "none"},
+    {"contact.points": 1, "roughness.kind": "sinusoid"},
+])
+def test_analytic_jacobian_matches_finite_differences(overrides):
+    system = assemble(_small_scene(**overrides))
+    rng = np.random.default_rng(3)
+    y0, _ = system.static_equilibrium()
+    n = system.layout.size
+    for trial in range(3):
+        reg, rf = system.new_regime_arrays()
+        reg[kn.REG_B] = (-1, 1, 1)[trial]
+        reg[kn.REG_S] = (1, -1, 1)[trial]
+        reg[kn.REG_CLOSED:] = rng.integers(0, 2, system.n_contacts)
+        rf[0] = 1e-3
+        y = y0 * (1 + 0.01 * rng.standard_normal(n)) + 1e-9 * rng.standard_normal(n)
+        if system.tangential:
+            y[system.layout.index("block.vx")] = 2e-3 * (trial - 1) + 3e-5
+            y[system.layout.index("block.x")] = 1e-4 * trial
+        yp = 1e-3 * rng.standard_normal(n)
+        cj = 10.0 ** (2 + trial)
+        J = _fd_jacobian(system, 0.003, y, yp, cj, reg, rf)
+        pattern, perm = _sparsity(system)
+        vals = np.zeros(perm.size)
+        kn.jacobian_values(0.003, y, yp, cj, vals, *system.kernel_args(reg, rf))
+        data = np.zeros(perm.size)
+        kn.scatter(vals, perm, data)
+        A = sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()
+        scale = np.maximum(np.abs(J), np.abs(A)).max(axis=1, keepdims=True) + 1e-300
+        assert np.max(np.abs(A - J) / scale) < 1e-5
+        assert np.all(J[pattern.toarray() == 0] == 0.0)
+
+
+def test_layout_names_and_sizes():
+    lay = StateLayout(n_modes=4, n_contacts=3, tangential=True)
+    assert lay.size == 4 + 4 + 2 + 2 + 3 + 6
+    assert lay.slice("plate.dq") == slice(4, 8)
+    assert lay.index("block.vx") == 11
+    assert list(lay.algebraic_indices) == [12, 13, 14]
+    presc = StateLayout(n_modes=0, n_contacts=1, tangential=False)
+    assert not presc.has("block.x") and presc.index("block.x") == -1
+    with pytest.raises(KeyError, match="no state 'plate.w'"):
+        lay.slice("plate.w")
+
+
+def test_static_equilibrium_carries_the_weight():
+    system = assemble(_small_scene())
+    y, closed = system.static_equilibrium()
+    F = y[system.layout.slice("contact.force")]
+    assert np.all(F >= 0) and np.all(F[closed == 0] == 0)
+    assert F.sum() == pytest.approx(0.221 * 9.81, rel=1e-12)
+    # the residual of the consistent static state is zero at rest with no drive
+    reg, rf = system.new_regime_arrays()
+    reg[kn.REG_CLOSED:] = closed
+    reg[kn.REG_B] = 1
+    yy, yp = system.consistent(0.0, y, reg, rf)
+    assert np.max(np.abs(yp[system.layout.slice("plate.dq")])) < 1e-6
+    assert abs(yp[system.layout.index("block.vz")]) < 1e-12
+
+
+def test_kernels_without_jit_match_compiled(tmp_path):
+    """The residual computed with NUMBA_DISABLE_JIT=1 equals the compiled one."""
+    system = assemble(_small_scene())
+    y, closed = system.static_equilibrium()
+    y = y * 1.001
+    reg, rf = system.new_regime_arrays()
+    reg[kn.REG_CLOSED:] = closed
+    reg[kn.REG_B] = 1
+    reg[kn.REG_S] = -1
+    res = np.empty_like(y)
+    yp = np.linspace(-1e-3, 1e-3, y.size)
+    kn.residual(0.002, y, yp, res, *system.kernel_args(reg, rf))
+    np.save(tmp_path / "y.npy", y)
+    np.save(tmp_path / "yp.npy", yp)
+    np.save(tmp_path / "reg.npy", reg)
+    code = textwrap.dedent(f"""
+        import numpy as np, roughvib
+        from roughvib.model import kernels as kn
+        from roughvib.model.system import assemble
+        import numba
+        assert numba.config.DISABLE_JIT
+        system = assemble(roughvib.load_scene("paper", {{"plate.max_frequency": 3e3,
+            "output.duration": 0.01, "excitation.force_amplitude": 0.9,
+            "excitation.target_rms_velocity": "none"}}))
+        y = np.load(r"{tmp_path / 'y.npy'}"); yp = np.load(r"{tmp_path / 'yp.npy'}")
+        reg = np.load(r"{tmp_path / 'reg.npy'}"); rf = np.zeros(1)
+        res = np.empty_like(y)
+        kn.residual(0.002, y, yp, res, *system.kernel_args(reg, rf))
+        np.save(r"{tmp_path / 'res.npy'}", res)
+    """)
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300)
+    plain = np.load(tmp_path / "res.npy")
+    np.testing.assert_allclose(plain, res, rtol=1e-12, atol=1e-18)

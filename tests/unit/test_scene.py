@@ -1,0 +1,89 @@
+"""Scene contract: defaults, validation messages, TOML round trip, overrides."""
+
+import math
+
+import pytest
+
+from roughvib.scene import SceneError, builtin_scenes, load_scene, scene_from_dict, scene_to_toml
+
+
+def test_empty_file_is_the_paper_scene(tmp_path):
+    f = tmp_path / "empty.toml"
+    f.write_text("")
+    empty = load_scene(f)
+    paper = load_scene("paper")
+    for sec in ("block", "plate", "contact", "roughness", "friction", "excitation", "solver",
+                "output"):
+        assert getattr(empty, sec) == getattr(paper, sec)
+
+
+def test_builtin_scenes_listed_with_descriptions():
+    names = builtin_scenes()
+    assert {"paper", "paper-100mms", "paper-heavy", "paper-heavy-100mms"} <= set(names)
+    assert all(names.values())
+    heavy = load_scene("paper-heavy-100mms")
+    assert heavy.block.mass == 0.543
+    assert heavy.excitation.target_rms_velocity == 0.1
+
+
+def test_paper_defaults_follow_physics_brief():
+    s = load_scene("paper")
+    assert s.block.mass == 0.221
+    assert s.plate.length == 0.30 and s.plate.width == 0.26 and s.plate.thickness == 0.003
+    assert s.contact.points == 10
+    assert s.excitation.frequency == 7.0
+    assert s.excitation.target_rms_velocity == 0.01
+    assert s.output.step == 1e-5
+    # B' = E h^3 / (12 (1 - nu^2)) = 519.2 N m, m'' = 23.55 kg/m^2 (physics.md §2.2)
+    assert math.isclose(s.plate.bending_stiffness, 519.2, rel_tol=1e-3)
+    assert math.isclose(s.plate.mass_per_area, 23.55, rel_tol=1e-12)
+
+
+@pytest.mark.parametrize("key,value,fragment", [
+    ("plate.thickness", -0.003, "plate.thickness must be > 0 m, got -0.003"),
+    ("block.mass", "heavy", "block.mass must be a number kg, got 'heavy'"),
+    ("contact.points", 2.5, "contact.points must be an integer, got 2.5"),
+    ("plate.kind", "elastic", "plate.kind must be one of 'modal', 'rigid', got 'elastic'"),
+    ("plate.poisson_ratio", 0.7, "plate.poisson_ratio must be in [0.0, 0.5)"),
+    ("plate.observation_position", [0.5, 0.1], "plate.observation_position[0] must be inside"),
+    ("output.step", 1.0, "output.step must be <= output.duration"),
+    ("block.sizes", 1, "block.sizes is not a known key of [block]"),
+    ("blocks.mass", 1, "blocks.mass is not a scene key"),
+    ("friction.mu_stick", 0.1, "friction.mu_stick must be >= friction.mu_slip"),
+    ("solver.rtol", 0.5, "solver.rtol must be in"),
+])
+def test_bad_values_name_field_rule_unit_value(key, value, fragment):
+    with pytest.raises(SceneError) as info:
+        load_scene("paper", {key: value})
+    msg = str(info.value)
+    assert fragment in msg
+    assert "\n" not in msg
+
+
+def test_excitation_needs_exactly_one_of_force_or_target():
+    with pytest.raises(SceneError, match="exactly one of force_amplitude"):
+        load_scene("paper", {"excitation.force_amplitude": 1.0})
+    s = load_scene("paper", {"excitation.force_amplitude": 1.0,
+                             "excitation.target_rms_velocity": "none"})
+    assert s.excitation.force_amplitude == 1.0 and s.excitation.target_rms_velocity is None
+
+
+def test_toml_round_trip_and_overrides(tmp_path):
+    s = load_scene("paper-heavy", **{"output.duration": 0.2}, block__tangential_damping=0.7)
+    assert s.output.duration == 0.2 and s.block.tangential_damping == 0.7
+    f = tmp_path / "s.toml"
+    f.write_text(scene_to_toml(s))
+    back = load_scene(f)
+    assert back == s
+
+
+def test_unknown_section_and_type_errors():
+    with pytest.raises(SceneError, match="not a scene section"):
+        scene_from_dict({"plates": {}})
+    with pytest.raises(SceneError, match=r"block must be a table \[block\]"):
+        scene_from_dict({"block": 3})
+
+
+def test_unknown_scene_name():
+    with pytest.raises(SceneError, match="neither a built-in scene"):
+        load_scene("no-such-scene")
