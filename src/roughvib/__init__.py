@@ -6,9 +6,26 @@ Public API (see docs/quickstart.md)::
     scene = roughvib.load_scene("paper", **{"output.duration": 0.1})
     result = roughvib.simulate(scene)
     result.save("runs/x")
+    ds = result.to_dataset()        # xarray.Dataset, every variable with units
+    result.events                   # pandas.DataFrame event log
 """
 
 from roughvib.scene import Scene, SceneError, builtin_scenes, load_scene
 
-__all__ = ["Scene", "SceneError", "builtin_scenes", "load_scene"]
+__all__ = ["Result", "Scene", "SceneError", "builtin_scenes", "load_result", "load_scene",
+           "simulate"]
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    # the solver stack (numba, sksundae, xarray) is imported on first use, so that
+    # `import roughvib` and scene validation stay fast
+    if name == "simulate":
+        from roughvib.api import simulate
+
+        return simulate
+    if name in ("Result", "load_result"):
+        from roughvib import results
+
+        return getattr(results, name)
+    raise AttributeError(f"module 'roughvib' has no attribute {name!r}")

@@ -402,8 +402,11 @@ class Friction:
 
     Attributes
     ----------
-    law : {"feldmann"}
-        The paper's Eq. 10 with the latched hysteresis of physics.md §1.5(g).
+    law : {"feldmann", "coulomb"}
+        ``feldmann``: the paper's Eq. 10 with the latched hysteresis of physics.md §1.5(g)
+        (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
+        Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
+        zero and the friction force is an algebraic unknown (physics.md §3.4 A).
     mu_slip, mu_stick : float
         Quasi-static kinetic and static coefficients [-].
     a1, a2 : float
@@ -415,6 +418,16 @@ class Friction:
         by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
     stick_velocity : float
         |v| below this counts as stick for phase logging and the stick fraction [m/s].
+    stribeck_velocity : float or None
+        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-|v| / v_s) with
+        this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
+    switching_hysteresis : float
+        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-], so normal-force
+        ripple does not chatter the stick/slip boundary. Each time it holds the block in
+        stick is counted.
+    dwell_time : float
+        ``coulomb``: minimum time in stick before break-away is allowed [s]; each time it
+        holds the block is counted.
     """
 
     law: str = "feldmann"
@@ -425,10 +438,18 @@ class Friction:
     hysteresis_velocity: float = 5e-5
     latch_velocity: float = 1e-4
     stick_velocity: float = 5e-4
+    stribeck_velocity: float | None = None
+    switching_hysteresis: float = 0.01
+    dwell_time: float = 1e-5
 
     def __post_init__(self) -> None:
         p = "friction"
-        _set(self, "law", _choice(f"{p}.law", self.law, ("feldmann",)))
+        _set(self, "law", _choice(f"{p}.law", self.law, ("feldmann", "coulomb")))
+        _set(self, "stribeck_velocity",
+             _opt_positive(f"{p}.stribeck_velocity", self.stribeck_velocity, "m/s"))
+        _set(self, "switching_hysteresis",
+             _range(f"{p}.switching_hysteresis", self.switching_hysteresis, 0.0, 1.0, ""))
+        _set(self, "dwell_time", _nonneg(f"{p}.dwell_time", self.dwell_time, "s"))
         _set(self, "mu_slip", _nonneg(f"{p}.mu_slip", self.mu_slip, ""))
         _set(self, "mu_stick", _nonneg(f"{p}.mu_stick", self.mu_stick, ""))
         _set(self, "a1", _nonneg(f"{p}.a1", self.a1, "s/m"))
@@ -713,7 +734,7 @@ def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scen
         # "none" clears an optional value (TOML has no null)
         for k, v in list(sec.items()):
             if v == "none" and k in ("force_amplitude", "target_rms_velocity", "summit_density",
-                                     "summit_radius", "summit_std"):
+                                     "summit_radius", "summit_std", "stribeck_velocity"):
                 sec[k] = None
         try:
             kwargs[key] = cls(**sec)

@@ -50,6 +50,7 @@ def _fd_jacobian(system, t, y, yp, cj, reg, rf):
     {"excitation.kind": "prescribed", "excitation.velocity": 0.01,
      "excitation.force_amplitude": "none"},
     {"contact.points": 1, "roughness.kind": "sinusoid"},
+    {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3},
 ])
 def test_analytic_jacobian_matches_finite_differences(overrides):
     system = assemble(_small_scene(**overrides))
@@ -58,7 +59,8 @@ def test_analytic_jacobian_matches_finite_differences(overrides):
     n = system.layout.size
     for trial in range(3):
         reg, rf = system.new_regime_arrays()
-        reg[kn.REG_B] = (-1, 1, 1)[trial]
+        # feldmann: branch -1/+1; coulomb: slip-/stick/slip+
+        reg[kn.REG_B] = (-1, 0, 1)[trial] if system.coulomb else (-1, 1, 1)[trial]
         reg[kn.REG_S] = (1, -1, 1)[trial]
         reg[kn.REG_CLOSED:] = rng.integers(0, 2, system.n_contacts)
         rf[0] = 1e-3
@@ -66,6 +68,8 @@ def test_analytic_jacobian_matches_finite_differences(overrides):
         if system.tangential:
             y[system.layout.index("block.vx")] = 2e-3 * (trial - 1) + 3e-5
             y[system.layout.index("block.x")] = 1e-4 * trial
+        if system.coulomb:
+            y[system.layout.index("friction.force")] = 0.5  # a realistic value for the FD step
         yp = 1e-3 * rng.standard_normal(n)
         cj = 10.0 ** (2 + trial)
         J = _fd_jacobian(system, 0.003, y, yp, cj, reg, rf)

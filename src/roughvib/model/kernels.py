@@ -4,7 +4,7 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 ``NUMBA_DISABLE_JIT=1``. All share one argument tail, built once by
 :func:`roughvib.model.system.assemble` and documented here:
 
-``off``  int64 [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K] (``StateLayout.offsets``)
+``off``  int64 [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL] (``StateLayout.offsets``)
 ``fp``   float64 scalars, indices ``FP_*`` below
 ``omega2`` (R,) squared modal angular frequencies [rad^2/s^2]
 ``cdamp``  (R,) 2 zeta_r omega_r [1/s]
@@ -14,14 +14,19 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 ``cres``   (K, K) residual compliance of the truncated modes [m/N]
 ``spos``   (K,) profile coordinates of the contacts at x = 0 [m]
 ``prof``   (ncell, deg+1) profile interpolant (roughvib.surface.interp)
-``reg``    int64 regime [branch b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]
-``rf``     float64 regime data [v_ext (running velocity extremum of the latch)]
+``reg``    int64 regime [b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]; b is the
+         friction-law branch (feldmann) or the slip direction +1/-1, 0 = stick (coulomb)
+``rf``     float64 regime data [v_ext (latch's running velocity extremum), dwell end time]
 ``work``   float64 scratch, length >= 5 K
 
 The residual is ``res = yp - f(y)`` for differential rows, so ``yp = -res(t, y, 0)`` gives the
 consistent derivative. Closed contact k: ``F_k / s_k - (z - w_k + h(s_k + x)) = 0`` with the
 plate displacement ``w_k = sum_r phi_rk q_r + sum_j C_kj F_j``; open contact: ``F_k / s_k = 0``.
 No Heaviside, no max(): contact state and friction branch are regimes switched by roots.
+
+Set-valued Coulomb law (``iL >= 0``): the friction force lambda is algebraic. In stick
+``lambda = T_exc - r2 v`` so that v' = 0 exactly (index 1); in slip b ``lambda = b mu_k(b v)
+F_N`` with the Stribeck-type kinetic coefficient of :func:`coulomb_kinetic`.
 """
 
 from __future__ import annotations
@@ -53,7 +58,9 @@ FP_PW = 15      # prescribed: angular frequency [rad/s]
 FP_MMODAL = 16  # modal mass [kg]
 FP_S0 = 17      # profile: first node [m]
 FP_DX = 18      # profile: spacing [m]
-N_FP = 19
+FP_VSTRIB = 19  # coulomb: Stribeck velocity [m/s], 0 = constant kinetic coefficient
+FP_HYST = 20    # coulomb: relative switching hysteresis of the break-away [-]
+N_FP = 21
 
 REG_B = 0
 REG_S = 1
@@ -82,6 +89,33 @@ def tangential_kinematics(t, y, off, fp):
         return y[ix], y[off[5]]
     w = fp[FP_PW]
     return fp[FP_PV] * t + fp[FP_PA] * math.sin(w * t), fp[FP_PV] + fp[FP_PA] * w * math.cos(w * t)
+
+
+@njit(cache=True)
+def coulomb_kinetic(v, mu_slip, mu_stick, vs):
+    """Kinetic coefficient mu_k(v) = mu_slip + (mu_stick - mu_slip) exp(-v / vs), v >= 0.
+
+    Returns (mu_k, dmu_k/dv); ``vs <= 0`` gives the constant mu_slip.
+    """
+    if vs <= 0.0:
+        return mu_slip, 0.0
+    e = math.exp(-v / vs)
+    return mu_slip + (mu_stick - mu_slip) * e, -(mu_stick - mu_slip) * e / vs
+
+
+@njit(cache=True)
+def coulomb_friction(t, y, off, fp, reg):
+    """Algebraic friction force lambda [N] of the set-valued law for the current regime."""
+    ivx, iF, K = off[5], off[6], off[9]
+    vx = y[ivx]
+    b = reg[REG_B]
+    if b == 0:
+        return fp[FP_T0] * math.cos(fp[FP_OMEGA] * t) - fp[FP_R2] * vx
+    fsum = 0.0
+    for k in range(K):
+        fsum += y[iF + k]
+    muk, _ = coulomb_kinetic(b * vx, fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_VSTRIB])
+    return b * muk * fsum
 
 
 @njit(cache=True)
@@ -150,14 +184,20 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     # tangential
     x, vx = tangential_kinematics(t, y, off, fp)
     texc = 0.0
-    mu = 0.0
+    fric = 0.0
+    iL = off[10]
     if ix >= 0:
-        xx = vx + reg[REG_S] * fp[FP_VH]
-        mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
-                            fp[FP_A2])
         texc = fp[FP_T0] * math.cos(fp[FP_OMEGA] * t)
         res[ix] = yp[ix] - vx
-        res[ivx] = yp[ivx] - (texc - mu * fsum - fp[FP_R2] * vx) / m
+        if iL >= 0:
+            fric = y[iL]
+            res[iL] = fric - coulomb_friction(t, y, off, fp, reg)
+        else:
+            xx = vx + reg[REG_S] * fp[FP_VH]
+            mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
+                                fp[FP_A2])
+            fric = mu * fsum
+        res[ivx] = yp[ivx] - (texc - fric - fp[FP_R2] * vx) / m
     # contacts (algebraic)
     compressions(t, y, off, fp, phi, cres, spos, prof, work)
     rough_power = 0.0
@@ -170,7 +210,7 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     # energy audit integrals
     if ix >= 0:
         res[iE] = yp[iE] - texc * vx
-        res[iE + 1] = yp[iE + 1] - mu * fsum * vx
+        res[iE + 1] = yp[iE + 1] - fric * vx
         res[iE + 2] = yp[iE + 2] - fp[FP_R2] * vx * vx
     else:
         res[iE] = yp[iE]
@@ -187,7 +227,7 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Plain Python: it runs once per solver set-up. Any change here must be mirrored in
     :func:`jacobian_values` (the unit tests compare both with a finite-difference Jacobian).
     """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (int(v) for v in off)
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (int(v) for v in off[:10])
     rows: list[int] = []
     cols: list[int] = []
 
@@ -207,12 +247,16 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     add(ivz, ivz)
     for k in range(K):
         add(ivz, iF + k)
+    iL = int(off[10])
     if ix >= 0:
         add(ix, ix)
         add(ix, ivx)
         add(ivx, ivx)
-        for k in range(K):
-            add(ivx, iF + k)
+        if iL >= 0:
+            add(ivx, iL)
+        else:
+            for k in range(K):
+                add(ivx, iF + k)
     for k in range(K):
         for j in range(K):
             add(iF + k, iF + j)
@@ -221,6 +265,11 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             add(iF + k, iq + r)
         if ix >= 0:
             add(iF + k, ix)
+    if iL >= 0:
+        add(iL, iL)
+        add(iL, ivx)
+        for k in range(K):
+            add(iL, iF + k)
     # energy rows
     add(iE, iE)
     if ix >= 0:
@@ -228,8 +277,11 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     add(iE + 1, iE + 1)
     if ix >= 0:
         add(iE + 1, ivx)
-        for k in range(K):
-            add(iE + 1, iF + k)
+        if iL >= 0:
+            add(iE + 1, iL)
+        else:
+            for k in range(K):
+                add(iE + 1, iF + k)
     add(iE + 2, iE + 2)
     if ix >= 0:
         add(iE + 2, ivx)
@@ -280,18 +332,24 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     mu = 0.0
     dmu = 0.0
     texc = 0.0
+    iL = off[10]
     if ix >= 0:
-        xx = vx + reg[REG_S] * fp[FP_VH]
-        mu, dmu = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
-                              fp[FP_A2])
         texc = fp[FP_T0] * math.cos(fp[FP_OMEGA] * t)
         vals[p] = cj
         vals[p + 1] = -1.0
-        vals[p + 2] = cj + (dmu * fsum + fp[FP_R2]) / m
-        p += 3
-        for _k in range(K):
-            vals[p] = mu / m
-            p += 1
+        if iL >= 0:
+            vals[p + 2] = cj + fp[FP_R2] / m
+            vals[p + 3] = 1.0 / m
+            p += 4
+        else:
+            xx = vx + reg[REG_S] * fp[FP_VH]
+            mu, dmu = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
+                                  fp[FP_A2])
+            vals[p + 2] = cj + (dmu * fsum + fp[FP_R2]) / m
+            p += 3
+            for _k in range(K):
+                vals[p] = mu / m
+                p += 1
     for k in range(K):
         closed = reg[REG_CLOSED + k] == 1
         for j in range(K):
@@ -308,6 +366,22 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         if ix >= 0:
             vals[p] = -work[K + k] if closed else 0.0
             p += 1
+    if iL >= 0:
+        b = reg[REG_B]
+        vals[p] = 1.0
+        if b == 0:
+            vals[p + 1] = fp[FP_R2]
+            p += 2
+            for _k in range(K):
+                vals[p] = 0.0
+                p += 1
+        else:
+            muk, dmuk = coulomb_kinetic(b * vx, fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_VSTRIB])
+            vals[p + 1] = -dmuk * fsum
+            p += 2
+            for _k in range(K):
+                vals[p] = -b * muk
+                p += 1
     # energy rows
     vals[p] = cj
     p += 1
@@ -317,11 +391,16 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     vals[p] = cj
     p += 1
     if ix >= 0:
-        vals[p] = -(dmu * fsum * vx + mu * fsum)
-        p += 1
-        for _k in range(K):
-            vals[p] = -mu * vx
+        if iL >= 0:
+            vals[p] = -y[iL]
+            vals[p + 1] = -vx
+            p += 2
+        else:
+            vals[p] = -(dmu * fsum * vx + mu * fsum)
             p += 1
+            for _k in range(K):
+                vals[p] = -mu * vx
+                p += 1
     vals[p] = cj
     p += 1
     if ix >= 0:
@@ -362,8 +441,11 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     """Root functions, each a *margin* that is positive while the current regime holds.
 
     ``ev[0:K]``: contact k closed -> compression F_k/s_k (lift-off at 0); open -> minus the
-    compression (touch-down at 0). ``ev[K]``: friction branch b * X. ``ev[K+1]``: latch margin
-    eps - s (v - v_ext). ``ev[K+2]``: phase margin, slip: v^2 - v_st^2, stick: v_st^2 - v^2.
+    compression (touch-down at 0). Feldmann law: ``ev[K]`` friction branch b * X,
+    ``ev[K+1]`` latch margin eps - s (v - v_ext), ``ev[K+2]`` phase margin (slip:
+    v^2 - v_st^2, stick: v_st^2 - v^2). Coulomb law, stick: ``ev[K]`` break-away margin
+    mu_stick F_N (1 + eps_h) - |lambda|, ``ev[K+1]`` the same without hysteresis (counts the
+    hysteresis holds), ``ev[K+2]`` dwell timer t_dwell_end - t; slip b: ``ev[K]`` = b v.
     All are watched for downward crossings only; prescribed motion disables the last three
     (constant 1).
     """
@@ -374,7 +456,23 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
             ev[k] = work[k]
         else:
             ev[k] = -work[k]
-    if ix >= 0:
+    iL = off[10]
+    if ix >= 0 and iL >= 0:
+        vx = y[off[5]]
+        b = reg[REG_B]
+        if b == 0:
+            fsum = 0.0
+            for k in range(K):
+                fsum += y[iF + k]
+            lam = abs(y[iL])
+            ev[K] = fp[FP_MU_STICK] * fsum * (1.0 + fp[FP_HYST]) - lam
+            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam
+            ev[K + 2] = rf[1] - t
+        else:
+            ev[K] = b * vx
+            ev[K + 1] = 1.0
+            ev[K + 2] = 1.0
+    elif ix >= 0:
         vx = y[off[5]]
         xx = vx + reg[REG_S] * fp[FP_VH]
         ev[K] = reg[REG_B] * xx
@@ -415,7 +513,12 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
     x, vx = tangential_kinematics(t, y, off, fp)
     mu = np.nan
     fr = np.nan
-    if ix >= 0:
+    if ix >= 0 and off[10] >= 0:
+        fr = y[off[10]]
+        mu = fr / fsum if fsum > 0.0 else np.nan
+        if reg[REG_B] == 0:
+            vx = 0.0  # stick holds the velocity at zero: report the regime, not round-off
+    elif ix >= 0:
         xx = vx + reg[REG_S] * fp[FP_VH]
         mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
                             fp[FP_A2])

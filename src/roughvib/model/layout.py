@@ -4,9 +4,10 @@ Only the states a scene requires exist: a rigid plate has no ``plate.q``/``plate
 prescribed tangential motion has no ``block.x``/``block.vx``. The order is
 
     plate.q (R), plate.dq (R), block.z, block.vz, [block.x, block.vx], contact.force (K),
-    energy.* (6 running integrals for the energy audit)
+    [friction.force], energy.* (6 running integrals for the energy audit)
 
-``contact.force`` entries are algebraic (DAE); everything else is differential. Outside this
+``contact.force`` and ``friction.force`` (set-valued Coulomb law only) are algebraic (DAE);
+everything else is differential. Outside this
 module no code indexes the state with bare integers: use :meth:`StateLayout.slice` or the
 ``index`` attributes.
 """
@@ -42,11 +43,14 @@ class StateLayout:
         K, number of contact springs.
     tangential : bool
         Whether the block's tangential position and velocity are states.
+    friction_state : bool
+        Whether the friction force is an algebraic state (set-valued Coulomb law).
     """
 
     n_modes: int
     n_contacts: int
     tangential: bool
+    friction_state: bool = False
     _slices: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -55,6 +59,8 @@ class StateLayout:
         if self.tangential:
             sizes += [("block.x", 1), ("block.vx", 1)]
         sizes += [("contact.force", k)]
+        if self.friction_state:
+            sizes += [("friction.force", 1)]
         sizes += [(f"energy.{name}", 1) for name in ENERGY_TERMS]
         slices = {}
         pos = 0
@@ -96,14 +102,18 @@ class StateLayout:
 
     @property
     def algebraic_indices(self) -> np.ndarray:
-        """Indices of algebraic unknowns (the contact forces)."""
+        """Indices of algebraic unknowns (contact forces, and the friction force if present)."""
         s = self._slices["contact.force"]
-        return np.arange(s.start, s.stop)
+        idx = list(range(s.start, s.stop))
+        if self.friction_state:
+            idx.append(self.index("friction.force"))
+        return np.array(idx, dtype=np.int64)
 
     def offsets(self) -> np.ndarray:
-        """Integer array handed to the kernels: [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K].
+        """Integer array handed to the kernels: [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL].
 
-        ``ix``/``ivx`` are -1 for prescribed tangential motion.
+        ``ix``/``ivx`` are -1 for prescribed tangential motion, ``iL`` (friction force) is -1
+        unless the friction force is a state.
         """
         return np.array([
             self._slices["plate.q"].start, self._slices["plate.dq"].start,
@@ -111,5 +121,5 @@ class StateLayout:
             self.index("block.x"), self.index("block.vx"),
             self._slices["contact.force"].start,
             self._slices[f"energy.{ENERGY_TERMS[0]}"].start,
-            self.n_modes, self.n_contacts,
+            self.n_modes, self.n_contacts, self.index("friction.force"),
         ], dtype=np.int64)

@@ -18,56 +18,15 @@ import numpy as np
 from roughvib.friction import calibrate_force_amplitude
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
+from roughvib.model.regimes import Regime
 from roughvib.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
 from roughvib.scene import Scene, SceneError
 from roughvib.surface.interp import build_coefficients
 from roughvib.surface.roughness import Profile, build_profile, select_contacts
 
-__all__ = ["GRAVITY", "Regime", "System", "assemble"]
+__all__ = ["GRAVITY", "Regime", "System", "assemble"]  # Regime re-exported from .regimes
 
 GRAVITY = 9.81  # m/s^2, the paper's value (F_stat = m g)
-
-
-@dataclass
-class Regime:
-    """Discrete state of the hybrid system (mutable; the solver switches it at events).
-
-    Attributes
-    ----------
-    closed : ndarray of int, shape (K,)
-        1 where contact k is closed (spring active), 0 where it is open (lift-off).
-    branch : int
-        Friction-law branch b = sign of X = v + s v_h (+1 / -1).
-    latch : int
-        Hysteresis latch s: +1 after a velocity maximum, -1 after a minimum.
-    v_ext : float
-        Running velocity extremum tracked by the latch [m/s].
-    stick : bool
-        Phase for logging: |v| < friction.stick_velocity.
-    """
-
-    closed: np.ndarray
-    branch: int = -1
-    latch: int = -1
-    v_ext: float = 0.0
-    stick: bool = True
-
-    def pack(self, reg: np.ndarray, rf: np.ndarray) -> None:
-        """Write into the kernels' ``reg``/``rf`` arrays."""
-        reg[kn.REG_B] = self.branch
-        reg[kn.REG_S] = self.latch
-        reg[kn.REG_PHASE] = 1 if self.stick else 0
-        reg[kn.REG_CLOSED:] = self.closed
-        rf[0] = self.v_ext
-
-    def copy(self) -> Regime:
-        return Regime(self.closed.copy(), self.branch, self.latch, self.v_ext, self.stick)
-
-    def describe(self) -> str:
-        """Short text, e.g. ``closed=1111111011 b=+1 s=-1 slip``."""
-        c = "".join(str(int(v)) for v in self.closed)
-        return (f"closed={c} b={self.branch:+d} s={self.latch:+d} "
-                f"{'stick' if self.stick else 'slip'}")
 
 
 @dataclass
@@ -116,7 +75,12 @@ class System:
                 self.work)
 
     def new_regime_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.zeros(kn.REG_CLOSED + self.n_contacts, dtype=np.int64), np.zeros(1)
+        return np.zeros(kn.REG_CLOSED + self.n_contacts, dtype=np.int64), np.zeros(2)
+
+    @property
+    def coulomb(self) -> bool:
+        """Whether the friction force is an algebraic state (set-valued Coulomb law)."""
+        return self.layout.friction_state
 
     # ---- algebra ---------------------------------------------------------------------
     def static_compliance_matrix(self) -> np.ndarray:
@@ -148,14 +112,22 @@ class System:
 
     def consistent(self, t: float, y: np.ndarray, reg: np.ndarray, rf: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
-        """Consistent (y, yp) for the regime in ``reg``: algebraic forces, then yp = f(y)."""
+        """Consistent (y, yp) for the regime in ``reg``: algebraic forces, then yp = f(y).
+
+        In the Coulomb stick regime the tangential velocity is set to exactly zero first.
+        """
         y = np.array(y, dtype=float)
         y[self.layout.slice("contact.force")] = self.contact_forces(
             t, y, reg[kn.REG_CLOSED:])
+        if self.coulomb:
+            if reg[kn.REG_B] == 0:
+                y[self.layout.index("block.vx")] = 0.0
+            y[self.layout.index("friction.force")] = kn.coulomb_friction(t, y, self.off,
+                                                                          self.fp, reg)
         res = np.empty_like(y)
         kn.residual(t, y, np.zeros_like(y), res, *self.kernel_args(reg, rf))
         yp = -res
-        yp[self.layout.slice("contact.force")] = 0.0
+        yp[self.layout.algebraic_indices] = 0.0
         return y, yp
 
     def static_equilibrium(self, x0: float = 0.0, max_iter: int = 200
@@ -297,7 +269,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
         mmodal = 1.0
         cres = np.zeros((K, K))
     R = phi.shape[0]
-    layout = StateLayout(R, K, tangential)
+    layout = StateLayout(R, K, tangential, friction_state=tangential and fr.law == "coulomb")
 
     calibration: dict = {}
     if not tangential:
@@ -338,6 +310,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
     fp[kn.FP_MMODAL] = mmodal
     fp[kn.FP_S0] = profile.s0
     fp[kn.FP_DX] = profile.dx
+    fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
+    fp[kn.FP_HYST] = fr.switching_hysteresis
 
     return System(
         scene=scene, layout=layout, profile=profile, contact_s=spos, contact_xy=contact_xy,

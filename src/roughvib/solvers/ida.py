@@ -33,7 +33,8 @@ import scipy.sparse as sp
 import sksundae as sun
 
 from roughvib.model import kernels as kn
-from roughvib.model.system import Regime, System
+from roughvib.model.regimes import initial_regime, switch
+from roughvib.model.system import System
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -154,7 +155,7 @@ def _atol_vector(system: System) -> np.ndarray:
     """Per-component absolute tolerances scaled from solver.atol (a displacement, m)."""
     lay = system.layout
     a = system.scene.solver.atol
-    atol = np.empty(lay.size)
+    atol = np.full(lay.size, np.nan)
     if system.n_modes:
         omega = np.sqrt(system.omega2)
         acc = system.scene.solver.atol_acceleration
@@ -166,9 +167,14 @@ def _atol_vector(system: System) -> np.ndarray:
         atol[lay.index("block.x")] = a
         atol[lay.index("block.vx")] = a * 1e3
     atol[lay.slice("contact.force")] = a * system.stiff
+    if lay.has("friction.force"):
+        atol[lay.index("friction.force")] = a * float(np.mean(system.stiff))
     for name in lay.names:
         if name.startswith("energy."):
             atol[lay.index(name)] = a * 1e-2
+    if np.isnan(atol).any():  # every state needs a tolerance: never leave one undefined
+        missing = [n for n in lay.names if np.isnan(atol[lay.slice(n)]).any()]
+        raise AssertionError(f"no absolute tolerance for states {missing}")
     return atol
 
 
@@ -184,13 +190,6 @@ def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     perm = (csc.data.astype(np.int64) - 1)
     pattern = sp.csc_matrix((np.ones(nnz), csc.indices.copy(), csc.indptr.copy()), shape=(n, n))
     return pattern, perm
-
-
-def _describe_fire(system: System, idx: int) -> tuple[str, int]:
-    K = system.n_contacts
-    if idx < K:
-        return "contact", idx
-    return ("friction_branch", "latch_flip", "phase")[idx - K], -1
 
 
 def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
@@ -225,14 +224,7 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
 
     reg, rf = system.new_regime_arrays()
     y0, closed = system.static_equilibrium()
-    regime = Regime(closed=closed.astype(np.int64))
-    if lay.tangential:
-        fp = system.fp
-        regime.latch = -1 if fp[kn.FP_T0] >= 0 else 1
-        x0 = regime.latch * fp[kn.FP_VH]
-        regime.branch = int(np.sign(x0)) if x0 != 0 else (1 if fp[kn.FP_T0] >= 0 else -1)
-        regime.v_ext = 0.0
-        regime.stick = True
+    regime = initial_regime(closed, system.fp, lay.tangential, system.coulomb)
     regime.pack(reg, rf)
     y, yp = system.consistent(0.0, y0, reg, rf)
     y_initial = y.copy()
@@ -294,6 +286,7 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
     bar_next = 0
     bar_stride = max(1, n // 200)
     vx_i = lay.index("block.vx")
+    dwell = scene.friction.dwell_time
     first_result = True
 
     def close_segment(r) -> None:
@@ -334,24 +327,11 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
                 kn.events(te, ye, evbuf, *ev_args)
                 kinds = []
                 for idx in sorted(fired):
-                    what, c = _describe_fire(system, idx)
-                    if what == "contact":
-                        if regime.closed[c] == 1:
-                            regime.closed[c] = 0
-                            kinds.append(("lift_off", c, evbuf[idx]))
-                        else:
-                            regime.closed[c] = 1
-                            kinds.append(("touch_down", c, evbuf[idx]))
-                    elif what == "friction_branch":
-                        regime.branch = -regime.branch
-                        kinds.append(("friction_branch", -1, evbuf[idx]))
-                    elif what == "latch_flip":
-                        regime.latch = -regime.latch
-                        regime.v_ext = float(ye[vx_i])
-                        kinds.append(("latch_flip", -1, evbuf[idx]))
-                    else:
-                        regime.stick = not regime.stick
-                        kinds.append(("stick" if regime.stick else "slip", -1, evbuf[idx]))
+                    for tr in switch(regime, idx, te, ye, system.fp, K, vx_i,
+                                     lay.slice("contact.force"), dwell):
+                        kinds.append((tr.kind, tr.contact, evbuf[idx]))
+                        if tr.guard:
+                            stats[f"guard_{tr.guard}"] += 1
                 regime.pack(reg, rf)
                 close_segment(r)
                 y, yp = system.consistent(te, ye, reg, rf)
@@ -394,7 +374,7 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
                     f"{r.message} (regime {regime.describe()})", grid[k - 1])
             yk = r.y
             kn.outputs(grid[k], yk, outs[k], *args)
-            if vx_i >= 0:
+            if vx_i >= 0 and not system.coulomb:
                 v = yk[vx_i]
                 if regime.latch < 0:
                     if v > rf[0]:
