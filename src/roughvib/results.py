@@ -47,8 +47,9 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "roughness_input": ("m", "roughness displacement input per contact (positive down)"),
 }
 
-EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin",
-                 "tangential_velocity", "normal_force", "contact_force"]
+EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
+                 "margin_after", "tangential_velocity", "normal_force", "contact_force",
+                 "friction_before", "friction_after"]
 
 FORMAT_VERSION = 1
 

@@ -38,7 +38,8 @@ def test_scenes_command_lists_builtins(capsys):
 
 
 def test_every_command_has_help_with_an_example(capsys):
-    for cmd in (["--help"], ["run", "--help"], ["scenes", "--help"]):
+    for cmd in (["--help"], ["run", "--help"], ["scenes", "--help"], ["events", "--help"],
+                ["plot", "--help"]):
         with pytest.raises(SystemExit) as info:
             main(cmd)
         assert info.value.code == 0
@@ -50,6 +51,7 @@ def test_every_command_has_help_with_an_example(capsys):
     (["run", "--set", "block.colour=1"], "block.colour is not a known key of [block]"),
     (["run", "no-such-scene"], "neither a built-in scene"),
     (["run", "--set", "block.mass"], "--set expects section.key=value"),
+    (["events", "no/such/dir"], "not a roughvib result directory"),
 ])
 def test_bad_input_exits_2_with_one_line(args, fragment, capsys, tmp_path):
     assert main(args + ["--out", str(tmp_path / "x")]) == 2

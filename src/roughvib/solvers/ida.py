@@ -64,13 +64,20 @@ class EventRecord:
         Contact index for contact events, -1 for block-level events.
     regime_before, regime_after : str
         :meth:`Regime.describe` texts.
-    margin : float
-        Value of the root function that fired, at the event (≈ 0; m, m/s or m^2/s^2).
+    margin_before, margin_after : float
+        The root function that fired, at the event, evaluated with the regime before (≈ 0,
+        it just crossed) and with the regime after the switch (the new regime's margin for
+        the same root: for contacts the compression in m with the sign of that regime, for
+        friction the velocity [m/s], force margin [N] or phase margin [m^2/s^2]).
     tangential_velocity : float [m/s]
+        After the switch.
     normal_force : float [N]
         Sum of contact forces after the switch.
     contact_force : float [N]
         Force of the event's contact after the switch (NaN for block-level events).
+    friction_before, friction_after : float [N]
+        Friction force on the block just before and just after the switch (left and right
+        limits: it jumps at Coulomb stick/slip transitions).
     """
 
     time: float
@@ -78,10 +85,13 @@ class EventRecord:
     contact: int
     regime_before: str
     regime_after: str
-    margin: float
+    margin_before: float
+    margin_after: float
     tangential_velocity: float
     normal_force: float
     contact_force: float
+    friction_before: float
+    friction_after: float
 
 
 @dataclass
@@ -280,6 +290,7 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
     cpu0 = time.process_time()
 
     kn.outputs(0.0, y, outs[0], *args)
+    outbuf = np.empty(n_out)
     bar = tqdm(total=float(out_cfg.duration), unit="s", unit_scale=False, disable=not progress,
                file=sys.stderr, desc=f"roughvib {scene.name}", leave=False,
                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
@@ -325,24 +336,30 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
                 before = regime.describe()
                 evbuf = np.empty(n_ev)
                 kn.events(te, ye, evbuf, *ev_args)
+                kn.outputs(te, ye, outbuf, *args)
+                fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
                 kinds = []
                 for idx in sorted(fired):
                     for tr in switch(regime, idx, te, ye, system.fp, K, vx_i,
                                      lay.slice("contact.force"), dwell):
-                        kinds.append((tr.kind, tr.contact, evbuf[idx]))
+                        kinds.append((tr.kind, tr.contact, idx))
                         if tr.guard:
                             stats[f"guard_{tr.guard}"] += 1
                 regime.pack(reg, rf)
                 close_segment(r)
                 y, yp = system.consistent(te, ye, reg, rf)
                 after = regime.describe()
-                fsum = float(np.sum(y[lay.slice("contact.force")]))
-                vx = float(y[vx_i]) if vx_i >= 0 else float(
-                    kn.tangential_kinematics(te, y, off, fpa)[1])
-                for kind, c, margin in kinds:
-                    cf = float(y[lay.slice("contact.force")][c]) if c >= 0 else float("nan")
-                    events.append(EventRecord(te, kind, c, before, after, float(margin), vx,
-                                              fsum, cf))
+                evafter = np.empty(n_ev)
+                kn.events(te, y, evafter, *ev_args)
+                kn.outputs(te, y, outbuf, *args)
+                fric_after = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+                fsum = float(outbuf[kn.OUT_NAMES.index("normal_force")])
+                vx = float(outbuf[kn.OUT_NAMES.index("block_tangential_velocity")])
+                for kind, c, idx in kinds:
+                    cf = float(outbuf[kn.N_OUT_FIXED + c]) if c >= 0 else float("nan")
+                    events.append(EventRecord(te, kind, c, before, after, float(evbuf[idx]),
+                                              float(evafter[idx]), vx, fsum, cf, fric_before,
+                                              fric_after))
                     stats[f"events_{kind}"] += 1
                     recent.append(te)
                 while recent and recent[0] < te - scfg.event_window:
@@ -350,8 +367,8 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
                 if len(recent) > scfg.max_events:
                     kinds_txt = ", ".join(f"{kd}" + (f" (contact {c})" if c >= 0 else "")
                                           for kd, c, _ in kinds)
-                    events.append(EventRecord(te, "event_storm", -1, before, after, 0.0, vx,
-                                              fsum, float("nan")))
+                    events.append(EventRecord(te, "event_storm", -1, before, after, 0.0, 0.0,
+                                              vx, fsum, float("nan"), fric_before, fric_after))
                     raise SolverFailure(
                         "event_storm",
                         f"event storm: more than {scfg.max_events} events within "

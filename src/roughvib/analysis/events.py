@@ -1,0 +1,118 @@
+"""Event-log analysis: stick and lift-off intervals, and the per-cycle phase table.
+
+Works on the event table of a :class:`roughvib.results.Result` (or a saved ``events.csv``):
+stick phases run from a ``stick`` event to the next ``slip`` event, lift-offs of contact k from
+``lift_off`` to the next ``touch_down`` of k. A run that starts inside a phase (the block
+starts in stick; a contact starts open) is recognised from the first event of the pair.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "stick_intervals"]
+
+GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "event_storm")
+
+
+def _intervals(times_kinds: list[tuple[float, str]], start: str, end: str, t0: float,
+               t_end: float, *, with_origin: bool = False) -> list:
+    """Intervals from start to end events; with_origin adds whether a start event opened it."""
+    out = []
+    t_open = None
+    real = True
+    first = next((k for _, k in times_kinds if k in (start, end)), None)
+    if first == end:  # the run started inside the phase
+        t_open, real = t0, False
+    for t, k in times_kinds:
+        if k == start and t_open is None:
+            t_open, real = t, True
+        elif k == end and t_open is not None:
+            out.append((t_open, t, real))
+            t_open = None
+    if t_open is not None:
+        out.append((t_open, t_end, real))
+    return out if with_origin else [(a, b) for a, b, _ in out]
+
+
+def stick_intervals(events: pd.DataFrame, t_end: float, t0: float = 0.0
+                    ) -> list[tuple[float, float]]:
+    """Stick phases [(start, end)] in seconds, from the ``stick``/``slip`` events."""
+    ev = events.sort_values("time", kind="stable")
+    tk = [(float(t), str(k)) for t, k in zip(ev["time"], ev["kind"], strict=True)]
+    return _intervals(tk, "stick", "slip", t0, t_end)
+
+
+def lift_off_intervals(events: pd.DataFrame, contact: int, t_end: float, t0: float = 0.0
+                       ) -> list[tuple[float, float]]:
+    """Lift-off phases of one contact [(start, end)] in seconds."""
+    ev = events[events["contact"] == contact].sort_values("time", kind="stable")
+    tk = [(float(t), str(k)) for t, k in zip(ev["time"], ev["kind"], strict=True)]
+    return _intervals(tk, "lift_off", "touch_down", t0, t_end)
+
+
+def _overlap(intervals: list[tuple[float, float]], a: float, b: float) -> float:
+    return sum(max(0.0, min(e, b) - max(s, a)) for s, e in intervals)
+
+
+def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: int
+                ) -> pd.DataFrame:
+    """Per excitation cycle: stick fraction, stick phases, lift-offs per contact, guards.
+
+    Parameters
+    ----------
+    events : DataFrame
+        Event log (columns time, kind, contact).
+    t_end : float
+        End of the run [s].
+    period : float
+        Excitation period [s]; ``inf`` or 0 gives one row for the whole run.
+    n_contacts : int
+
+    Returns
+    -------
+    DataFrame
+        One row per cycle: ``cycle``, ``start`` and ``end`` [s], ``stick_fraction``,
+        ``stick_phases`` (stick events in the cycle), ``mean_stick_duration`` [s] (of those
+        phases, whole length), ``lift_offs_k`` (lift-off events of contact k) and
+        ``lift_off_time_k`` [s] (time open within the cycle) for each contact k,
+        ``guard_activations`` (hysteresis and dwell holds, storms).
+    """
+    if not math.isfinite(period) or period <= 0:
+        edges = np.array([0.0, t_end])
+    else:
+        n = max(1, int(math.ceil(t_end / period - 1e-9)))
+        edges = np.minimum(np.arange(n + 1) * period, t_end)
+    ev = events.sort_values("time", kind="stable")
+    tk = [(float(t), str(k)) for t, k in zip(ev["time"], ev["kind"], strict=True)]
+    sticks_o = _intervals(tk, "stick", "slip", 0.0, t_end, with_origin=True)
+    sticks = [(a, b) for a, b, _ in sticks_o]
+    lifts_o = []
+    for k in range(n_contacts):
+        evk = ev[ev["contact"] == k]
+        tkk = [(float(t), str(x)) for t, x in zip(evk["time"], evk["kind"], strict=True)]
+        lifts_o.append(_intervals(tkk, "lift_off", "touch_down", 0.0, t_end, with_origin=True))
+    lifts = [[(a, b) for a, b, _ in lo] for lo in lifts_o]
+    guards = events[events["kind"].isin(GUARD_KINDS)]["time"].to_numpy(dtype=float)
+    rows = []
+    for c in range(edges.size - 1):
+        a, b = float(edges[c]), float(edges[c + 1])
+        if b <= a:
+            continue
+        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b]
+        row = {
+            "cycle": c, "start": a, "end": b,
+            "stick_fraction": _overlap(sticks, a, b) / (b - a),
+            "stick_phases": len(started),
+            "mean_stick_duration": float(np.mean([e - s for s, e in started]))
+            if started else 0.0,
+        }
+        for k in range(n_contacts):
+            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k] if real and a <= s < b)
+            row[f"lift_off_time_{k}"] = _overlap(lifts[k], a, b)
+        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b)))
+        rows.append(row)
+    return pd.DataFrame(rows)
