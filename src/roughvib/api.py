@@ -179,7 +179,12 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     system = assemble(scene, force_amplitude=force_amplitude)
     _check_travel(system, _estimate_travel(scene))
     t_pre = time.perf_counter() - t0
-    raw = solve_ida(system, progress=progress)
+    if scene.solver.method == "ida":
+        raw = solve_ida(system, progress=progress)
+    else:
+        from roughvib.solvers.fixed_step import solve_fixed_step
+
+        raw = solve_fixed_step(system, progress=progress)
     ds = _build_dataset(system, raw)
     events = events_frame(raw.events)
     audit = energy_audit(system, raw)

@@ -532,7 +532,13 @@ class Solver:
 
     Attributes
     ----------
-    method : {"ida"}
+    method : {"ida", "exact-modal", "newmark"}
+        ``ida``: event-driven adaptive DAE solver (the reference). Fixed-step baselines
+        (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
+        piecewise-linear force and an implicit contact/block step (physics.md §2.5);
+        ``newmark`` average-acceleration Newmark on the modal model.
+    step : float
+        Time step of the fixed-step methods [s].
     rtol : float
         Relative tolerance.
     atol : float
@@ -554,6 +560,7 @@ class Solver:
     """
 
     method: str = "ida"
+    step: float = 1e-5
     rtol: float = 1e-6
     atol: float = 1e-12
     atol_acceleration: float = 1e-5
@@ -564,7 +571,9 @@ class Solver:
 
     def __post_init__(self) -> None:
         p = "solver"
-        _set(self, "method", _choice(f"{p}.method", self.method, ("ida",)))
+        _set(self, "method", _choice(f"{p}.method", self.method,
+                                     ("ida", "exact-modal", "newmark")))
+        _set(self, "step", _positive(f"{p}.step", self.step, "s"))
         _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
         _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))
         _set(self, "atol_acceleration",

@@ -1,0 +1,441 @@
+"""Fixed-step baselines on the same model and the same Result contract as IDA.
+
+``exact-modal`` (physics.md §2.5): each plate mode is propagated exactly over a step with a
+first-order-hold (piecewise-linear) modal force, ``s_{n+1} = Phi s_n + G0 u_n + G1 u_{n+1}``,
+which is unconditionally stable and free of period error even for modes with omega h > pi.
+The plate displacement at the contacts is then ``w_{n+1} = w_free + G1c F_{n+1}`` (plus the
+residual compliance), so the only implicit problem per step is the K contact forces coupled to
+the block, solved with an active set on the unilateral springs (at most K + 1 passes).
+
+``newmark``: the same step with the plate modes integrated by average-acceleration Newmark
+(trapezoidal, second order); for a linear mode this is again an affine map (Phi, G0, G1), so
+both schemes share one numba loop and differ only in the precomputed per-mode coefficients.
+
+Both use average-acceleration Newmark for the block's vertical motion and the trapezoidal rule
+with a scalar Newton iteration for the tangential motion, staggered: the tangential step uses
+the normal force of the previous step (physics.md §2.5, "acceptable"). Events are located by
+sign changes between steps with linear interpolation and written to the same event log.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numba import njit
+from scipy.linalg import expm
+
+from roughvib.friction import feldmann_mu_law, latch_update
+from roughvib.model import kernels as kn
+from roughvib.model.regimes import initial_regime
+from roughvib.model.system import System
+from roughvib.scene import SceneError
+from roughvib.solvers.ida import EventRecord, RawSolution
+from roughvib.surface.interp import profile_eval
+
+__all__ = ["modal_propagators", "solve_fixed_step"]
+
+EV_KINDS = ("lift_off", "touch_down", "stick", "slip", "latch_flip")
+
+
+def modal_propagators(omega: np.ndarray, zeta: np.ndarray, h: float, scheme: str
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-mode step maps for q'' + 2 zeta w q' + w^2 q = u(t).
+
+    Parameters
+    ----------
+    omega, zeta : ndarray, shape (R,)
+        Angular frequencies [rad/s] and damping ratios.
+    h : float
+        Step [s].
+    scheme : {"exact-modal", "newmark"}
+        ``exact-modal``: exact solution for u linear within the step (augmented matrix
+        exponential). ``newmark``: average-acceleration Newmark.
+
+    Returns
+    -------
+    Phi : ndarray, shape (R, 2, 2)
+    G0, G1 : ndarray, shape (R, 2)
+        ``[q, q']_{n+1} = Phi [q, q']_n + G0 u_n + G1 u_{n+1}``.
+    """
+    R = omega.size
+    Phi = np.empty((R, 2, 2))
+    G0 = np.empty((R, 2))
+    G1 = np.empty((R, 2))
+    for r in range(R):
+        w, c = float(omega[r]), 2.0 * float(zeta[r]) * float(omega[r])
+        if scheme == "exact-modal":
+            A = np.zeros((4, 4))
+            A[0, 1] = 1.0
+            A[1, 0] = -w * w
+            A[1, 1] = -c
+            A[1, 2] = 1.0          # u drives the acceleration
+            A[2, 3] = 1.0          # u' = (u_{n+1} - u_n) / h, constant over the step
+            E = expm(A * h)
+            Phi[r] = E[:2, :2]
+            G0[r] = E[:2, 2] - E[:2, 3] / h
+            G1[r] = E[:2, 3] / h
+        elif scheme == "newmark":
+            L = np.array([[1 + h * h * w * w / 4, h * h * c / 4], [h * w * w / 2, 1 + h * c / 2]])
+            P = np.array([[1 - h * h * w * w / 4, h - h * h * c / 4],
+                          [-h * w * w / 2, 1 - h * c / 2]])
+            p = np.array([h * h / 4, h / 2])
+            Li = np.linalg.inv(L)
+            Phi[r] = Li @ P
+            G0[r] = Li @ p
+            G1[r] = Li @ p
+        else:  # pragma: no cover - guarded by the scene
+            raise ValueError(f"unknown fixed-step scheme {scheme!r}")
+    return Phi, G0, G1
+
+
+@njit(cache=True)
+def _solve_contacts(active, stiff, beta, G1c, rhs, F, comp, K):
+    """Active-set solve of F_k/s_k + beta sum(F) + sum_j G1c_kj F_j = rhs_k on closed k."""
+    for _it in range(K + 2):
+        idx = np.flatnonzero(active)
+        for k in range(K):
+            F[k] = 0.0
+        if idx.size > 0:
+            n = idx.size
+            A = np.empty((n, n))
+            b = np.empty(n)
+            for a in range(n):
+                ka = idx[a]
+                b[a] = rhs[ka]
+                for c in range(n):
+                    kc = idx[c]
+                    A[a, c] = beta + G1c[ka, kc]
+                A[a, a] += 1.0 / stiff[ka]
+            sol = np.linalg.solve(A, b)
+            for a in range(n):
+                F[idx[a]] = sol[a]
+        S = 0.0
+        for k in range(K):
+            S += F[k]
+        changed = False
+        for k in range(K):
+            acc = 0.0
+            for j in range(K):
+                acc += G1c[k, j] * F[j]
+            comp[k] = rhs[k] - beta * S - acc
+            if active[k] == 1 and F[k] < 0.0:
+                active[k] = 0
+                changed = True
+            elif active[k] == 0 and comp[k] > 0.0:
+                active[k] = 1
+                changed = True
+        if not changed:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
+         prof, fp, tangential, q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
+         ev_contact):
+    """The fixed-step loop. Mutates the state arrays; returns (n_events, status code, step).
+
+    ``zv`` = [z, vz, az]; ``tang`` = [x, vx, latch s, v_ext, stick phase]; ``energy`` the six
+    running integrals; status 0 ok, 1 Newton failure (tangential), 2 active set failure.
+    """
+    R = Phi.shape[0]
+    K = stiff.size
+    m = fp[kn.FP_MASS]
+    M = fp[kn.FP_MMODAL]
+    g = fp[kn.FP_GRAV]
+    r1 = fp[kn.FP_R1]
+    r2 = fp[kn.FP_R2]
+    mu_sl, mu_st, a1, a2 = fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2]
+    vh = fp[kn.FP_VH]
+    eps = fp[kn.FP_EPS]
+    vst = fp[kn.FP_VSTICK]
+    # G1 in contact coordinates: G1c_kj = sum_r phi_rk phi_rj G1_r[0] / M + C_res
+    G1c = cres.copy()
+    for r in range(R):
+        gr = G1[r, 0] / M
+        for k in range(K):
+            for j in range(K):
+                G1c[k, j] += phi[r, k] * phi[r, j] * gr
+    u = np.empty(R)
+    u_new = np.empty(R)
+    sq = np.empty(R)
+    sdq = np.empty(R)
+    wfree = np.empty(K)
+    rhs = np.empty(K)
+    comp = np.empty(K)
+    comp_old = np.empty(K)
+    hk = np.empty(K)
+    dhk = np.empty(K)
+    Fn = np.empty(K)
+    # modal force at step n
+    for r in range(R):
+        acc = 0.0
+        for k in range(K):
+            acc += phi[r, k] * Fv[k]
+        u[r] = acc / M
+    S0 = 0.0
+    for k in range(K):
+        S0 += Fv[k]
+    x0 = tang[0]
+    v0 = tang[1]
+    # initial compressions for event detection
+    for k in range(K):
+        w = 0.0
+        for r in range(R):
+            w += phi[r, k] * q[r]
+        for j in range(K):
+            w += cres[k, j] * Fv[j]
+        hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x0)
+        comp_old[k] = zv[0] - w + hh
+        dhk[k] = dh
+    n_ev = 0
+    cap = ev_t.size
+    # powers at step n
+    p_exc = 0.0
+    p_fric = 0.0
+    if tangential:
+        mu0, _ = feldmann_mu_law(v0 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+        p_exc = fp[kn.FP_T0] * v0
+        p_fric = mu0 * S0 * v0
+    p_r2 = r2 * v0 * v0
+    p_r1 = r1 * zv[1] * zv[1]
+    p_pl = 0.0
+    for r in range(R):
+        p_pl += M * cdamp[r] * dq[r] * dq[r]
+    p_ro = 0.0
+    for k in range(K):
+        p_ro += Fv[k] * dhk[k] * v0
+    row = 0
+    for n in range(n_steps):
+        t0 = n * h
+        t1 = t0 + h
+        # ---- tangential (trapezoidal, Newton on v1; normal force of step n) ----------------
+        if tangential:
+            s_l = tang[2]
+            t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
+            t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+            mu0, _ = feldmann_mu_law(v0 + s_l * vh, mu_sl, mu_st, a1, a2)
+            f0 = t_old - mu0 * S0 - r2 * v0
+            v1 = v0
+            ok = False
+            for _it in range(60):
+                mu1, dmu1 = feldmann_mu_law(v1 + s_l * vh, mu_sl, mu_st, a1, a2)
+                gval = m * (v1 - v0) / h - 0.5 * f0 - 0.5 * (t_new - mu1 * S0 - r2 * v1)
+                dg = m / h + 0.5 * (dmu1 * S0 + r2)
+                dv = gval / dg
+                v1 -= dv
+                if abs(dv) <= 1e-15 + 1e-13 * abs(v1):
+                    ok = True
+                    break
+            if not ok:
+                return n_ev, 1, n
+            x1 = x0 + 0.5 * h * (v0 + v1)
+        else:
+            w_ = fp[kn.FP_PW]
+            x1 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
+            v1 = fp[kn.FP_PV] + fp[kn.FP_PA] * w_ * math.cos(w_ * t1)
+        # ---- modal free response and plate displacement at the contacts ----------------
+        for k in range(K):
+            wfree[k] = 0.0
+        for r in range(R):
+            sq[r] = Phi[r, 0, 0] * q[r] + Phi[r, 0, 1] * dq[r] + G0[r, 0] * u[r]
+            sdq[r] = Phi[r, 1, 0] * q[r] + Phi[r, 1, 1] * dq[r] + G0[r, 1] * u[r]
+            for k in range(K):
+                wfree[k] += phi[r, k] * sq[r]
+        # ---- block (average-acceleration Newmark), affine in the total force S1 ----------
+        z0, vz0, az0 = zv[0], zv[1], zv[2]
+        mp = m + r1 * h / 2
+        Q = m * g - r1 * (vz0 + h * az0 / 2)
+        zc = z0 + h * vz0 + h * h / 4 * (az0 + Q / mp)
+        beta = h * h / (4 * mp)
+        for k in range(K):
+            hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+            hk[k] = hh
+            dhk[k] = dh
+            rhs[k] = zc - wfree[k] + hh
+        if not _solve_contacts(active, stiff, beta, G1c, rhs, Fn, comp, K):
+            return n_ev, 2, n
+        S1 = 0.0
+        for k in range(K):
+            S1 += Fn[k]
+        for r in range(R):
+            acc = 0.0
+            for k in range(K):
+                acc += phi[r, k] * Fn[k]
+            u_new[r] = acc / M
+            q[r] = sq[r] + G1[r, 0] * u_new[r]
+            dq[r] = sdq[r] + G1[r, 1] * u_new[r]
+            u[r] = u_new[r]
+        az1 = (Q - S1) / mp
+        vz1 = vz0 + h / 2 * (az0 + az1)
+        z1 = zc - beta * S1
+        # ---- events by sign change (linear interpolation) ------------------------------
+        for k in range(K):
+            if (comp_old[k] > 0.0) != (comp[k] > 0.0) and n_ev < cap:
+                frac = comp_old[k] / (comp_old[k] - comp[k])
+                ev_t[n_ev] = t0 + h * frac
+                ev_kind[n_ev] = 0 if comp_old[k] > 0.0 else 1
+                ev_contact[n_ev] = k
+                n_ev += 1
+            comp_old[k] = comp[k]
+        if tangential:
+            was_stick = tang[4] > 0.5
+            now_stick = abs(v1) < vst
+            if was_stick != now_stick and n_ev < cap:
+                a_ = abs(v0) - vst
+                b_ = abs(v1) - vst
+                frac = a_ / (a_ - b_) if a_ != b_ else 1.0
+                ev_t[n_ev] = t0 + h * frac
+                ev_kind[n_ev] = 2 if now_stick else 3
+                ev_contact[n_ev] = -1
+                n_ev += 1
+                tang[4] = 1.0 if now_stick else 0.0
+            s_new, vext_new, flipped = latch_update(tang[2], tang[3], v1, eps)
+            tang[2] = s_new
+            tang[3] = vext_new
+            if flipped and n_ev < cap:
+                ev_t[n_ev] = t1
+                ev_kind[n_ev] = 4
+                ev_contact[n_ev] = -1
+                n_ev += 1
+        # ---- energy (trapezoidal quadrature of the powers) ------------------------------
+        q_exc = 0.0
+        q_fric = 0.0
+        mu1 = 0.0
+        if tangential:
+            mu1, _ = feldmann_mu_law(v1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+            q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
+            q_fric = mu1 * S1 * v1
+        q_r2 = r2 * v1 * v1 if tangential else 0.0
+        q_r1 = r1 * vz1 * vz1
+        q_pl = 0.0
+        for r in range(R):
+            q_pl += M * cdamp[r] * dq[r] * dq[r]
+        q_ro = 0.0
+        for k in range(K):
+            q_ro += Fn[k] * dhk[k] * v1
+        energy[0] += 0.5 * h * (p_exc + q_exc)
+        energy[1] += 0.5 * h * (p_fric + q_fric)
+        energy[2] += 0.5 * h * (p_r2 + q_r2) if tangential else 0.0
+        energy[3] += 0.5 * h * (p_r1 + q_r1)
+        energy[4] += 0.5 * h * (p_pl + q_pl)
+        energy[5] += 0.5 * h * (p_ro + q_ro)
+        p_exc, p_fric, p_r2, p_r1, p_pl, p_ro = q_exc, q_fric, q_r2, q_r1, q_pl, q_ro
+        # ---- advance ---------------------------------------------------------------------
+        zv[0], zv[1], zv[2] = z1, vz1, az1
+        for k in range(K):
+            Fv[k] = Fn[k]
+        x0, v0, S0 = x1, v1, S1
+        tang[0] = x1
+        tang[1] = v1
+        if (n + 1) % out_every == 0:
+            row += 1
+            acc = 0.0
+            for r in range(R):
+                f = 0.0
+                for k in range(K):
+                    f += phi[r, k] * Fn[k]
+                acc += phi_obs[r] * (f / M - cdamp[r] * dq[r] - omega2[r] * q[r])
+            out[row, 0] = z1
+            out[row, 1] = vz1
+            out[row, 2] = az1
+            out[row, 3] = acc
+            out[row, 4] = x1
+            out[row, 5] = v1
+            out[row, 6] = mu1 * S1 if tangential else np.nan
+            out[row, 7] = S1
+            out[row, 8] = mu1 if tangential else np.nan
+            for k in range(K):
+                out[row, kn.N_OUT_FIXED + k] = Fn[k]
+                out[row, kn.N_OUT_FIXED + K + k] = -hk[k]
+    return n_ev, 0, n_steps
+
+
+def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolution:
+    """Integrate with a fixed-step scheme (``scene.solver.method``) on the output grid.
+
+    The solver step must divide the output step (``output.step / solver.step`` an integer);
+    outputs are the states at those steps, not interpolations.
+    """
+    scene = system.scene
+    method = scene.solver.method
+    if system.coulomb:
+        raise SceneError(f"solver.method = {method!r} supports friction.law = 'feldmann' "
+                         f"only (the set-valued law needs 'ida'), got 'coulomb'")
+    h = scene.solver.step
+    ratio = scene.output.step / h
+    out_every = int(round(ratio))
+    if out_every < 1 or abs(ratio - out_every) > 1e-9 * ratio:
+        raise SceneError(f"solver.step must divide output.step ({scene.output.step} s) into a "
+                         f"whole number of steps, got {h} s")
+    n_out = int(round(scene.output.duration / scene.output.step)) + 1
+    n_steps = (n_out - 1) * out_every
+    K = system.n_contacts
+    lay = system.layout
+    omega = np.sqrt(system.omega2)
+    zeta = np.where(omega > 0, system.cdamp / (2 * np.maximum(omega, 1e-300)), 0.0)
+    Phi, G0, G1 = modal_propagators(omega, zeta, h, method)
+
+    y0, closed = system.static_equilibrium()
+    regime = initial_regime(closed, system.fp, lay.tangential, False)
+    reg, rf = system.new_regime_arrays()
+    regime.pack(reg, rf)
+    y, _ = system.consistent(0.0, y0, reg, rf)
+    q = y[lay.slice("plate.q")].copy()
+    dq = y[lay.slice("plate.dq")].copy()
+    Fv = y[lay.slice("contact.force")].copy()
+    zv = np.array([y[lay.index("block.z")], y[lay.index("block.vz")], 0.0])
+    zv[2] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
+    tang = np.array([0.0, 0.0, float(regime.latch), 0.0, 1.0])
+    energy = np.zeros(6)
+    out = np.full((n_out, kn.N_OUT_FIXED + 2 * K), np.nan)
+    args = system.kernel_args(reg, rf)
+    kn.outputs(0.0, y, out[0], *args)
+    cap = 2_000_000
+    ev_t = np.empty(cap)
+    ev_kind = np.empty(cap, dtype=np.int8)
+    ev_contact = np.empty(cap, dtype=np.int64)
+    active = closed.astype(np.int64).copy()
+    wall0 = time.perf_counter()
+    cpu0 = time.process_time()
+    n_ev, code, n_done = _run(h, n_steps, out_every, Phi, G0, G1, system.phi, system.phi_obs,
+                              system.omega2, system.cdamp, system.stiff, system.cres,
+                              system.contact_s, system.prof, system.fp, lay.tangential, q, dq,
+                              zv, Fv, active, tang, energy, out, ev_t, ev_kind, ev_contact)
+    wall = time.perf_counter() - wall0
+    status, message = "success", "reached the end of the output grid"
+    if code == 1:
+        status = "newton_failure"
+        message = (f"tangential Newton iteration failed at t = {n_done * h:.6g} s "
+                   f"(solver.step {h} s); hint: reduce solver.step")
+    elif code == 2:
+        status = "active_set_failure"
+        message = f"contact active set did not converge at t = {n_done * h:.6g} s"
+    events = []
+    for i in range(n_ev):
+        kind = EV_KINDS[int(ev_kind[i])]
+        events.append(EventRecord(float(ev_t[i]), kind, int(ev_contact[i]), "", "", 0.0, 0.0,
+                                  np.nan, np.nan, np.nan, np.nan, np.nan))
+    events.sort(key=lambda e: e.time)
+    # final state vector in the IDA layout (for the energy audit)
+    yf = np.zeros(lay.size)
+    yf[lay.slice("plate.q")] = q
+    yf[lay.slice("plate.dq")] = dq
+    yf[lay.index("block.z")] = zv[0]
+    yf[lay.index("block.vz")] = zv[1]
+    if lay.tangential:
+        yf[lay.index("block.x")] = tang[0]
+        yf[lay.index("block.vx")] = tang[1]
+    yf[lay.slice("contact.force")] = Fv
+    for i, name in enumerate(lay.names[-6:]):
+        yf[lay.index(name)] = energy[i]
+    rows = (n_done // out_every) + 1 if code else n_out
+    stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
+             "jacobian_evaluations": None, "restarts": 0, "wall_time": wall,
+             "cpu_time": time.process_time() - cpu0, "events_total": n_ev,
+             "events_truncated": n_ev >= cap}
+    return RawSolution(time=np.arange(n_out) * scene.output.step, outputs=out, events=events,
+                       stats=stats, status=status, message=message, y_initial=y,
+                       y_final=yf, t_final=float(n_done * h), extra={"rows_filled": rows})

@@ -1,0 +1,87 @@
+"""Fixed-step baselines: theoretical order on a smooth scene, agreement with IDA."""
+
+import numpy as np
+import pytest
+
+import roughvib
+from roughvib.api import simulate
+from roughvib.solvers.fixed_step import modal_propagators
+
+# one contact on a sinusoid, prescribed sliding, modal plate, no lift-off: smooth and linear
+SMOOTH = {"contact.points": 1, "roughness.kind": "sinusoid", "roughness.amplitude": 0.05e-6,
+          "roughness.wavelength": 1e-3, "excitation.kind": "prescribed",
+          "excitation.velocity": 0.2, "excitation.amplitude": 0.0,
+          "excitation.target_rms_velocity": "none", "plate.max_frequency": 3e3,
+          "plate.loss_factor": 0.1, "output.duration": 0.02, "output.step": 2e-4,
+          "output.progress": False}
+
+
+@pytest.fixture(scope="module")
+def reference():
+    return simulate(roughvib.load_scene("paper", {**SMOOTH, "solver.rtol": 1e-11,
+                                                  "solver.atol": 1e-18,
+                                                  "solver.atol_acceleration": 1e-12}))
+
+
+@pytest.mark.parametrize("method,order", [("exact-modal", 2), ("newmark", 2)])
+def test_fixed_step_converges_at_theoretical_order(reference, method, order):
+    hs = [2e-4 / 2**k for k in range(2, 6)]
+    for var in ("block_vertical_acceleration", "plate_vertical_acceleration"):
+        a_ref = reference.dataset[var].values
+        errs = []
+        for h in hs:
+            r = simulate(roughvib.load_scene("paper", {**SMOOTH, "solver.method": method,
+                                                       "solver.step": h}))
+            assert r.ok
+            errs.append(np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref)))
+        slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+        assert abs(slope - order) < 0.3, (var, errs)
+        # agreement with IDA within what the order predicts at the finest step
+        assert errs[-1] < 2e-3
+
+
+def test_exact_modal_propagator_is_exact_for_free_and_ramp_response():
+    """Phi, G0, G1 against closed forms: free decay and the response to a unit ramp."""
+    w, z, h = np.array([2 * np.pi * 40e3]), np.array([0.0015]), 1e-5  # w h > pi
+    Phi, G0, G1 = modal_propagators(w, z, h, "exact-modal")
+    wd = w[0] * np.sqrt(1 - z[0] ** 2)
+    e = np.exp(-z[0] * w[0] * h)
+    # free response from q = 1, q' = 0
+    q = e * (np.cos(wd * h) + z[0] * w[0] / wd * np.sin(wd * h))
+    assert Phi[0, 0, 0] == pytest.approx(q, rel=1e-10)
+    # constant unit force from rest: q(h) = (1 - free response) / w^2
+    assert (G0[0, 0] + G1[0, 0]) == pytest.approx((1 - q) / w[0] ** 2, rel=1e-8)
+    assert np.all(np.abs(np.linalg.eigvals(Phi[0])) <= 1.0)
+    # Newmark is unconditionally stable too but has a period error at w h = 2.5
+    PhiN, _, _ = modal_propagators(w, z, h, "newmark")
+    assert np.all(np.abs(np.linalg.eigvals(PhiN[0])) <= 1.0)
+    assert abs(np.angle(np.linalg.eigvals(PhiN[0])[0])) < 0.8 * wd * h
+
+
+def test_fixed_step_paper_scene_agrees_with_ida():
+    base = {"output.duration": 0.03, "plate.max_frequency": 5e3, "output.progress": False,
+            "output.transient": 0.0, "excitation.force_amplitude": 0.915,
+            "excitation.target_rms_velocity": "none"}
+    ida = simulate(roughvib.load_scene("paper", base))
+    fx = simulate(roughvib.load_scene("paper", {**base, "solver.method": "exact-modal",
+                                                "solver.step": 2.5e-6}))
+    for key in ("block_tangential_velocity_rms", "block_vertical_acceleration_rms",
+                "plate_vertical_acceleration_rms"):
+        assert fx.summary["metrics"][key] == pytest.approx(ida.summary["metrics"][key],
+                                                           rel=2e-2)
+    # event times: the same stick/slip starts within a few steps
+    for kind in ("stick", "slip"):
+        a = ida.events[ida.events["kind"] == kind]["time"].to_numpy()
+        b = fx.events[fx.events["kind"] == kind]["time"].to_numpy()
+        assert a.size == b.size and np.all(np.abs(a - b) < 1e-4)
+    assert abs(fx.summary["energy_audit"]["relative_residual"]) < 1e-3
+
+
+def test_fixed_step_rejects_coulomb_and_bad_step():
+    with pytest.raises(roughvib.SceneError, match="supports friction.law = 'feldmann' only"):
+        simulate(roughvib.load_scene("paper", {"solver.method": "newmark",
+                                               "friction.law": "coulomb",
+                                               "output.duration": 0.001}))
+    with pytest.raises(roughvib.SceneError, match="solver.step must divide output.step"):
+        simulate(roughvib.load_scene("paper", {"solver.method": "newmark", "solver.step": 3e-6,
+                                               "output.duration": 0.001}))
