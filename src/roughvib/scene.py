@@ -563,7 +563,7 @@ class Solver:
     step: float = 1e-5
     rtol: float = 1e-6
     atol: float = 1e-12
-    atol_acceleration: float = 1e-5
+    atol_acceleration: float = 1e-8
     max_order: int = 2
     max_step: float = 0.0
     max_events: int = 500
