@@ -1,0 +1,411 @@
+"""Friction law of the paper (Eq. 10) with the latched hysteresis, and a tangential-only model.
+
+This module owns
+
+* the numba kernels of the regularised Feldmann law (physics.md §3.1): the branch expression
+  :func:`feldmann_mu` (the event-driven solver keeps the branch ``b`` as a discrete state and
+  switches it at ``x = 0``), the law itself :func:`feldmann_mu_law` (``b = sign(x)``), and the
+  latched hysteresis sign :func:`latch_update` / :func:`latch_margin` of physics.md §1.5(g);
+* a plain-Python reference :func:`mu_reference` written from the two-branch form of Eq. 10;
+* the tangential-only reference model of physics.md §3.3 (block under a constant normal force,
+  no roughness), integrated with the trapezoidal rule and a scalar Newton iteration per step
+  (:func:`simulate_tangential`), and the calibration of the force amplitude T0 to a target rms
+  velocity (:func:`calibrate_force_amplitude`).
+
+Conventions (physics.md §1.4): the friction force on the block is ``-mu(v + s v_h) F_N``, with
+``s = +1`` after a velocity maximum (decelerating branch) and ``s = -1`` after a velocity minimum
+(accelerating branch). All kernels take floats, ints and arrays only and run unchanged with
+``NUMBA_DISABLE_JIT=1``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.optimize import brentq
+
+from roughvib.scene import Friction
+
+__all__ = [
+    "calibrate_force_amplitude",
+    "feldmann_mu",
+    "feldmann_mu_law",
+    "latch_margin",
+    "latch_update",
+    "law_parameters",
+    "mu_reference",
+    "rms_over_periods",
+    "simulate_tangential",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# kernels
+# --------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def feldmann_mu(x, b, mu_slip, mu_stick, a1, a2):
+    """Branch ``b`` of Eq. 10 and its exact derivative.
+
+    ``mu_b(x) = b (mu_slip + (mu_stick - mu_slip) exp(-a1 b x) - mu_stick exp(-a2 b x))``.
+    With ``b = sign(x)`` this is the law; the other branch is its smooth continuation through
+    ``x = 0`` (both branches give ``mu = 0`` and the same slope there).
+
+    Parameters
+    ----------
+    x : float
+        Shifted relative velocity X = v + s v_h [m/s].
+    b : float
+        Branch, +1.0 or -1.0.
+    mu_slip, mu_stick : float
+        Quasi-static kinetic and static coefficients [-].
+    a1, a2 : float
+        Exponential constants [s/m].
+
+    Returns
+    -------
+    mu : float
+        Friction coefficient [-].
+    dmu_dx : float
+        d mu / d x [s/m].
+    """
+    e1 = math.exp(-a1 * b * x)
+    e2 = math.exp(-a2 * b * x)
+    dmu = mu_stick - mu_slip
+    mu = b * (mu_slip + dmu * e1 - mu_stick * e2)
+    # b * b = 1: the derivative has the same expression on both branches
+    dmu_dx = -a1 * dmu * e1 + a2 * mu_stick * e2
+    return mu, dmu_dx
+
+
+@njit(cache=True)
+def feldmann_mu_law(x, mu_slip, mu_stick, a1, a2):
+    """The law of Eq. 10: :func:`feldmann_mu` on the branch ``b = sign(x)`` (+1 at x = 0).
+
+    The law is C1 at ``x = 0`` (its second derivative jumps there).
+
+    Returns
+    -------
+    mu : float
+        Friction coefficient [-].
+    dmu_dx : float
+        d mu / d x [s/m].
+    """
+    b = 1.0 if x >= 0.0 else -1.0
+    return feldmann_mu(x, b, mu_slip, mu_stick, a1, a2)
+
+
+@njit(cache=True)
+def latch_update(s, v_ext, v, eps):
+    """Advance the latched hysteresis sign by one velocity sample (physics.md §1.5(g)).
+
+    ``s = +1`` (after a velocity maximum) tracks the running minimum of the velocity in
+    ``v_ext``; ``s = -1`` (after a velocity minimum) tracks the running maximum. The sign flips
+    once ``v`` has moved back from the running extremum by more than ``eps``; the extremum then
+    restarts at ``v``.
+
+    Parameters
+    ----------
+    s : float
+        Current latch sign, +1.0 or -1.0.
+    v_ext : float
+        Running extremum of the velocity since the last flip [m/s].
+    v : float
+        New velocity sample [m/s].
+    eps : float
+        Flip threshold epsilon_v > 0 [m/s].
+
+    Returns
+    -------
+    s_new : float
+    v_ext_new : float [m/s]
+    flipped : bool
+    """
+    if s > 0.0:
+        if v < v_ext:
+            v_ext = v
+        if v - v_ext > eps:
+            return -1.0, v, True
+        return 1.0, v_ext, False
+    if v > v_ext:
+        v_ext = v
+    if v_ext - v > eps:
+        return 1.0, v, True
+    return -1.0, v_ext, False
+
+
+@njit(cache=True)
+def latch_margin(s, v_ext, v, eps):
+    """Distance of the latch from its flip: ``eps - s (v - v_ext)`` [m/s].
+
+    Positive while no flip is due; it crosses zero (downward) where :func:`latch_update` flips,
+    so an event-driven solver can use it as a root function (``v_ext`` is then the running
+    extremum held as a discrete state and updated at the step ends).
+    """
+    return eps - s * (v - v_ext)
+
+
+@njit(cache=True)
+def _tangential_kernel(t0_amp, mass, r2, normal_force, omega, mu_slip, mu_stick, a1, a2, v_h,
+                       eps, dt, n_steps, v_out, x_out):
+    """Trapezoidal rule with a scalar Newton iteration on v per step; latch after each step.
+
+    Fills ``v_out`` and ``x_out`` (length n_steps + 1) and returns the number of latch flips and
+    the largest Newton iteration count.
+    """
+    s = -1.0
+    v_ext = 0.0
+    v0 = 0.0
+    x0 = 0.0
+    v_out[0] = v0
+    x_out[0] = x0
+    half = 0.5 * dt
+    mu0, _ = feldmann_mu_law(v0 + s * v_h, mu_slip, mu_stick, a1, a2)
+    f0 = t0_amp - mu0 * normal_force - r2 * v0
+    flips = 0
+    max_iter = 0
+    tol = 1e-14
+    for n in range(n_steps):
+        t1 = (n + 1) * dt
+        drive1 = t0_amp * math.cos(omega * t1)
+        # explicit Euler predictor; the residual is strictly increasing in v1 as long as
+        # m + dt/2 (mu' F_N + r2) > 0, which holds for any dt << m / (a1 (mu_stick-mu_slip) F_N)
+        v1 = v0 + dt * f0 / mass
+        it = 0
+        f1 = 0.0
+        while True:
+            it += 1
+            mu1, dmu1 = feldmann_mu_law(v1 + s * v_h, mu_slip, mu_stick, a1, a2)
+            f1 = drive1 - mu1 * normal_force - r2 * v1
+            res = mass * (v1 - v0) - half * (f0 + f1)
+            jac = mass + half * (dmu1 * normal_force + r2)
+            dv = res / jac
+            v1 -= dv
+            if abs(dv) <= tol * (1.0 + abs(v1)) or it >= 50:
+                break
+        if it > max_iter:
+            max_iter = it
+        x1 = x0 + half * (v0 + v1)
+        s, v_ext, flipped = latch_update(s, v_ext, v1, eps)
+        if flipped:
+            flips += 1
+            mu1, _ = feldmann_mu_law(v1 + s * v_h, mu_slip, mu_stick, a1, a2)
+            f1 = drive1 - mu1 * normal_force - r2 * v1
+        v_out[n + 1] = v1
+        x_out[n + 1] = x1
+        v0 = v1
+        x0 = x1
+        f0 = f1
+    return flips, max_iter
+
+
+# --------------------------------------------------------------------------------------------
+# plain-Python reference
+# --------------------------------------------------------------------------------------------
+
+
+def mu_reference(x: float, mu_slip: float, mu_stick: float, a1: float, a2: float) -> float:
+    """Eq. 10 as printed in physics.md §1.2, two explicit branches (no numba, for tests).
+
+    Parameters
+    ----------
+    x : float
+        X = relative velocity + hysteresis shift [m/s].
+
+    Returns
+    -------
+    float
+        mu(X) [-]; 0 at X = 0.
+    """
+    if x > 0.0:
+        return mu_slip + (mu_stick - mu_slip) * math.exp(-a1 * x) - mu_stick * math.exp(-a2 * x)
+    if x < 0.0:
+        return -mu_slip - (mu_stick - mu_slip) * math.exp(a1 * x) + mu_stick * math.exp(a2 * x)
+    return 0.0
+
+
+# --------------------------------------------------------------------------------------------
+# tangential-only reference model
+# --------------------------------------------------------------------------------------------
+
+
+def law_parameters(friction: Friction) -> tuple[float, float, float, float]:
+    """``(mu_slip, mu_stick, a1, a2)`` of a :class:`~roughvib.scene.Friction` as floats."""
+    return (float(friction.mu_slip), float(friction.mu_stick), float(friction.a1),
+            float(friction.a2))
+
+
+def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, omega: float,
+                        friction: Friction, duration: float, dt: float = 1e-6,
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tangential-only block under a constant normal force (physics.md §3.3).
+
+    ``m v' = T0 cos(omega t) - mu(v + s v_h) F_N - r2 v``, ``x' = v``, from rest at t = 0 with
+    the latch on the accelerating branch (``s = -1``, running maximum 0). The regularised law is
+    stiff (slope ~ mu_stick a2 F_N), so each step is the trapezoidal rule (second order,
+    A-stable) solved for v by Newton; the latch is updated after each step with
+    ``friction.effective_latch_velocity``.
+
+    Parameters
+    ----------
+    T0 : float
+        Force amplitude [N].
+    mass : float
+        Block mass m [kg].
+    r2 : float
+        Tangential viscous damping [N s/m].
+    normal_force : float
+        Constant normal force F_N [N] (m g for the paper's block).
+    omega : float
+        Excitation angular frequency [rad/s].
+    friction : Friction
+        Law parameters.
+    duration : float
+        Simulated time [s].
+    dt : float, optional
+        Fixed step [s]; keep dt well below m / (mu_stick a2 F_N) (~1.3e-5 s for the defaults).
+
+    Returns
+    -------
+    t, v, x : ndarray, shape (n + 1,)
+        Time [s], velocity [m/s] and displacement [m] on the grid t = k dt, n = round(duration/dt).
+    """
+    if not (dt > 0.0 and duration > 0.0):
+        raise ValueError(f"dt and duration must be > 0 s, got dt={dt}, duration={duration}")
+    if mass <= 0.0:
+        raise ValueError(f"mass must be > 0 kg, got {mass}")
+    n = int(round(duration / dt))
+    v = np.empty(n + 1)
+    x = np.empty(n + 1)
+    mu_slip, mu_stick, a1, a2 = law_parameters(friction)
+    _tangential_kernel(float(T0), float(mass), float(r2), float(normal_force), float(omega),
+                       mu_slip, mu_stick, a1, a2, float(friction.hysteresis_velocity),
+                       float(friction.effective_latch_velocity), float(dt), n, v, x)
+    t = np.arange(n + 1) * dt
+    return t, v, x
+
+
+def rms_over_periods(t: np.ndarray, v: np.ndarray, period: float, transient: float) -> float:
+    """Rms of ``v`` over the largest whole number of periods after ``transient``.
+
+    The mean square is the trapezoidal integral of v^2 over [transient, transient + n period],
+    the window ends linearly interpolated, so the result is second-order accurate in the grid
+    spacing (and independent of how the period falls on the grid).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Increasing times [s].
+    v : ndarray, shape (n,)
+        Samples [any unit].
+    period : float
+        Averaging period [s].
+    transient : float
+        Start of the window [s].
+
+    Returns
+    -------
+    float
+        Rms [unit of v].
+
+    Raises
+    ------
+    ValueError
+        Less than one whole period after ``transient``.
+    """
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(v, dtype=float)
+    n_per = int(math.floor((t[-1] - transient) / period * (1.0 + 1e-12)))
+    if period <= 0.0 or n_per < 1 or transient < t[0]:
+        raise ValueError(f"need at least one whole period ({period} s) between transient "
+                         f"({transient} s) and the end ({t[-1]} s)")
+    ta = transient
+    tb = min(transient + n_per * period, t[-1])
+    inside = (t > ta) & (t < tb)
+    tt = np.concatenate(([ta], t[inside], [tb]))
+    vv = np.concatenate(([np.interp(ta, t, v)], v[inside], [np.interp(tb, t, v)]))
+    return float(math.sqrt(np.trapezoid(vv * vv, tt) / (tb - ta)))
+
+
+def _steady_rms(T0, mass, r2, normal_force, omega, friction, transient_periods, periods, dt):
+    period = 2.0 * math.pi / omega
+    t, v, _ = simulate_tangential(T0, mass, r2, normal_force, omega, friction,
+                                  (transient_periods + periods) * period, dt)
+    return rms_over_periods(t, v, period, transient_periods * period)
+
+
+class _Converged(Exception):
+    def __init__(self, T0: float) -> None:
+        super().__init__(T0)
+        self.T0 = T0
+
+
+def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_force: float,
+                              omega: float, friction: Friction, *, transient_periods: int = 3,
+                              periods: int = 2, rtol: float = 1e-3, dt: float = 1e-6) -> float:
+    """Force amplitude T0 whose steady-state rms velocity in the tangential model is the target.
+
+    The rms over ``periods`` whole periods after ``transient_periods`` periods of
+    :func:`simulate_tangential` increases monotonically with T0, so T0 is the root of
+    ``rms(T0) / target - 1`` (Brent's method, stopped once the rms is within ``rtol`` of the
+    target).
+
+    Bracket: with V = sqrt(2) target and Z = r2 + i m omega the mass-damper impedance,
+    ``T_lo = |Z| V`` is the amplitude the frictionless system needs, and friction only adds
+    resistance, so rms(T_lo) <= target. ``T_hi = |Z| V + (4/pi) mu_stick F_N`` adds the largest
+    first-harmonic amplitude a friction force bounded by mu_stick F_N can have (describing function
+    of a relay). Both ends are checked and widened geometrically if the estimate fails.
+
+    Parameters
+    ----------
+    target_rms : float
+        Target rms velocity [m/s].
+    mass, r2, normal_force, omega : float
+        As in :func:`simulate_tangential` [kg, N s/m, N, rad/s].
+    friction : Friction
+    transient_periods, periods : int, optional
+        Periods discarded and averaged.
+    rtol : float, optional
+        Relative tolerance on the rms velocity.
+    dt : float, optional
+        Time step [s].
+
+    Returns
+    -------
+    float
+        T0 [N].
+    """
+    if target_rms <= 0.0:
+        raise ValueError(f"target_rms must be > 0 m/s, got {target_rms}")
+    # |mu| <= mu_slip + (mu_stick - mu_slip) e^(-a1 |X|) <= mu_stick for every X
+    mu_max = max(float(friction.mu_stick), float(friction.mu_slip))
+
+    def g(T0: float) -> float:
+        r = _steady_rms(T0, mass, r2, normal_force, omega, friction, transient_periods,
+                        periods, dt) / target_rms - 1.0
+        if abs(r) <= rtol:
+            raise _Converged(T0)
+        return r
+
+    amp = math.sqrt(2.0) * target_rms
+    lo = amp * math.hypot(r2, mass * omega)
+    hi = lo + 4.0 / math.pi * mu_max * normal_force
+    try:
+        g_lo = g(lo)
+        while g_lo >= 0.0 and lo > 1e-12 * hi:
+            lo *= 0.25
+            g_lo = g(lo)
+        g_hi = g(hi)
+        while g_hi <= 0.0 and hi < 1e6 * lo:
+            lo, g_lo = hi, g_hi
+            hi *= 1.5
+            g_hi = g(hi)
+        if not (g_lo < 0.0 < g_hi):
+            raise RuntimeError(f"no bracket for target_rms={target_rms} m/s found "
+                               f"(T0 in [{lo}, {hi}] N)")
+        return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12, maxiter=100))
+    except _Converged as c:
+        return c.T0
