@@ -196,6 +196,29 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from roughvib.compare import DEFAULT_RTOLS, DEFAULT_STEPS, crossings, run_study
+    from roughvib.scene import load_scene
+
+    scene = load_scene(args.scene, _parse_sets(args.set))
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    allowed = ("ida", "exact-modal", "newmark")
+    for m in methods:
+        if m not in allowed:
+            raise InputError(f"--methods must be a comma list of {', '.join(allowed)}, got {m!r}")
+    rtols = tuple(float(v) for v in args.rtols.split(",")) if args.rtols else DEFAULT_RTOLS
+    steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else DEFAULT_STEPS
+    table = run_study(scene, args.out, budget=args.budget, reference=args.reference,
+                      methods=methods, rtols=rtols, steps=steps, progress=not args.no_progress)
+    done = table[table["status"] == "success"]
+    print(f"{len(done)} of {len(table)} runs succeeded; results in {args.out}/work_precision.*")
+    for metric in ("plate_band_db_100_20k", "block_band_db_100_20k", "velocity_rel_rms"):
+        for c in crossings(table, metric):
+            print(f"  {c['method']} crosses ida ({metric}) at {c['wall_time']:.3g} s wall, "
+                  f"error {c['error']:.3g}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
     p = argparse.ArgumentParser(
@@ -204,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "plate (Feldmann 2012), solved event-driven with SUNDIALS IDA.",
         epilog="examples:\n  roughvib run\n  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib scenes\n  roughvib events runs/paper\n"
-               "  roughvib plot runs/paper --figure events\n\n"
+               "  roughvib plot runs/paper --figure events\n"
+               "  roughvib compare paper --out runs/wp --budget 900\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -257,6 +281,28 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--figure", default="events", help="figure name (default: events)")
     pl.add_argument("--out", help="PNG path (default: DIR/figures/NAME.png)")
     pl.set_defaults(func=cmd_plot)
+
+    c = sub.add_parser(
+        "compare", formatter_class=fmt, help="work-precision study: IDA vs fixed-step schemes",
+        description="Run a reference (IDA, rtol 1e-10) and then IDA over a ladder of rtol and "
+                    "each fixed-step scheme over a ladder of steps while the time budget "
+                    "lasts; measure band-level, velocity, event-time and energy errors against "
+                    "the reference; write work_precision.csv/.md/.png into --out.",
+        epilog="examples:\n  roughvib compare paper --out runs/wp --budget 900\n"
+               "  roughvib compare paper --out runs/wp --reference runs/ref "
+               "--methods ida,exact-modal\n")
+    c.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
+    c.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    c.add_argument("--budget", type=float, default=900.0,
+                   help="wall-time budget of the ladder runs in seconds (default 900)")
+    c.add_argument("--reference", metavar="DIR", help="use this result directory as reference")
+    c.add_argument("--methods", default="ida,exact-modal,newmark",
+                   help="comma list (default: ida,exact-modal,newmark)")
+    c.add_argument("--rtols", help="comma list of IDA rtols (default 1e-3 ... 1e-9)")
+    c.add_argument("--steps", help="comma list of fixed steps in s (default 1e-4 ... 1e-7)")
+    c.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=cmd_compare)
     return p
 
 
