@@ -51,7 +51,8 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
         **terms,
         "stored_energy_change": delta,
         "residual": residual,
-        "relative_residual": residual / scale if scale > 0 else 0.0,
+        "relative_residual": (residual / scale if scale > 0 else 0.0)
+        if np.isfinite(residual) else float("nan"),
         "t_end": raw.t_final,
     }
 
@@ -181,6 +182,10 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     t_pre = time.perf_counter() - t0
     if scene.solver.method == "ida":
         raw = solve_ida(system, progress=progress)
+    elif scene.solver.method == "paper":
+        from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+        raw = solve_paper_scheme(system, progress=progress)
     else:
         from roughvib.solvers.fixed_step import solve_fixed_step
 

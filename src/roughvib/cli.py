@@ -202,7 +202,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, _parse_sets(args.set))
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    allowed = ("ida", "exact-modal", "newmark")
+    allowed = ("ida", "exact-modal", "newmark", "paper")
     for m in methods:
         if m not in allowed:
             raise InputError(f"--methods must be a comma list of {', '.join(allowed)}, got {m!r}")
@@ -296,8 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--budget", type=float, default=900.0,
                    help="wall-time budget of the ladder runs in seconds (default 900)")
     c.add_argument("--reference", metavar="DIR", help="use this result directory as reference")
-    c.add_argument("--methods", default="ida,exact-modal,newmark",
-                   help="comma list (default: ida,exact-modal,newmark)")
+    c.add_argument("--methods", default="ida,exact-modal,newmark,paper",
+                   help="comma list (default: ida,exact-modal,newmark,paper)")
     c.add_argument("--rtols", help="comma list of IDA rtols (default 1e-3 ... 1e-9)")
     c.add_argument("--steps", help="comma list of fixed steps in s (default 1e-4 ... 1e-7)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")

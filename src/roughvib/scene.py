@@ -532,11 +532,13 @@ class Solver:
 
     Attributes
     ----------
-    method : {"ida", "exact-modal", "newmark"}
+    method : {"ida", "exact-modal", "newmark", "paper"}
         ``ida``: event-driven adaptive DAE solver (the reference). Fixed-step baselines
         (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
         piecewise-linear force and an implicit contact/block step (physics.md §2.5);
-        ``newmark`` average-acceleration Newmark on the modal model.
+        ``newmark`` average-acceleration Newmark on the modal model; ``paper`` the paper's
+        scheme: backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
+        convolution of its impulse response (explicit in the plate, O(N^2) cost).
     step : float
         Time step of the fixed-step methods [s].
     rtol : float
@@ -572,7 +574,7 @@ class Solver:
     def __post_init__(self) -> None:
         p = "solver"
         _set(self, "method", _choice(f"{p}.method", self.method,
-                                     ("ida", "exact-modal", "newmark")))
+                                     ("ida", "exact-modal", "newmark", "paper")))
         _set(self, "step", _positive(f"{p}.step", self.step, "s"))
         _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
         _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))

@@ -16,28 +16,32 @@ SMOOTH = {"contact.points": 1, "roughness.kind": "sinusoid", "roughness.amplitud
           "output.progress": False}
 
 
-@pytest.fixture(scope="module")
-def reference():
-    return simulate(roughvib.load_scene("paper", {**SMOOTH, "solver.rtol": 1e-11,
-                                                  "solver.atol": 1e-18,
-                                                  "solver.atol_acceleration": 1e-12}))
+@pytest.fixture(scope="module", params=[True, False], ids=["cres", "no-cres"])
+def reference(request):
+    over = {**SMOOTH, "plate.residual_compliance": request.param}
+    return over, simulate(roughvib.load_scene("paper", {**over, "solver.rtol": 1e-11,
+                                                        "solver.atol": 1e-18,
+                                                        "solver.atol_acceleration": 1e-12}))
 
 
-@pytest.mark.parametrize("method,order", [("exact-modal", 2), ("newmark", 2)])
+@pytest.mark.parametrize("method,order", [("exact-modal", 2), ("newmark", 2), ("paper", 1)])
 def test_fixed_step_converges_at_theoretical_order(reference, method, order):
+    over, reference = reference
+    if method == "paper" and over["plate.residual_compliance"]:
+        pytest.skip("the paper's scheme has no residual compliance (paper-faithful)")
     hs = [2e-4 / 2**k for k in range(2, 6)]
     for var in ("block_vertical_acceleration", "plate_vertical_acceleration"):
         a_ref = reference.dataset[var].values
         errs = []
         for h in hs:
-            r = simulate(roughvib.load_scene("paper", {**SMOOTH, "solver.method": method,
+            r = simulate(roughvib.load_scene("paper", {**over, "solver.method": method,
                                                        "solver.step": h}))
             assert r.ok
             errs.append(np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref)))
         slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
         assert abs(slope - order) < 0.3, (var, errs)
         # agreement with IDA within what the order predicts at the finest step
-        assert errs[-1] < 2e-3
+        assert errs[-1] < (2e-3 if order == 2 else 3e-2)
 
 
 def test_exact_modal_propagator_is_exact_for_free_and_ramp_response():
@@ -85,3 +89,17 @@ def test_fixed_step_rejects_coulomb_and_bad_step():
     with pytest.raises(roughvib.SceneError, match="solver.step must divide output.step"):
         simulate(roughvib.load_scene("paper", {"solver.method": "newmark", "solver.step": 3e-6,
                                                "output.duration": 0.001}))
+
+
+def test_paper_scheme_agrees_with_ida_and_has_no_energy_audit():
+    base = {"output.duration": 0.02, "plate.max_frequency": 3e3, "output.progress": False,
+            "output.transient": 0.0, "excitation.force_amplitude": 0.915,
+            "excitation.target_rms_velocity": "none", "plate.residual_compliance": False}
+    ida = simulate(roughvib.load_scene("paper", base))
+    pap = simulate(roughvib.load_scene("paper", {**base, "solver.method": "paper",
+                                                 "solver.step": 2.5e-6}))
+    assert pap.ok
+    for key in ("block_tangential_velocity_rms", "block_vertical_acceleration_rms"):
+        assert pap.summary["metrics"][key] == pytest.approx(ida.summary["metrics"][key],
+                                                            rel=3e-2)
+    assert np.isnan(pap.summary["energy_audit"]["relative_residual"])

@@ -1,0 +1,296 @@
+"""The paper's time-stepping scheme (Feldmann 2012, physics.md §1.5(j) and §2.5), as a baseline.
+
+Per step of length h: backward Euler for the block's vertical and tangential motion, the
+contact forces F_k = s_k H(d_k) d_k with the Heaviside H kept *inside* a Newton-Raphson
+iteration (LU solve per iteration), and the plate displacement at the contacts from the
+discrete convolution of the contact-force history with the sampled plate impulse responses,
+
+    w_i(t_{n+1}) = sum_{m=1}^{n+1} sum_j h g_ij(m h) F_j(t_{n+1-m}) ,   g_ij(0) = 0 .
+
+Because g(0) = 0 the plate reacts one step late: the scheme is explicit in the plate, which is
+why it is only stable while s h / Z_inf << 1 (physics.md §2.5). The history sum costs
+O(n K^2) per step, so O(N^2 K^2) per run: this is the formulation that the modal states of the
+DAE replace. The plate acceleration at the observation point is the force history convolved
+with the sampled acceleration impulse response plus its direct term; no residual compliance is
+included (paper-faithful). The energy audit is not available (the plate has no energy states here).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numba import njit
+
+from roughvib.friction import feldmann_mu_law, latch_update
+from roughvib.model import kernels as kn
+from roughvib.model.regimes import initial_regime
+from roughvib.model.system import System
+from roughvib.scene import SceneError
+from roughvib.solvers.ida import EventRecord, RawSolution
+from roughvib.surface.interp import profile_eval
+
+__all__ = ["impulse_responses", "solve_paper_scheme"]
+
+EV_KINDS = ("lift_off", "touch_down", "stick", "slip", "latch_flip")
+
+
+@njit(cache=True)
+def impulse_responses(phi, phi_obs, omega, zeta, M, h, n):
+    """Sampled plate impulse responses for m = 0..n (paper Eq. 5).
+
+    Returns ``G`` (n+1, K, K) = h g_ij(m h), the displacement at contact i per impulse at
+    contact j, and ``Ga`` (n+1, K) = h d^2 g_oj / dt^2 (m h), the acceleration at the
+    observation point, whose impulse at t = 0 is the direct term ``D`` (K,) =
+    sum_r phi_r(o) phi_rj / M applied to the current force.
+    g_ij(t) = sum_r phi_ri phi_rj exp(-zeta_r w_r t) sin(w_d,r t) / (M w_d,r).
+    """
+    R, K = phi.shape
+    G = np.zeros((n + 1, K, K))
+    Ga = np.zeros((n + 1, K))
+    D = np.zeros(K)
+    for r in range(R):
+        a = zeta[r] * omega[r]
+        wd = omega[r] * math.sqrt(1.0 - zeta[r] * zeta[r])
+        for j in range(K):
+            D[j] += phi_obs[r] * phi[r, j] / M
+        for m in range(1, n + 1):
+            t = m * h
+            e = math.exp(-a * t)
+            sn, cs = math.sin(wd * t), math.cos(wd * t)
+            g = h * e * sn / (M * wd)
+            gdd = h * e * ((a * a - wd * wd) * sn - 2.0 * a * wd * cs) / (M * wd)
+            for i in range(K):
+                Ga[m, i] += phi_obs[r] * phi[r, i] * gdd
+                ai = phi[r, i] * g
+                for j in range(K):
+                    G[m, i, j] += ai * phi[r, j]
+    return G, Ga, D
+
+
+@njit(cache=True)
+def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangential, zv, tang, Fv,
+               Fhist, out, ev_t, ev_kind, ev_contact):
+    K = stiff.size
+    m = fp[kn.FP_MASS]
+    g = fp[kn.FP_GRAV]
+    r1 = fp[kn.FP_R1]
+    r2 = fp[kn.FP_R2]
+    mu_sl, mu_st, a1, a2 = fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2]
+    vh = fp[kn.FP_VH]
+    eps = fp[kn.FP_EPS]
+    vst = fp[kn.FP_VSTICK]
+    w = np.empty(K)
+    d = np.empty(K)
+    dh = np.empty(K)
+    hk = np.empty(K)
+    comp_old = np.empty(K)
+    n_ev = 0
+    cap = ev_t.size
+    for k in range(K):
+        hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + tang[0])
+        comp_old[k] = Fv[k] / stiff[k] if Fv[k] > 0 else -1e-30
+    # the run starts from static equilibrium: the convolution carries the force *deviations*
+    # from the static forces, and the static plate deflection (tang[5:]) is added to it
+    Fst = Fv.copy()
+    row = 0
+    for n in range(n_steps):
+        t1 = (n + 1) * h
+        # plate at the contacts from the history of force *deviations* (explicit: g(0) = 0)
+        for i in range(K):
+            acc = 0.0
+            for mm in range(1, n + 2):
+                for j in range(K):
+                    acc += G[mm, i, j] * Fhist[n + 1 - mm, j]
+            w[i] = acc + tang[5 + i]  # + static plate deflection at contact i
+        # Newton-Raphson on (z1, vz1, x1, vx1), Heaviside inside the iteration
+        z0, vz0, x0, vx0 = zv[0], zv[1], tang[0], tang[1]
+        if not tangential:  # prescribed motion: x1 is known
+            w_ = fp[kn.FP_PW]
+            x0 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
+        z1, vz1, x1, vx1 = z0, vz0, x0, vx0
+        s_l = tang[2]
+        texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+        ok = False
+        for _it in range(60):
+            S = 0.0
+            dSdz = 0.0
+            dSdx = 0.0
+            for k in range(K):
+                hh, dd, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+                hk[k] = hh
+                dh[k] = dd
+                d[k] = z1 - w[k] + hh
+                if d[k] > 0.0:
+                    S += stiff[k] * d[k]
+                    dSdz += stiff[k]
+                    dSdx += stiff[k] * dd
+            A = np.zeros((4, 4))
+            b = np.zeros(4)
+            b[0] = m * (vz1 - vz0) / h - (m * g - r1 * vz1 - S)
+            A[0, 1] = m / h + r1
+            A[0, 0] = dSdz
+            A[0, 2] = dSdx
+            b[1] = z1 - z0 - h * vz1
+            A[1, 0] = 1.0
+            A[1, 1] = -h
+            if tangential:
+                mu, dmu = feldmann_mu_law(vx1 + s_l * vh, mu_sl, mu_st, a1, a2)
+                b[2] = m * (vx1 - vx0) / h - (texc - mu * S - r2 * vx1)
+                A[2, 3] = m / h + dmu * S + r2
+                A[2, 0] = mu * dSdz
+                A[2, 2] = mu * dSdx
+                b[3] = x1 - x0 - h * vx1
+                A[3, 2] = 1.0
+                A[3, 3] = -h
+            else:
+                A[2, 2] = 1.0
+                A[3, 3] = 1.0
+            du = np.linalg.solve(A, b)
+            z1 -= du[0]
+            vz1 -= du[1]
+            if tangential:
+                x1 -= du[2]
+                vx1 -= du[3]
+            if abs(du[0]) < 1e-16 + 1e-12 * abs(z1) and abs(du[3]) < 1e-15 + 1e-12 * abs(vx1):
+                ok = True
+                break
+        if not ok:
+            return n_ev, 1, n
+        if not tangential:
+            w_ = fp[kn.FP_PW]
+            x1 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
+            vx1 = fp[kn.FP_PV] + fp[kn.FP_PA] * w_ * math.cos(w_ * t1)
+        S = 0.0
+        for k in range(K):
+            hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+            hk[k] = hh
+            d[k] = z1 - w[k] + hh
+            Fv[k] = stiff[k] * d[k] if d[k] > 0.0 else 0.0
+            S += Fv[k]
+            Fhist[n + 1, k] = Fv[k] - Fst[k]
+        # events
+        for k in range(K):
+            if (comp_old[k] > 0.0) != (d[k] > 0.0) and n_ev < cap:
+                frac = comp_old[k] / (comp_old[k] - d[k]) if comp_old[k] != d[k] else 1.0
+                ev_t[n_ev] = t1 - h + h * frac
+                ev_kind[n_ev] = 0 if comp_old[k] > 0.0 else 1
+                ev_contact[n_ev] = k
+                n_ev += 1
+            comp_old[k] = d[k]
+        mu1 = 0.0
+        if tangential:
+            was = tang[4] > 0.5
+            now = abs(vx1) < vst
+            if was != now and n_ev < cap:
+                a_ = abs(vx0) - vst
+                b_ = abs(vx1) - vst
+                frac = a_ / (a_ - b_) if a_ != b_ else 1.0
+                ev_t[n_ev] = t1 - h + h * frac
+                ev_kind[n_ev] = 2 if now else 3
+                ev_contact[n_ev] = -1
+                n_ev += 1
+                tang[4] = 1.0 if now else 0.0
+            s_new, vext, flipped = latch_update(tang[2], tang[3], vx1, eps)
+            tang[2] = s_new
+            tang[3] = vext
+            if flipped and n_ev < cap:
+                ev_t[n_ev] = t1
+                ev_kind[n_ev] = 4
+                ev_contact[n_ev] = -1
+                n_ev += 1
+            mu1, _ = feldmann_mu_law(vx1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+        az1 = (vz1 - vz0) / h
+        zv[0], zv[1] = z1, vz1
+        tang[0], tang[1] = x1, vx1
+        if (n + 1) % out_every == 0:
+            row += 1
+            out[row, 0] = z1
+            out[row, 1] = vz1
+            out[row, 2] = az1
+            # acceleration impulse response convolved with the force history + direct term
+            ao = 0.0
+            for j in range(K):
+                ao += D[j] * Fhist[n + 1, j]
+            for mm in range(1, n + 2):
+                for j in range(K):
+                    ao += Ga[mm, j] * Fhist[n + 1 - mm, j]
+            out[row, 3] = ao
+            out[row, 4] = x1
+            out[row, 5] = vx1
+            out[row, 6] = mu1 * S if tangential else np.nan
+            out[row, 7] = S
+            out[row, 8] = mu1 if tangential else np.nan
+            for k in range(K):
+                out[row, kn.N_OUT_FIXED + k] = Fv[k]
+                out[row, kn.N_OUT_FIXED + K + k] = -hk[k]
+    return n_ev, 0, n_steps
+
+
+def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSolution:
+    """Integrate with the paper's scheme (see the module docstring)."""
+    scene = system.scene
+    if system.coulomb:
+        raise SceneError("solver.method = 'paper' supports friction.law = 'feldmann' only, "
+                         "got 'coulomb'")
+    if system.n_modes == 0:
+        raise SceneError("solver.method = 'paper' needs plate.kind = 'modal' (the plate is its "
+                         "impulse response), got 'rigid'")
+    h = scene.solver.step
+    ratio = scene.output.step / h
+    out_every = int(round(ratio))
+    if out_every < 1 or abs(ratio - out_every) > 1e-9 * ratio:
+        raise SceneError(f"solver.step must divide output.step ({scene.output.step} s) into a "
+                         f"whole number of steps, got {h} s")
+    n_out = int(round(scene.output.duration / scene.output.step)) + 1
+    n_steps = (n_out - 1) * out_every
+    K = system.n_contacts
+    lay = system.layout
+    mem = (n_steps + 1) * K * (K + 1) * 8
+    if mem > 4e9:
+        raise SceneError(f"solver.step gives {n_steps} steps: the paper scheme's impulse "
+                         f"responses would need {mem / 1e9:.1f} GB, raise solver.step or "
+                         f"shorten output.duration, got {h} s")
+    omega = np.sqrt(system.omega2)
+    zeta = system.cdamp / (2 * omega)
+    G, Ga, D = impulse_responses(system.phi, system.phi_obs, omega, zeta,
+                                 float(system.fp[kn.FP_MMODAL]), h, n_steps + 1)
+    y0, closed = system.static_equilibrium()
+    regime = initial_regime(closed, system.fp, lay.tangential, False)
+    reg, rf = system.new_regime_arrays()
+    regime.pack(reg, rf)
+    y, _ = system.consistent(0.0, y0, reg, rf)
+    Fv = y[lay.slice("contact.force")].copy()
+    wstat = system.static_compliance_matrix() @ Fv  # static plate deflection at the contacts
+    zv = np.array([y[lay.index("block.z")], 0.0])
+    tang = np.concatenate([[0.0, 0.0, float(regime.latch), 0.0, 1.0], wstat])
+    Fhist = np.zeros((n_steps + 2, K))
+    out = np.full((n_out, kn.N_OUT_FIXED + 2 * K), np.nan)
+    kn.outputs(0.0, y, out[0], *system.kernel_args(reg, rf))
+    cap = 2_000_000
+    ev_t = np.empty(cap)
+    ev_kind = np.empty(cap, dtype=np.int8)
+    ev_contact = np.empty(cap, dtype=np.int64)
+    wall0 = time.perf_counter()
+    n_ev, code, n_done = _run_paper(h, n_steps, out_every, G, Ga, D, system.stiff,
+                                    system.contact_s, system.prof, system.fp, lay.tangential,
+                                    zv, tang, Fv, Fhist, out, ev_t, ev_kind, ev_contact)
+    wall = time.perf_counter() - wall0
+    status, message = "success", "reached the end of the output grid"
+    if code:
+        status = "newton_failure"
+        message = (f"Newton-Raphson did not converge at t = {n_done * h:.6g} s (solver.step "
+                   f"{h} s); hint: reduce solver.step")
+    events = sorted((EventRecord(float(ev_t[i]), EV_KINDS[int(ev_kind[i])], int(ev_contact[i]),
+                                 "", "", 0.0, 0.0, np.nan, np.nan, np.nan, np.nan, np.nan)
+                     for i in range(n_ev)), key=lambda e: e.time)
+    yf = np.full(lay.size, np.nan)  # no modal states: the energy audit is not available
+    rows = (n_done // out_every) + 1 if code else n_out
+    stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
+             "jacobian_evaluations": None, "restarts": 0, "wall_time": wall,
+             "events_total": n_ev, "note": "energy audit not available for the convolution "
+                                           "scheme"}
+    return RawSolution(time=np.arange(n_out) * scene.output.step, outputs=out, events=events,
+                       stats=stats, status=status, message=message, y_initial=y,
+                       y_final=yf, t_final=float(n_done * h), extra={"rows_filled": rows})
