@@ -202,7 +202,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, _parse_sets(args.set))
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    allowed = ("ida", "exact-modal", "newmark", "paper")
+    allowed = ("ida", "exact-modal", "newmark", "paper", "moreau")
     for m in methods:
         if m not in allowed:
             raise InputError(f"--methods must be a comma list of {', '.join(allowed)}, got {m!r}")

@@ -40,7 +40,7 @@ __all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "crossings", "errors_against", "run
 
 DEFAULT_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 DEFAULT_STEPS = (1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 1e-6, 5e-7, 2e-7, 1e-7)
-FIXED_METHODS = ("exact-modal", "newmark", "paper")
+FIXED_METHODS = ("exact-modal", "newmark", "paper")  # moreau: coulomb scenes only
 METRICS = ("block_band_db_100_20k", "block_band_db_20k_50k", "plate_band_db_100_20k",
            "plate_band_db_20k_50k", "velocity_rel_rms", "event_dt_max", "events_unmatched",
            "energy_rel_residual")

@@ -532,13 +532,15 @@ class Solver:
 
     Attributes
     ----------
-    method : {"ida", "exact-modal", "newmark", "paper"}
+    method : {"ida", "exact-modal", "newmark", "paper", "moreau"}
         ``ida``: event-driven adaptive DAE solver (the reference). Fixed-step baselines
         (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
         piecewise-linear force and an implicit contact/block step (physics.md §2.5);
         ``newmark`` average-acceleration Newmark on the modal model; ``paper`` the paper's
         scheme: backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
-        convolution of its impulse response (explicit in the plate, O(N^2) cost).
+        convolution of its impulse response (explicit in the plate, O(N^2) cost); ``moreau``
+        Moreau-Jean time-stepping of the set-valued Coulomb law (``friction.law =
+        "coulomb"``) with the exact-modal plate.
     step : float
         Time step of the fixed-step methods [s].
     rtol : float
@@ -574,7 +576,8 @@ class Solver:
     def __post_init__(self) -> None:
         p = "solver"
         _set(self, "method", _choice(f"{p}.method", self.method,
-                                     ("ida", "exact-modal", "newmark", "paper")))
+                                     ("ida", "exact-modal", "newmark", "paper",
+                                      "moreau")))
         _set(self, "step", _positive(f"{p}.step", self.step, "s"))
         _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
         _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))

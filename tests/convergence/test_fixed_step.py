@@ -82,6 +82,9 @@ def test_fixed_step_paper_scene_agrees_with_ida():
 
 
 def test_fixed_step_rejects_coulomb_and_bad_step():
+    with pytest.raises(roughvib.SceneError, match="needs friction.law = 'coulomb'"):
+        simulate(roughvib.load_scene("paper", {"solver.method": "moreau",
+                                               "output.duration": 0.001}))
     with pytest.raises(roughvib.SceneError, match="supports friction.law = 'feldmann' only"):
         simulate(roughvib.load_scene("paper", {"solver.method": "newmark",
                                                "friction.law": "coulomb",

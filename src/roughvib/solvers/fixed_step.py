@@ -133,7 +133,7 @@ def _solve_contacts(active, stiff, beta, G1c, rhs, F, comp, K):
 
 @njit(cache=True)
 def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
-         prof, fp, tangential, q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
+         prof, fp, tangential, moreau, q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
          ev_contact):
     """The fixed-step loop. Mutates the state arrays; returns (n_events, status code, step).
 
@@ -195,7 +195,10 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     # powers at step n
     p_exc = 0.0
     p_fric = 0.0
-    if tangential:
+    lam = 0.0
+    if tangential and moreau:
+        p_exc = fp[kn.FP_T0] * v0
+    elif tangential:
         mu0, _ = feldmann_mu_law(v0 + tang[2] * vh, mu_sl, mu_st, a1, a2)
         p_exc = fp[kn.FP_T0] * v0
         p_fric = mu0 * S0 * v0
@@ -212,7 +215,30 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         t0 = n * h
         t1 = t0 + h
         # ---- tangential (trapezoidal, Newton on v1; normal force of step n) ----------------
-        if tangential:
+        if tangential and moreau:
+            # Moreau-Jean (physics.md §3.4 D): free velocity, then the friction impulse is
+            # the projection onto [-h mu_stick F_N, h mu_stick F_N] (stick: v = 0 exactly)
+            t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+            vfree = (v0 + h * t_new / m) / (1.0 + h * r2 / m)
+            bound = h * mu_st * S0 / (m + h * r2)
+            if abs(vfree) <= bound:
+                v1 = 0.0
+            else:
+                # slip: |v1| = |vfree| - h mu_k(|v1|) S0 / (m + h r2), a scalar fixed point
+                lo, hi = 0.0, abs(vfree)
+                for _it in range(200):
+                    mid = 0.5 * (lo + hi)
+                    muk, _ = kn.coulomb_kinetic(mid, mu_sl, mu_st, fp[kn.FP_VSTRIB])
+                    if mid - (abs(vfree) - h * muk * S0 / (m + h * r2)) > 0.0:
+                        hi = mid
+                    else:
+                        lo = mid
+                    if hi - lo <= 1e-16 + 1e-14 * hi:
+                        break
+                v1 = math.copysign(0.5 * (lo + hi), vfree)
+            lam = (m + h * r2) * (vfree - v1) / h
+            x1 = x0 + h * v1
+        elif tangential:
             s_l = tang[2]
             t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
             t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
@@ -282,10 +308,11 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             comp_old[k] = comp[k]
         if tangential:
             was_stick = tang[4] > 0.5
-            now_stick = abs(v1) < vst
+            now_stick = (v1 == 0.0) if moreau else abs(v1) < vst
             if was_stick != now_stick and n_ev < cap:
-                a_ = abs(v0) - vst
-                b_ = abs(v1) - vst
+                vth = 0.0 if moreau else vst  # Moreau: stick is v = 0 exactly
+                a_ = abs(v0) - vth
+                b_ = abs(v1) - vth
                 frac = a_ / (a_ - b_) if a_ != b_ else 1.0
                 ev_t[n_ev] = t0 + h * frac
                 ev_kind[n_ev] = 2 if now_stick else 3
@@ -295,7 +322,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             s_new, vext_new, flipped = latch_update(tang[2], tang[3], v1, eps)
             tang[2] = s_new
             tang[3] = vext_new
-            if flipped and n_ev < cap:
+            if flipped and n_ev < cap and not moreau:
                 ev_t[n_ev] = t1
                 ev_kind[n_ev] = 4
                 ev_contact[n_ev] = -1
@@ -304,8 +331,15 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         q_exc = 0.0
         q_fric = 0.0
         mu1 = 0.0
-        if tangential:
+        fric1 = 0.0
+        if tangential and moreau:
+            fric1 = lam
+            mu1 = lam / S0 if S0 > 0.0 else np.nan
+            q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
+            q_fric = lam * v1
+        elif tangential:
             mu1, _ = feldmann_mu_law(v1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+            fric1 = mu1 * S1
             q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
             q_fric = mu1 * S1 * v1
         q_r2 = r2 * v1 * v1 if tangential else 0.0
@@ -344,7 +378,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             out[row, 3] = acc
             out[row, 4] = x1
             out[row, 5] = v1
-            out[row, 6] = mu1 * S1 if tangential else np.nan
+            out[row, 6] = fric1 if tangential else np.nan
             out[row, 7] = S1
             out[row, 8] = mu1 if tangential else np.nan
             for k in range(K):
@@ -361,9 +395,13 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     """
     scene = system.scene
     method = scene.solver.method
-    if system.coulomb:
+    moreau = method == "moreau"
+    if system.coulomb and not moreau:
         raise SceneError(f"solver.method = {method!r} supports friction.law = 'feldmann' "
-                         f"only (the set-valued law needs 'ida'), got 'coulomb'")
+                         f"only (the set-valued law needs 'ida' or 'moreau'), got 'coulomb'")
+    if moreau and not system.coulomb and system.tangential:
+        raise SceneError("solver.method = 'moreau' needs friction.law = 'coulomb' (Moreau-Jean "
+                         "time-stepping of set-valued friction), got 'feldmann'")
     h = scene.solver.step
     ratio = scene.output.step / h
     out_every = int(round(ratio))
@@ -376,7 +414,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     lay = system.layout
     omega = np.sqrt(system.omega2)
     zeta = np.where(omega > 0, system.cdamp / (2 * np.maximum(omega, 1e-300)), 0.0)
-    Phi, G0, G1 = modal_propagators(omega, zeta, h, method)
+    Phi, G0, G1 = modal_propagators(omega, zeta, h, "exact-modal" if moreau else method)
 
     y0, closed = system.static_equilibrium()
     regime = initial_regime(closed, system.fp, lay.tangential, False)
@@ -388,7 +426,10 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     Fv = y[lay.slice("contact.force")].copy()
     zv = np.array([y[lay.index("block.z")], y[lay.index("block.vz")], 0.0])
     zv[2] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
-    tang = np.array([0.0, 0.0, float(regime.latch), 0.0, 1.0])
+    # initial phase as IDA's: stick at rest; with the Coulomb law only if the block cannot move
+    start_stick = initial_regime(closed, system.fp, lay.tangential, True).stick \
+        if system.coulomb else True
+    tang = np.array([0.0, 0.0, float(regime.latch), 0.0, 1.0 if start_stick else 0.0])
     energy = np.zeros(6)
     out = np.full((n_out, kn.N_OUT_FIXED + 2 * K), np.nan)
     args = system.kernel_args(reg, rf)
@@ -402,8 +443,9 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     cpu0 = time.process_time()
     n_ev, code, n_done = _run(h, n_steps, out_every, Phi, G0, G1, system.phi, system.phi_obs,
                               system.omega2, system.cdamp, system.stiff, system.cres,
-                              system.contact_s, system.prof, system.fp, lay.tangential, q, dq,
-                              zv, Fv, active, tang, energy, out, ev_t, ev_kind, ev_contact)
+                              system.contact_s, system.prof, system.fp, lay.tangential, moreau,
+                              q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
+                              ev_contact)
     wall = time.perf_counter() - wall0
     status, message = "success", "reached the end of the output grid"
     if code == 1:
@@ -429,6 +471,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
         yf[lay.index("block.x")] = tang[0]
         yf[lay.index("block.vx")] = tang[1]
     yf[lay.slice("contact.force")] = Fv
+    if lay.has("friction.force"):
+        yf[lay.index("friction.force")] = 0.0
     for i, name in enumerate(lay.names[-6:]):
         yf[lay.index(name)] = energy[i]
     rows = (n_done // out_every) + 1 if code else n_out
