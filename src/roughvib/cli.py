@@ -209,7 +209,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     rtols = tuple(float(v) for v in args.rtols.split(",")) if args.rtols else DEFAULT_RTOLS
     steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else DEFAULT_STEPS
     table = run_study(scene, args.out, budget=args.budget, reference=args.reference,
-                      methods=methods, rtols=rtols, steps=steps, progress=not args.no_progress)
+                      methods=methods, rtols=rtols, steps=steps,
+                      reference_rtol=args.reference_rtol, progress=not args.no_progress)
     done = table[table["status"] == "success"]
     print(f"{len(done)} of {len(table)} runs succeeded; results in {args.out}/work_precision.*")
     for metric in ("plate_band_db_100_20k", "block_band_db_100_20k", "velocity_rel_rms"):
@@ -296,6 +297,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--budget", type=float, default=900.0,
                    help="wall-time budget of the ladder runs in seconds (default 900)")
     c.add_argument("--reference", metavar="DIR", help="use this result directory as reference")
+    c.add_argument("--reference-rtol", type=float, default=1e-10,
+                   help="rtol of the IDA reference (modal atol = 1e-2 x rtol m/s^2; "
+                        "default 1e-10)")
     c.add_argument("--methods", default="ida,exact-modal,newmark,paper",
                    help="comma list (default: ida,exact-modal,newmark,paper)")
     c.add_argument("--rtols", help="comma list of IDA rtols (default 1e-3 ... 1e-9)")
