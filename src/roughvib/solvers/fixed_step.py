@@ -387,6 +387,32 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     return n_ev, 0, n_steps
 
 
+def step_grid(scene) -> tuple[float, int, int, int]:
+    """Fixed step h, output stride, output samples and steps; checks h divides output.step.
+
+    Raises
+    ------
+    SceneError
+        When ``output.step / solver.step`` is not a whole number.
+    """
+    h = scene.solver.step
+    ratio = scene.output.step / h
+    out_every = int(round(ratio))
+    if out_every < 1 or abs(ratio - out_every) > 1e-9 * ratio:
+        raise SceneError(f"solver.step must divide output.step ({scene.output.step} s) into a "
+                         f"whole number of steps, got {h} s")
+    n_out = int(round(scene.output.duration / scene.output.step)) + 1
+    return h, out_every, n_out, (n_out - 1) * out_every
+
+
+def event_records(n_ev: int, ev_t: np.ndarray, ev_kind: np.ndarray, ev_contact: np.ndarray
+                  ) -> list[EventRecord]:
+    """Event arrays of a fixed-step loop to sorted event-log records (kinds ``EV_KINDS``)."""
+    return sorted((EventRecord(float(ev_t[i]), EV_KINDS[int(ev_kind[i])], int(ev_contact[i]),
+                               "", "", 0.0, 0.0, np.nan, np.nan, np.nan, np.nan, np.nan)
+                   for i in range(n_ev)), key=lambda e: e.time)
+
+
 def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolution:
     """Integrate with a fixed-step scheme (``scene.solver.method``) on the output grid.
 
@@ -402,14 +428,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     if moreau and not system.coulomb and system.tangential:
         raise SceneError("solver.method = 'moreau' needs friction.law = 'coulomb' (Moreau-Jean "
                          "time-stepping of set-valued friction), got 'feldmann'")
-    h = scene.solver.step
-    ratio = scene.output.step / h
-    out_every = int(round(ratio))
-    if out_every < 1 or abs(ratio - out_every) > 1e-9 * ratio:
-        raise SceneError(f"solver.step must divide output.step ({scene.output.step} s) into a "
-                         f"whole number of steps, got {h} s")
-    n_out = int(round(scene.output.duration / scene.output.step)) + 1
-    n_steps = (n_out - 1) * out_every
+    h, out_every, n_out, n_steps = step_grid(scene)
     K = system.n_contacts
     lay = system.layout
     omega = np.sqrt(system.omega2)
@@ -455,12 +474,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     elif code == 2:
         status = "active_set_failure"
         message = f"contact active set did not converge at t = {n_done * h:.6g} s"
-    events = []
-    for i in range(n_ev):
-        kind = EV_KINDS[int(ev_kind[i])]
-        events.append(EventRecord(float(ev_t[i]), kind, int(ev_contact[i]), "", "", 0.0, 0.0,
-                                  np.nan, np.nan, np.nan, np.nan, np.nan))
-    events.sort(key=lambda e: e.time)
+    events = event_records(n_ev, ev_t, ev_kind, ev_contact)
     # final state vector in the IDA layout (for the energy audit)
     yf = np.zeros(lay.size)
     yf[lay.slice("plate.q")] = q

@@ -28,12 +28,11 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
-from roughvib.solvers.ida import EventRecord, RawSolution
+from roughvib.solvers.fixed_step import event_records, step_grid
+from roughvib.solvers.ida import RawSolution
 from roughvib.surface.interp import profile_eval
 
 __all__ = ["impulse_responses", "solve_paper_scheme"]
-
-EV_KINDS = ("lift_off", "touch_down", "stick", "slip", "latch_flip")
 
 
 @njit(cache=True)
@@ -237,14 +236,7 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     if system.n_modes == 0:
         raise SceneError("solver.method = 'paper' needs plate.kind = 'modal' (the plate is its "
                          "impulse response), got 'rigid'")
-    h = scene.solver.step
-    ratio = scene.output.step / h
-    out_every = int(round(ratio))
-    if out_every < 1 or abs(ratio - out_every) > 1e-9 * ratio:
-        raise SceneError(f"solver.step must divide output.step ({scene.output.step} s) into a "
-                         f"whole number of steps, got {h} s")
-    n_out = int(round(scene.output.duration / scene.output.step)) + 1
-    n_steps = (n_out - 1) * out_every
+    h, out_every, n_out, n_steps = step_grid(scene)
     K = system.n_contacts
     lay = system.layout
     mem = (n_steps + 1) * K * (K + 1) * 8
@@ -282,9 +274,7 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
         status = "newton_failure"
         message = (f"Newton-Raphson did not converge at t = {n_done * h:.6g} s (solver.step "
                    f"{h} s); hint: reduce solver.step")
-    events = sorted((EventRecord(float(ev_t[i]), EV_KINDS[int(ev_kind[i])], int(ev_contact[i]),
-                                 "", "", 0.0, 0.0, np.nan, np.nan, np.nan, np.nan, np.nan)
-                     for i in range(n_ev)), key=lambda e: e.time)
+    events = event_records(n_ev, ev_t, ev_kind, ev_contact)
     yf = np.full(lay.size, np.nan)  # no modal states: the energy audit is not available
     rows = (n_done // out_every) + 1 if code else n_out
     stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
