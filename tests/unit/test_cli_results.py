@@ -52,6 +52,7 @@ def test_every_command_has_help_with_an_example(capsys):
     (["run", "no-such-scene"], "neither a built-in scene"),
     (["run", "--set", "block.mass"], "--set expects section.key=value"),
     (["events", "no/such/dir"], "not a roughvib result directory"),
+    (["run", "--set", "roughness.reduce_3d=true"], "roughness.reduce_3d = true is not available"),
 ])
 def test_bad_input_exits_2_with_one_line(args, fragment, capsys, tmp_path):
     extra = ["--out", str(tmp_path / "x")] if args[0] == "run" else []

@@ -219,7 +219,12 @@ def _profile_height(system: System, s: float) -> float:
 def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
     st = scene.contact.stiffness
     if isinstance(st, str):  # "auto"
-        from roughvib.surface.contact import contact_stiffness
+        try:
+            from roughvib.surface.contact import contact_stiffness
+        except ImportError:
+            raise SceneError("contact.stiffness = 'auto' (Greenwood-Williamson from the surface "
+                             "statistics) is not available in this version; give the total "
+                             "stiffness in N/m, got 'auto'") from None
 
         cs = contact_stiffness(scene)
         info = {k: getattr(cs, k) for k in cs.__dataclass_fields__}
