@@ -91,6 +91,49 @@ def modal_propagators(omega: np.ndarray, zeta: np.ndarray, h: float, scheme: str
 
 
 @njit(cache=True)
+def log_step_events(t0, h, comp_old, comp, v0, v1, tang, vth, exact_stick, log_latch, eps,
+                    ev_t, ev_kind, ev_contact, n_ev, tangential):
+    """Events of one step by sign change, with linear interpolation (shared by the loops).
+
+    Contacts: the compression changes sign (lift-off / touch-down). Tangential: |v| crosses
+    ``vth`` (stick / slip; ``exact_stick``: stick means v == 0), and the hysteresis latch is
+    advanced (``latch_flip`` logged when ``log_latch``). Updates ``comp_old`` and ``tang`` in
+    place and returns the new event count.
+    """
+    cap = ev_t.size
+    for k in range(comp.size):
+        if (comp_old[k] > 0.0) != (comp[k] > 0.0) and n_ev < cap:
+            frac = comp_old[k] / (comp_old[k] - comp[k]) if comp_old[k] != comp[k] else 1.0
+            ev_t[n_ev] = t0 + h * frac
+            ev_kind[n_ev] = 0 if comp_old[k] > 0.0 else 1
+            ev_contact[n_ev] = k
+            n_ev += 1
+        comp_old[k] = comp[k]
+    if not tangential:
+        return n_ev
+    was_stick = tang[4] > 0.5
+    now_stick = (v1 == 0.0) if exact_stick else abs(v1) < vth
+    if was_stick != now_stick and n_ev < cap:
+        a_ = abs(v0) - vth
+        b_ = abs(v1) - vth
+        frac = a_ / (a_ - b_) if a_ != b_ else 1.0
+        ev_t[n_ev] = t0 + h * frac
+        ev_kind[n_ev] = 2 if now_stick else 3
+        ev_contact[n_ev] = -1
+        n_ev += 1
+        tang[4] = 1.0 if now_stick else 0.0
+    s_new, vext_new, flipped = latch_update(tang[2], tang[3], v1, eps)
+    tang[2] = s_new
+    tang[3] = vext_new
+    if flipped and log_latch and n_ev < cap:
+        ev_t[n_ev] = t0 + h
+        ev_kind[n_ev] = 4
+        ev_contact[n_ev] = -1
+        n_ev += 1
+    return n_ev
+
+
+@njit(cache=True)
 def _solve_contacts(active, stiff, beta, G1c, rhs, F, comp, K):
     """Active-set solve of F_k/s_k + beta sum(F) + sum_j G1c_kj F_j = rhs_k on closed k."""
     for _it in range(K + 2):
@@ -191,7 +234,6 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         comp_old[k] = zv[0] - w + hh
         dhk[k] = dh
     n_ev = 0
-    cap = ev_t.size
     # powers at step n
     p_exc = 0.0
     p_fric = 0.0
@@ -297,36 +339,10 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         az1 = (Q - S1) / mp
         vz1 = vz0 + h / 2 * (az0 + az1)
         z1 = zc - beta * S1
-        # ---- events by sign change (linear interpolation) ------------------------------
-        for k in range(K):
-            if (comp_old[k] > 0.0) != (comp[k] > 0.0) and n_ev < cap:
-                frac = comp_old[k] / (comp_old[k] - comp[k])
-                ev_t[n_ev] = t0 + h * frac
-                ev_kind[n_ev] = 0 if comp_old[k] > 0.0 else 1
-                ev_contact[n_ev] = k
-                n_ev += 1
-            comp_old[k] = comp[k]
-        if tangential:
-            was_stick = tang[4] > 0.5
-            now_stick = (v1 == 0.0) if moreau else abs(v1) < vst
-            if was_stick != now_stick and n_ev < cap:
-                vth = 0.0 if moreau else vst  # Moreau: stick is v = 0 exactly
-                a_ = abs(v0) - vth
-                b_ = abs(v1) - vth
-                frac = a_ / (a_ - b_) if a_ != b_ else 1.0
-                ev_t[n_ev] = t0 + h * frac
-                ev_kind[n_ev] = 2 if now_stick else 3
-                ev_contact[n_ev] = -1
-                n_ev += 1
-                tang[4] = 1.0 if now_stick else 0.0
-            s_new, vext_new, flipped = latch_update(tang[2], tang[3], v1, eps)
-            tang[2] = s_new
-            tang[3] = vext_new
-            if flipped and n_ev < cap and not moreau:
-                ev_t[n_ev] = t1
-                ev_kind[n_ev] = 4
-                ev_contact[n_ev] = -1
-                n_ev += 1
+        # ---- events by sign change (Moreau: stick is v = 0 exactly) -----------------------
+        n_ev = log_step_events(t0, h, comp_old, comp, v0, v1, tang, 0.0 if moreau else vst,
+                               moreau, not moreau, eps, ev_t, ev_kind, ev_contact, n_ev,
+                               tangential)
         # ---- energy (trapezoidal quadrature of the powers) ------------------------------
         q_exc = 0.0
         q_fric = 0.0

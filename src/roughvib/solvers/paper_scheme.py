@@ -23,12 +23,12 @@ import time
 import numpy as np
 from numba import njit
 
-from roughvib.friction import feldmann_mu_law, latch_update
+from roughvib.friction import feldmann_mu_law
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
-from roughvib.solvers.fixed_step import event_records, step_grid
+from roughvib.solvers.fixed_step import event_records, log_step_events, step_grid
 from roughvib.solvers.ida import RawSolution
 from roughvib.surface.interp import profile_eval
 
@@ -86,7 +86,6 @@ def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangentia
     hk = np.empty(K)
     comp_old = np.empty(K)
     n_ev = 0
-    cap = ev_t.size
     for k in range(K):
         hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + tang[0])
         comp_old[k] = Fv[k] / stiff[k] if Fv[k] > 0 else -1e-30
@@ -169,36 +168,10 @@ def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangentia
             Fv[k] = stiff[k] * d[k] if d[k] > 0.0 else 0.0
             S += Fv[k]
             Fhist[n + 1, k] = Fv[k] - Fst[k]
-        # events
-        for k in range(K):
-            if (comp_old[k] > 0.0) != (d[k] > 0.0) and n_ev < cap:
-                frac = comp_old[k] / (comp_old[k] - d[k]) if comp_old[k] != d[k] else 1.0
-                ev_t[n_ev] = t1 - h + h * frac
-                ev_kind[n_ev] = 0 if comp_old[k] > 0.0 else 1
-                ev_contact[n_ev] = k
-                n_ev += 1
-            comp_old[k] = d[k]
+        n_ev = log_step_events(t1 - h, h, comp_old, d, vx0, vx1, tang, vst, False, True, eps,
+                               ev_t, ev_kind, ev_contact, n_ev, tangential)
         mu1 = 0.0
         if tangential:
-            was = tang[4] > 0.5
-            now = abs(vx1) < vst
-            if was != now and n_ev < cap:
-                a_ = abs(vx0) - vst
-                b_ = abs(vx1) - vst
-                frac = a_ / (a_ - b_) if a_ != b_ else 1.0
-                ev_t[n_ev] = t1 - h + h * frac
-                ev_kind[n_ev] = 2 if now else 3
-                ev_contact[n_ev] = -1
-                n_ev += 1
-                tang[4] = 1.0 if now else 0.0
-            s_new, vext, flipped = latch_update(tang[2], tang[3], vx1, eps)
-            tang[2] = s_new
-            tang[3] = vext
-            if flipped and n_ev < cap:
-                ev_t[n_ev] = t1
-                ev_kind[n_ev] = 4
-                ev_contact[n_ev] = -1
-                n_ev += 1
             mu1, _ = feldmann_mu_law(vx1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
         az1 = (vz1 - vz0) / h
         zv[0], zv[1] = z1, vz1
