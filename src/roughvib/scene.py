@@ -516,9 +516,11 @@ class Excitation:
                     f"{p}: set exactly one of force_amplitude [N] or target_rms_velocity "
                     f"[m/s], got force_amplitude={self.force_amplitude}, "
                     f"target_rms_velocity={self.target_rms_velocity}")
-            if self.target_rms_velocity is not None and self.frequency <= 0:
-                raise SceneError(f"{p}.frequency must be > 0 Hz to calibrate "
-                                 f"target_rms_velocity, got {self.frequency}")
+            if self.target_rms_velocity is not None and self.frequency < 0.1:
+                # the calibration simulates three periods of the tangential model at 1 us
+                raise SceneError(f"{p}.frequency must be >= 0.1 Hz to calibrate "
+                                 f"target_rms_velocity (or give force_amplitude), got "
+                                 f"{self.frequency} Hz")
 
     @property
     def omega(self) -> float:

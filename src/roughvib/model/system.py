@@ -286,9 +286,15 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
         T0 = float(exc.force_amplitude)
         calibration = {"method": "scene"}
     else:
-        T0 = float(calibrate_force_amplitude(
-            exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
-            exc.omega, fr))
+        try:
+            T0 = float(calibrate_force_amplitude(
+                exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
+                exc.omega, fr))
+        except (RuntimeError, ValueError) as err:
+            raise SceneError(
+                f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
+                f"friction law ({err}); check the friction keys or give "
+                f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
         calibration = {"method": "tangential model (F_N = m g)",
                        "target_rms_velocity": exc.target_rms_velocity}
     if stiff_info:
