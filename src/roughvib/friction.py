@@ -271,13 +271,15 @@ def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, 
     Returns
     -------
     t, v, x : ndarray, shape (n + 1,)
-        Time [s], velocity [m/s] and displacement [m] on the grid t = k dt, n = round(duration/dt).
+        Time [s], velocity [m/s] and displacement [m] on the grid t = k dt,
+        n = ceil(duration / dt).
     """
     if not (dt > 0.0 and duration > 0.0):
         raise ValueError(f"dt and duration must be > 0 s, got dt={dt}, duration={duration}")
     if mass <= 0.0:
         raise ValueError(f"mass must be > 0 kg, got {mass}")
-    n = int(round(duration / dt))
+    # the grid covers the whole duration (t[-1] >= duration up to round-off)
+    n = int(math.ceil(duration / dt - 1e-9))
     v = np.empty(n + 1)
     x = np.empty(n + 1)
     mu_slip, mu_stick, a1, a2 = law_parameters(friction)
@@ -318,8 +320,12 @@ def rms_over_periods(t: np.ndarray, v: np.ndarray, period: float, transient: flo
     """
     t = np.asarray(t, dtype=float)
     v = np.asarray(v, dtype=float)
-    n_per = int(math.floor((t[-1] - transient) / period * (1.0 + 1e-12)))
-    if period <= 0.0 or n_per < 1 or transient < t[0]:
+    if period <= 0.0 or t.size < 2:
+        raise ValueError(f"period must be > 0 s and t must have >= 2 samples, got {period}")
+    # a window end up to half a grid step past the last sample is clipped to it
+    slack = 0.5 * (t[-1] - t[0]) / (t.size - 1)
+    n_per = int(math.floor((t[-1] + slack - transient) / period))
+    if n_per < 1 or transient < t[0]:
         raise ValueError(f"need at least one whole period ({period} s) between transient "
                          f"({transient} s) and the end ({t[-1]} s)")
     ta = transient
