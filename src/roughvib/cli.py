@@ -220,6 +220,34 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_surface(args: argparse.Namespace) -> int:
+    import json
+
+    from roughvib.scene import load_scene
+    from roughvib.surface_report import write_surface_report
+
+    scene = load_scene(args.scene, _parse_sets(args.set))
+    out = Path(args.out) if args.out else Path("runs") / f"{scene.name}-surface"
+    paths = write_surface_report(scene, out)
+    info = json.loads(paths["contacts_json"].read_text())
+    stat = info.get("statistical_contact", {})
+    prof = info.get("profile", {}).get("stats", {})
+    print(f"profile: {prof.get('kind')}, rms {prof.get('rms', float('nan')) * 1e6:.3g} um, "
+          f"rms slope {prof.get('rms_slope', float('nan')):.3g}")
+    print(f"contact stiffness used: {info['stiffness_used_N_per_m']:.4g} N/m "
+          f"({info['stiffness_source']})")
+    if "s_total" in stat:
+        print(f"statistical contact ({stat['model']}): s_total {stat['s_total']:.4g} N/m, "
+              f"{stat['micro_contacts']:.3g} micro-contacts, plasticity index "
+              f"{stat['plasticity_index']:.3g}, rigid-plate resonance "
+              f"{stat['resonance_hz']:.4g} Hz")
+    elif "error" in stat:
+        print(f"statistical contact: not available ({stat['error']})")
+    for name in sorted(paths):
+        print(f"  {paths[name]}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
     p = argparse.ArgumentParser(
@@ -229,7 +257,10 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="examples:\n  roughvib run\n  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib scenes\n  roughvib events runs/paper\n"
                "  roughvib plot runs/paper --figure events\n"
-               "  roughvib compare paper --out runs/wp --budget 900\n\n"
+               "  roughvib compare paper --out runs/wp --budget 900\n"
+               "  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib report runs/paper\n"
+               "  roughvib sweep paper-velocity --out runs/velocity\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -275,9 +306,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser(
         "plot", formatter_class=fmt, help="draw a figure of a run (PNG)",
-        description="Draw one figure of a saved run. Figures: events (regime timeline over "
-                    "velocity and normal force), velocity.",
-        epilog="example:\n  roughvib plot runs/paper --figure events\n")
+        description="Draw one figure of a saved run. Figures: velocity (Figs. 6/7), "
+                    "friction-velocity (3/8), friction-displacement (9), acceleration (10/11), "
+                    "spectra (14), wavenumber (5), events (regime timeline over velocity and "
+                    "normal force). 'roughvib report DIR' draws them all into one HTML file.",
+        epilog="examples:\n  roughvib plot runs/paper --figure events\n"
+               "  roughvib plot runs/paper --figure spectra --out spectra.png\n")
     pl.add_argument("dir", help="result directory written by 'roughvib run'")
     pl.add_argument("--figure", default="events", help="figure name (default: events)")
     pl.add_argument("--out", help="PNG path (default: DIR/figures/NAME.png)")
@@ -307,6 +341,29 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.set_defaults(func=cmd_compare)
+
+    su = sub.add_parser(
+        "surface", formatter_class=fmt,
+        help="inspect a scene's roughness profile, spectra and contact stiffness",
+        description="Build the scene's roughness profile and contact points without running "
+                    "it, and write profile.csv, spectrum_bands.csv (third-octave wavelength "
+                    "bands re 1 um: whole profile and the stretch one contact scans, the "
+                    "paper's Fig. 5), spectrum_psd.csv, contacts.csv/.json (contact points; "
+                    "Greenwood-Williamson/Tripp stiffness, micro-contacts, real area, "
+                    "plasticity index, contact resonance) and profile.png, spectrum.png.",
+        epilog="examples:\n  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib surface paper --set contact.stiffness=auto --set contact.model=gt\n"
+               "  roughvib surface my_scene.toml --set roughness.reduce_3d=true\n")
+    su.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
+    su.add_argument("--out", metavar="DIR", help="output directory (default: "
+                    "runs/<scene name>-surface)")
+    su.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
+    su.set_defaults(func=cmd_surface)
+
+    from roughvib import report, sweep
+
+    report.add_parsers(sub)
+    sweep.add_parsers(sub)
     return p
 
 

@@ -333,6 +333,12 @@ class Roughness:
     reduce_3d : bool
         Generate an isotropic 2-D surface of rms ``raw_rms`` and reduce it to the input profile
         by span-averaging across the block width (then ``rms`` is not used).
+    trace_layout : {"uniform", "cbrt2"}
+        ``reduce_3d``: where the averaged traces lie across the width. ``uniform`` (default):
+        a pitch of ``spacing``, the continuous width average of physics.md §5.2 (about
+        -23 dB for the default surface). ``cbrt2``: the paper's separations growing by
+        2^(1/3) from one edge, averaged with trapezoidal weights (about -10 dB; the paper
+        used that layout for a coherence integral, see docs/theory.md).
     filter : {"highpass", "block-lowpass", "none"}
         Functional filter over the block length (physics.md §5.3).
     path : str
@@ -355,6 +361,7 @@ class Roughness:
     trace_length: float = 0.16
     raw_rms: float = 3.5e-6
     reduce_3d: bool = False
+    trace_layout: str = "uniform"
     filter: str = "highpass"
     path: str = ""
     units: str = "m"
@@ -380,6 +387,8 @@ class Roughness:
         _set(self, "trace_length", _positive(f"{p}.trace_length", self.trace_length, "m"))
         _set(self, "raw_rms", _nonneg(f"{p}.raw_rms", self.raw_rms, "m"))
         _set(self, "reduce_3d", _boolean(f"{p}.reduce_3d", self.reduce_3d))
+        _set(self, "trace_layout", _choice(f"{p}.trace_layout", self.trace_layout,
+                                           ("uniform", "cbrt2")))
         _set(self, "filter", _choice(f"{p}.filter", self.filter,
                                      ("highpass", "block-lowpass", "none")))
         if not isinstance(self.path, str):

@@ -39,7 +39,8 @@ def test_scenes_command_lists_builtins(capsys):
 
 def test_every_command_has_help_with_an_example(capsys):
     for cmd in (["--help"], ["run", "--help"], ["scenes", "--help"], ["events", "--help"],
-                ["plot", "--help"], ["compare", "--help"]):
+                ["plot", "--help"], ["compare", "--help"], ["surface", "--help"],
+                ["report", "--help"], ["sweep", "--help"], ["sweep-report", "--help"]):
         with pytest.raises(SystemExit) as info:
             main(cmd)
         assert info.value.code == 0
@@ -52,7 +53,9 @@ def test_every_command_has_help_with_an_example(capsys):
     (["run", "no-such-scene"], "neither a built-in scene"),
     (["run", "--set", "block.mass"], "--set expects section.key=value"),
     (["events", "no/such/dir"], "not a roughvib result directory"),
-    (["run", "--set", "roughness.reduce_3d=true"], "roughness.reduce_3d = true is not available"),
+    (["run", "--set", "roughness.kind=file", "--set", "roughness.path=no_such_trace.txt"],
+     "no_such_trace.txt"),
+    (["surface", "--set", "contact.model=jkr"], "contact.model"),
 ])
 def test_bad_input_exits_2_with_one_line(args, fragment, capsys, tmp_path):
     extra = ["--out", str(tmp_path / "x")] if args[0] == "run" else []

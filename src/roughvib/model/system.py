@@ -218,17 +218,12 @@ def _profile_height(system: System, s: float) -> float:
 
 def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
     st = scene.contact.stiffness
-    if isinstance(st, str):  # "auto"
-        try:
-            from roughvib.surface.contact import contact_stiffness
-        except ImportError:
-            raise SceneError("contact.stiffness = 'auto' (Greenwood-Williamson from the surface "
-                             "statistics) is not available in this version; give the total "
-                             "stiffness in N/m, got 'auto'") from None
+    if isinstance(st, str):  # "auto": statistical contact model (physics.md §4)
+        from roughvib.surface.contact import contact_stiffness
 
-        cs = contact_stiffness(scene)
-        info = {k: getattr(cs, k) for k in cs.__dataclass_fields__}
-        return float(cs.s_total), info
+        # a measured profile brings its own moments; synthetic ones use the model PSD
+        cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+        return float(cs.s_total), cs.as_dict()
     return float(st), {}
 
 

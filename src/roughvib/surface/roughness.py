@@ -1,25 +1,40 @@
-"""Roughness profiles (the kinematic input) and the choice of contact points.
+"""Roughness profiles (the kinematic input), their spectra, and the choice of contact points.
 
-``build_profile`` turns the ``[roughness]`` scene section into a :class:`Profile` on a uniform
-grid (height z positive up, physics.md §1.4):
+This module owns physics.md §5: everything between the ``[roughness]`` scene section and the
+uniform-grid height profile z(s) (positive up, physics.md §1.4) the solver interpolates.
 
-* ``none``: a flat profile;
+``build_profile`` makes a :class:`Profile` from one of
+
+* ``none``: a flat profile (zeros);
 * ``sinusoid``: z = amplitude cos(2 pi (s - s_centre) / wavelength), a crest under the block
-  centre;
-* ``synthetic``: seeded spectral synthesis of a Gaussian profile with the band-limited
-  self-affine PSD of physics.md §5.1 (flat from the longest wavelength to the roll-off
-  wavelength, then k^-(1+2H) to the shortest wavelength), rescaled to ``rms`` exactly;
-* ``file``: measured heights (one column with ``spacing``, or two columns x, z).
+  centre (not filtered);
+* ``synthetic``: seeded spectral synthesis (random phases, amplitudes from the target PSD, one
+  real inverse FFT, physics.md §5.1) of a profile with the band-limited self-affine PSD
+  :func:`band_psd`, functionally filtered and then rescaled to ``rms`` exactly;
+* ``synthetic`` with ``reduce_3d``: an isotropic 2-D surface of rms ``raw_rms`` with the areal
+  PSD :func:`areal_psd`, span-averaged across the block width (physics.md §5.2,
+  :func:`synthesize_span_averages`); the reduction (about -23 dB over 40 mm) is the physics,
+  so the result is not rescaled;
+* ``file``: a measured profile (:func:`read_profile_file`): one column of heights, two columns
+  (x, z) or a matrix of parallel traces, which is span-averaged like the synthetic surface.
 
-The functional filter over the block length (physics.md §5.3) is applied in the wavenumber
-domain: ``highpass`` 1 - sinc(kL/2) (default, reading 2), ``block-lowpass`` sinc(kL/2) (the
-literal reading, with a warning), ``none``.
+The functional filter over the block length (physics.md §5.3, :func:`functional_filter`) is
+``highpass`` 1 - sinc(kL/2) (reading 2, default), ``block-lowpass`` sinc(kL/2) (reading 1,
+with a warning) or ``none``. It is applied to ``synthetic`` and ``file`` profiles.
+
+Spectral conventions: wavenumbers k are angular [rad/m]; a one-sided profile PSD G(k)
+[m^2/(rad/m)] integrates to the variance, ``integral_0^inf G dk = rms^2``; an isotropic areal
+PSD S2(|k|) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
+moments are ``m_n = integral k^n G(k) dk``: m0 = rms^2, m2 = (rms slope)^2, m4 = (rms
+curvature)^2.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,27 +42,63 @@ import numpy as np
 
 from roughvib.scene import Block, Roughness, SceneError
 
-__all__ = ["Profile", "build_profile", "profile_statistics", "select_contacts"]
+__all__ = [
+    "MeasuredProfile",
+    "Profile",
+    "areal_psd",
+    "band_psd",
+    "build_profile",
+    "cbrt2_positions",
+    "functional_filter",
+    "profile_statistics",
+    "read_profile_file",
+    "select_contacts",
+    "span_average",
+    "spectral_moments",
+    "synthesize_profile",
+    "synthesize_span_averages",
+    "trapezoid_weights",
+    "uniform_positions",
+]
 
 _UNITS = {"m": 1.0, "um": 1e-6, "nm": 1e-9}
+
+# kx rows of the 2-D synthesis handled per chunk: bounds the memory to a few MB; fixed so that
+# the random stream (and with it the surface of a seed) does not depend on anything else
+_KX_CHUNK = 128
+# traces per chunk when summing the trace weights in the ky domain
+_TRACE_CHUNK = 256
+# x steps of a two-column file may deviate this much from the mean spacing (printing x with
+# six significant digits already costs a few per mille at 0.16 m / 10 um)
+_X_STEP_RTOL = 0.01
+
+
+# --------------------------------------------------------------------------------------------
+# the profile
+# --------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class Profile:
-    """A roughness profile on a uniform grid.
+    """The kinematic input profile on a uniform grid.
 
     Attributes
     ----------
     z : ndarray, shape (n,)
-        Heights [m], positive up.
+        Heights [m], positive up, after the 3-D -> 2-D reduction and the functional filter.
     dx : float
         Grid spacing [m].
     s0 : float
-        Profile coordinate of z[0] [m].
+        Profile coordinate of ``z[0]`` [m].
     s_centre : float
-        Profile coordinate under the block centre at t = 0 [m].
+        Profile coordinate under the block centre at t = 0 (the grid point in the middle of
+        the trace) [m].
     stats : dict
-        Realised ``rms`` [m], ``rms_slope`` [-], ``rms_curvature`` [1/m], ``kind``.
+        Always: ``kind``, ``n``, ``length`` [m], realised ``rms`` [m], ``rms_slope`` [-],
+        ``rms_curvature`` [1/m], ``derivatives`` (how slope and curvature were taken),
+        ``filter``. ``synthetic``: ``seed``, ``target_rms`` [m]. ``reduce_3d`` and trace
+        matrices: ``raw_rms`` [m], ``reduced_rms`` [m] (before the filter), ``reduction_db``
+        [dB], ``n_traces``; see :func:`build_profile`.
     """
 
     z: np.ndarray
@@ -61,94 +112,697 @@ class Profile:
         """Profile coordinates [m], shape (n,)."""
         return self.s0 + np.arange(self.z.size) * self.dx
 
+    @property
+    def length(self) -> float:
+        """Covered length (n - 1) dx [m]."""
+        return (self.z.size - 1) * self.dx
 
-def profile_statistics(z: np.ndarray, dx: float) -> dict:
-    """rms [m], rms slope [-] and rms curvature [1/m] (central differences)."""
+
+def profile_statistics(z: np.ndarray, dx: float, *, periodic: bool = False) -> dict:
+    """rms height, rms slope and rms curvature of a profile.
+
+    Parameters
+    ----------
+    z : ndarray, shape (n,)
+        Heights [m].
+    dx : float
+        Spacing [m].
+    periodic : bool
+        True for a band-limited periodic profile (spectral synthesis): slope and curvature are
+        taken spectrally, which is exact and comparable with sqrt(m2), sqrt(m4). Otherwise
+        first and second differences (they under-read content near the grid's Nyquist
+        wavenumber: -0.6 dB in slope at 5 points per wavelength).
+
+    Returns
+    -------
+    dict
+        ``rms`` [m] (about the mean), ``rms_slope`` [-], ``rms_curvature`` [1/m],
+        ``derivatives`` ("spectral" or "finite-difference").
+    """
     z = np.asarray(z, dtype=float)
-    zc = z - z.mean()
-    slope = np.diff(z) / dx
-    curv = np.diff(z, 2) / dx**2
-    return {"rms": float(np.sqrt(np.mean(zc**2))),
-            "rms_slope": float(np.sqrt(np.mean(slope**2))) if slope.size else 0.0,
-            "rms_curvature": float(np.sqrt(np.mean(curv**2))) if curv.size else 0.0}
-
-
-def _functional_filter(z: np.ndarray, dx: float, kind: str, length: float) -> np.ndarray:
-    if kind == "none":
-        return z
-    k = 2 * np.pi * np.fft.rfftfreq(z.size, dx)
-    sinc = np.sinc(k * length / 2 / np.pi)  # numpy sinc(x) = sin(pi x)/(pi x)
-    if kind == "highpass":
-        H = 1.0 - sinc
+    zc = z - z.mean() if z.size else z
+    rms = float(np.sqrt(np.mean(zc**2))) if z.size else 0.0
+    if periodic and z.size >= 3:
+        n = z.size
+        k = 2.0 * np.pi * np.fft.rfftfreq(n, dx)
+        p = np.abs(np.fft.rfft(zc)) ** 2
+        w = np.full(k.size, 2.0)
+        w[0] = 1.0
+        if n % 2 == 0:
+            w[-1] = 1.0
+        scale = 1.0 / n**2
+        slope = math.sqrt(float(np.sum(w * p * k**2)) * scale)
+        curv = math.sqrt(float(np.sum(w * p * k**4)) * scale)
+        how = "spectral"
     else:
-        warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
-                      "block length: it removes almost all short-wavelength input "
-                      "(physics.md §5.3, reading 1)", stacklevel=3)
-        H = sinc
-    return np.fft.irfft(np.fft.rfft(z) * H, z.size)
+        d1 = np.diff(z) / dx
+        d2 = np.diff(z, 2) / dx**2
+        slope = float(np.sqrt(np.mean(d1**2))) if d1.size else 0.0
+        curv = float(np.sqrt(np.mean(d2**2))) if d2.size else 0.0
+        how = "finite-difference"
+    return {"rms": rms, "rms_slope": slope, "rms_curvature": curv, "derivatives": how}
 
 
-def _synthetic(r: Roughness) -> np.ndarray:
-    n = int(round(r.trace_length / r.spacing)) + 1
+# --------------------------------------------------------------------------------------------
+# model spectra and moments (physics.md §5.1, §4.1)
+# --------------------------------------------------------------------------------------------
+
+
+def _band(r: Roughness) -> tuple[float, float, float]:
+    return (2.0 * np.pi / r.longest_wavelength, 2.0 * np.pi / r.rolloff_wavelength,
+            2.0 * np.pi / r.shortest_wavelength)
+
+
+def _power_integral(p: float, a: float, b: float) -> float:
+    """integral_a^b k^p dk (0 if b <= a)."""
+    if b <= a:
+        return 0.0
+    if abs(p + 1.0) < 1e-12:
+        return math.log(b / a)
+    return (b ** (p + 1.0) - a ** (p + 1.0)) / (p + 1.0)
+
+
+def _shape_moment(n: float, kl: float, k0: float, kh: float, q: float) -> float:
+    """integral over [kl, kh] of k^n * shape(k), shape = 1 below k0 and (k/k0)^-q above."""
+    flat = _power_integral(n, kl, min(k0, kh))
+    tail = k0**q * _power_integral(n - q, max(k0, kl), kh)
+    return flat + tail
+
+
+def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
+    """One-sided profile PSD G(k) of physics.md §5.1.
+
+    G = C for k_L <= k < k_0, C (k/k_0)^-(1+2H) for k_0 <= k <= k_H, zero outside, with
+    k_L, k_0, k_H = 2 pi / (longest, rolloff, shortest wavelength).
+
+    Parameters
+    ----------
+    k : array_like
+        Angular wavenumber [rad/m].
+    roughness : Roughness
+        Band and Hurst exponent.
+    rms : float, optional
+        Normalise so that ``integral G dk = rms**2`` [m]; default ``C = 1`` (shape only).
+
+    Returns
+    -------
+    ndarray, shape of ``k``
+        [m^2/(rad/m)] (or the dimensionless shape).
+    """
+    kl, k0, kh = _band(roughness)
+    q = 1.0 + 2.0 * roughness.hurst
+    k = np.asarray(k, dtype=float)
+    g = np.zeros_like(k)
+    band = (k >= kl) & (k <= kh)
+    g[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
+    if rms is not None:
+        g *= rms**2 / _shape_moment(0.0, kl, k0, kh, q)
+    return g
+
+
+def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
+    """Isotropic areal PSD S2(|k|) of the raw surface (physics.md §5.2).
+
+    The same band and roll-off as :func:`band_psd` with the areal exponent: S2 = C for
+    k_L <= |k| < k_0, C (|k|/k_0)^-(2+2H) up to k_H, zero outside. A profile cut through such
+    a surface has G(k) ~ k^-(1+2H) above k_0, like :func:`band_psd`.
+
+    Parameters
+    ----------
+    k : array_like
+        |k| [rad/m].
+    roughness : Roughness
+    rms : float, optional
+        Normalise so that the integral over the wavenumber plane is ``rms**2`` [m].
+
+    Returns
+    -------
+    ndarray, shape of ``k``
+        [m^2/(rad/m)^2] (or the shape).
+    """
+    kl, k0, kh = _band(roughness)
+    q = 2.0 + 2.0 * roughness.hurst
+    k = np.asarray(k, dtype=float)
+    s = np.zeros_like(k)
+    band = (k >= kl) & (k <= kh)
+    s[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
+    if rms is not None:
+        s *= rms**2 / (2.0 * np.pi * _shape_moment(1.0, kl, k0, kh, q))
+    return s
+
+
+def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: bool = False
+                     ) -> tuple[float, float, float]:
+    """Profile spectral moments m0, m2, m4 of the model surface (closed form).
+
+    Parameters
+    ----------
+    roughness : Roughness
+        Band and Hurst exponent.
+    rms : float, optional
+        rms height [m]; default ``roughness.raw_rms`` (the raw surface feeds the contact
+        stiffness, physics.md §4.1).
+    areal : bool
+        False: the profile PSD :func:`band_psd`. True: a profile along x through the isotropic
+        surface :func:`areal_psd` (the ``reduce_3d`` surface), m_n = integral kx^n S2 d^2k,
+        which with the angular means <cos^2> = 1/2 and <cos^4> = 3/8 is m2 = <|k|^2> / 2,
+        m4 = 3 <|k|^4> / 8 over S2.
+
+    Returns
+    -------
+    m0, m2, m4 : float
+        [m^2], [-], [1/m^2].
+    """
+    sigma = roughness.raw_rms if rms is None else rms
+    kl, k0, kh = _band(roughness)
+    if not areal:
+        q = 1.0 + 2.0 * roughness.hurst
+        i0, i2, i4 = (_shape_moment(n, kl, k0, kh, q) for n in (0.0, 2.0, 4.0))
+        return sigma**2, sigma**2 * i2 / i0, sigma**2 * i4 / i0
+    q = 2.0 + 2.0 * roughness.hurst
+    j1, j3, j5 = (_shape_moment(n, kl, k0, kh, q) for n in (1.0, 3.0, 5.0))
+    return sigma**2, sigma**2 * 0.5 * j3 / j1, sigma**2 * 0.375 * j5 / j1
+
+
+# --------------------------------------------------------------------------------------------
+# synthesis
+# --------------------------------------------------------------------------------------------
+
+
+def _n_points(r: Roughness) -> int:
+    return int(round(r.trace_length / r.spacing)) + 1
+
+
+def _synthesize_raw(r: Roughness) -> np.ndarray:
+    n = _n_points(r)
     rng = np.random.default_rng(r.seed)
     k = 2 * np.pi * np.fft.rfftfreq(n, r.spacing)
-    kl, kh = 2 * np.pi / r.longest_wavelength, 2 * np.pi / r.shortest_wavelength
-    k0 = 2 * np.pi / r.rolloff_wavelength
-    psd = np.zeros_like(k)
-    band = (k >= kl) & (k <= kh)
-    psd[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-(1 + 2 * r.hurst)))
-    if not band.any():
+    psd = band_psd(k, r)
+    if not np.any(psd > 0):
         raise SceneError(f"roughness.trace_length ({r.trace_length} m) holds no wavenumber of "
-                         f"the band [{r.shortest_wavelength}, {r.longest_wavelength}] m")
+                         f"the band [{r.shortest_wavelength}, {r.longest_wavelength}] m, got "
+                         f"{r.trace_length} m")
     spec = np.sqrt(psd) * np.exp(2j * np.pi * rng.random(k.size))
     return np.fft.irfft(spec, n)
 
 
-def _read_file(r: Roughness, base_dir: Path) -> tuple[np.ndarray, float]:
-    path = Path(r.path)
-    if not path.is_absolute():
-        path = base_dir / path
+def synthesize_profile(roughness: Roughness, rms: float | None = None) -> np.ndarray:
+    """Seeded random-phase synthesis of a profile with the PSD :func:`band_psd` (no filter).
+
+    Amplitudes sqrt(G(k_j)) on the FFT bins k_j = 2 pi j / (n dx) of the band, phases uniform
+    from ``numpy.random.default_rng(roughness.seed)``, one real inverse FFT (physics.md §5.1).
+    The amplitudes are deterministic, so every realisation has exactly the target power in
+    every bin; the heights are Gaussian by the central limit theorem (thousands of
+    components). The profile is periodic over n dx.
+
+    Parameters
+    ----------
+    roughness : Roughness
+        ``spacing``, ``trace_length`` (n = round(trace_length / spacing) + 1 points), band,
+        ``hurst``, ``seed``.
+    rms : float, optional
+        Rescale to this rms [m]; default ``roughness.rms``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Zero-mean heights [m].
+    """
+    z = _synthesize_raw(roughness)
+    z = z - z.mean()
+    target = roughness.rms if rms is None else rms
+    zr = float(np.sqrt(np.mean(z**2)))
+    return z * (target / zr) if zr > 0 else z
+
+
+def trapezoid_weights(y: np.ndarray) -> np.ndarray:
+    """Trapezoidal quadrature weights of sorted, possibly uneven positions.
+
+    Parameters
+    ----------
+    y : ndarray, shape (m,)
+        Strictly increasing positions [m].
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Weights [m], summing to y[-1] - y[0] (one position: weight 1).
+    """
+    y = np.asarray(y, dtype=float)
+    if y.size == 1:
+        return np.ones(1)
+    g = np.diff(y)
+    if np.any(g <= 0):
+        raise ValueError(f"trace positions must increase strictly, got {y}")
+    w = np.empty(y.size)
+    w[0] = g[0] / 2
+    w[-1] = g[-1] / 2
+    w[1:-1] = (g[:-1] + g[1:]) / 2
+    return w
+
+
+def uniform_positions(width: float, spacing: float) -> np.ndarray:
+    """Equally spaced trace positions across a width, centred on y = 0.
+
+    Parameters
+    ----------
+    width : float
+        Span [m].
+    spacing : float
+        Requested pitch [m]; the actual pitch is width / round(width / spacing).
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Positions [m] from -width/2 to +width/2, both included.
+    """
+    m = max(1, int(round(width / spacing)))
+    return np.linspace(-width / 2, width / 2, m + 1)
+
+
+def cbrt2_positions(width: float, first_spacing: float) -> np.ndarray:
+    """The paper's trace layout: separations from one edge growing by 2^(1/3) per trace.
+
+    Positions (from the edge) 0, d, d 2^(1/3), d 2^(2/3), ... below the width, and the far
+    edge; returned centred on y = 0. This samples separations on a 1/3-octave grid, which is
+    what the spanwise *coherence* integral of a Remington-type averaging needs. As a direct
+    spatial average with trapezoidal weights it is dominated by the few widely spaced traces
+    at the far edge (38 traces for d = 10 um over 40 mm, effective number of independent
+    traces (sum w)^2 / sum w^2 = 9.9, i.e. only about -10 dB); see
+    :func:`synthesize_span_averages` for the layout used by default.
+
+    Parameters
+    ----------
+    width : float
+        Span [m].
+    first_spacing : float
+        Smallest separation d [m].
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        Increasing positions [m] in [-width/2, width/2].
+    """
+    if not 0 < first_spacing < width:
+        raise ValueError(f"first_spacing must be in (0, width={width}) m, got {first_spacing}")
+    r = 2.0 ** (1.0 / 3.0)
+    pos = [0.0]
+    d = first_spacing
+    while d < width * (1.0 - 1e-9):
+        pos.append(d)
+        d *= r
+    pos.append(width)
+    return np.asarray(pos) - width / 2
+
+
+def span_average(traces: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Span average of parallel traces with trapezoidal weights (physics.md §5.2 step 3).
+
+    Parameters
+    ----------
+    traces : ndarray, shape (n, m)
+        Heights [m]: n sections along the sliding direction, m traces.
+    y : ndarray, shape (m,)
+        Strictly increasing trace positions across the width [m].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        z_2D(s) = sum_j w_j z(s, y_j) / sum_j w_j [m].
+    """
+    traces = np.asarray(traces, dtype=float)
+    w = trapezoid_weights(y)
+    if traces.ndim != 2 or traces.shape[1] != w.size:
+        raise ValueError(f"traces must have shape (n, {w.size}), got {traces.shape}")
+    return traces @ (w / w.sum())
+
+
+def _weight_transform(ky: np.ndarray, y: np.ndarray, w: np.ndarray, *,
+                      direct: bool = False) -> np.ndarray:
+    """v(ky) = sum_j w_j exp(i ky y_j) / sum_j w_j, shape (n_ky,).
+
+    Equally spaced positions with trapezoidal weights (the default layout, thousands of
+    traces) use the closed geometric sum; anything else (or ``direct``) sums in chunks.
+    """
+    y = np.asarray(y, dtype=float)
+    w = np.asarray(w, dtype=float)
+    g = np.diff(y)
+    uniform = (not direct and y.size > 2 and np.all(g > 0)
+               and np.max(np.abs(g - g.mean())) <= 1e-9 * g.mean()
+               and np.allclose(w, trapezoid_weights(y), rtol=1e-12, atol=0.0))
+    if uniform:
+        d = float(g.mean())
+        m = y.size - 1
+        th = ky * d
+        e = np.exp(1j * th)
+        small = np.abs(np.angle(e)) < 1e-9
+        den = np.where(small, 1.0, 1.0 - e)
+        geo = np.where(small, m + 1.0, (1.0 - np.exp(1j * th * (m + 1))) / den)
+        v = d * np.exp(1j * ky * y[0]) * (geo - 0.5 * (1.0 + np.exp(1j * th * m)))
+        return v / w.sum()
+    v = np.zeros(ky.size, dtype=complex)
+    for j0 in range(0, y.size, _TRACE_CHUNK):
+        v += np.exp(1j * np.outer(ky, y[j0:j0 + _TRACE_CHUNK])) @ w[j0:j0 + _TRACE_CHUNK]
+    return v / w.sum()
+
+
+def synthesize_span_averages(roughness: Roughness,
+                             layouts: Mapping[str, tuple[np.ndarray, np.ndarray]],
+                             rms: float | None = None) -> tuple[dict[str, np.ndarray], dict]:
+    """Weighted averages of parallel traces of a seeded isotropic 2-D Gaussian surface.
+
+    The surface is the random-phase sum z(s, y) = sum a(k) cos(kx s + ky y + phi) over the
+    half-plane kx > 0 of a periodic grid: kx the FFT bins of the trace (period n dx), ky a grid
+    of period P_y = 2 max(span of the layouts, longest wavelength) (so two traces of a layout
+    never see each other's periodic image), a^2 proportional to :func:`areal_psd`, normalised
+    so that the surface variance is exactly ``rms**2``.
+
+    Why not a 2-D FFT: the default surface is 16001 x (0.08 m / 25 um) = 5e7 complex values
+    (0.8 GB) although only averages across the block are needed. Averaging is linear, so each
+    layout's average is formed in the (kx, ky) domain, c(kx) = sum_ky Z(kx, ky) v(ky) with
+    v(ky) = sum_j w_j exp(i ky y_j) / sum_j w_j, chunk by chunk over kx (only kx <= k_H carry
+    power, and per kx only the ky inside the disc |k| <= k_H), and one inverse FFT per layout
+    gives the profile. The result is exactly the average of the traces of that periodic
+    surface at the given (arbitrary, not gridded) positions; memory stays at a few MB and the
+    default case (4001 traces) takes about 2 s of CPU.
+
+    Parameters
+    ----------
+    roughness : Roughness
+        ``spacing``, ``trace_length``, band, ``hurst``, ``seed``.
+    layouts : mapping of str to (y, w)
+        Named trace sets: positions y (m,) [m] and weights w (m,) [-]; ``([0.0], [1.0])`` is
+        the single trace on the centre line.
+    rms : float, optional
+        Surface rms [m]; default ``roughness.raw_rms``.
+
+    Returns
+    -------
+    profiles : dict of str to ndarray, shape (n,)
+        The weighted average of each layout [m].
+    info : dict
+        ``period_y`` [m], ``n_kx``, ``n_ky``, ``surface_rms`` [m].
+    """
+    r = roughness
+    sigma = r.raw_rms if rms is None else rms
+    n = _n_points(r)
+    dx = r.spacing
+    kl, _k0, kh = _band(r)
+    kx = 2.0 * np.pi * np.fft.rfftfreq(n, dx)
+    nkx = int(np.searchsorted(kx, kh, side="right"))
+    if n % 2 == 0:
+        nkx = min(nkx, kx.size - 1)  # the Nyquist bin of an even trace cannot hold a phase
+    span = max((float(np.ptp(y)) for y, _ in layouts.values()), default=0.0)
+    period_y = 2.0 * max(span, r.longest_wavelength)
+    dky = 2.0 * np.pi / period_y
+    mky = int(math.ceil(kh / dky))
+    ky = dky * np.arange(-mky, mky + 1)
+
+    names = list(layouts)
+    vmat = np.column_stack([_weight_transform(ky, *layouts[name]) for name in names])
+    rng = np.random.default_rng(r.seed)
+    coef = np.zeros((kx.size, len(names)), dtype=complex)
+    var = 0.0
+    ky2 = ky**2
+    # rows are drawn whole and in order, so the surface of a seed does not depend on the chunk
+    # size; only the ky inside the disc |k| <= k_H of the chunk's first row are evaluated
+    for i0 in range(1, nkx, _KX_CHUNK):
+        i1 = min(i0 + _KX_CHUNK, nkx)
+        u = rng.random((i1 - i0, ky.size))
+        cols = np.flatnonzero(ky2 <= kh**2 - kx[i0] ** 2 + 1e-9 * kh**2)
+        kk = np.sqrt(kx[i0:i1, None] ** 2 + ky2[None, cols])
+        amp = np.sqrt(areal_psd(kk, r))
+        var += 0.5 * float(np.sum(amp**2))
+        coef[i0:i1] = (amp * np.exp(2j * np.pi * u[:, cols])) @ vmat[cols]
+    if var <= 0.0:
+        raise SceneError(f"roughness.trace_length ({r.trace_length} m) holds no wavenumber of "
+                         f"the band [{r.shortest_wavelength}, {r.longest_wavelength}] m, got "
+                         f"{r.trace_length} m")
+    scale = sigma / math.sqrt(var)
+    # z = Re sum_kx c e^{i kx s} = irfft(c n / 2)
+    out = {name: np.fft.irfft(coef[:, j] * (scale * n / 2.0), n)
+           for j, name in enumerate(names)}
+    info = {"period_y": period_y, "n_kx": nkx - 1, "n_ky": int(ky.size),
+            "surface_rms": float(sigma)}
+    return out, info
+
+
+# --------------------------------------------------------------------------------------------
+# functional filter (physics.md §5.3)
+# --------------------------------------------------------------------------------------------
+
+
+def functional_filter(z: np.ndarray, dx: float, kind: str, length: float, *,
+                      periodic: bool = True) -> np.ndarray:
+    """Apply the functional (contact) filter over the block length.
+
+    ``highpass``: H(k) = 1 - sinc(kL/2), the profile minus its running mean over the block
+    length (reading 2, removes wavelengths longer than L). ``block-lowpass``: H = sinc(kL/2),
+    the literal reading 1 (warns: it removes almost all short-wavelength input).
+    ``none``: unchanged.
+
+    Parameters
+    ----------
+    z : ndarray, shape (n,)
+        Heights [m].
+    dx : float
+        Spacing [m].
+    kind : {"highpass", "block-lowpass", "none"}
+    length : float
+        Block length L [m].
+    periodic : bool
+        True: the profile is periodic over n dx (synthesis), filter its FFT. False (measured
+        data): filter the even extension [z, z reversed] instead, which has no jump at the
+        ends, and keep the first half.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    if kind == "none":
+        return np.asarray(z, dtype=float).copy()
+    if kind not in ("highpass", "block-lowpass"):
+        raise ValueError(f"filter must be 'highpass', 'block-lowpass' or 'none', got {kind!r}")
+    z = np.asarray(z, dtype=float)
+    n = z.size
+    ext = z if periodic else np.concatenate([z, z[::-1]])
+    m = ext.size
+    k = 2 * np.pi * np.fft.rfftfreq(m, dx)
+    sinc = np.sinc(k * length / 2 / np.pi)  # numpy sinc(x) = sin(pi x)/(pi x)
+    if kind == "highpass":
+        h = 1.0 - sinc
+    else:
+        warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
+                      "block length: it removes almost all short-wavelength input "
+                      "(physics.md §5.3, reading 1)", stacklevel=2)
+        h = sinc
+    return np.fft.irfft(np.fft.rfft(ext) * h, m)[:n]
+
+
+# --------------------------------------------------------------------------------------------
+# measured files
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MeasuredProfile:
+    """A profile file as read, in SI units.
+
+    Attributes
+    ----------
+    z : ndarray, shape (n,) or (n, m)
+        Heights [m]; 2-D for a matrix of m parallel traces (one column per trace).
+    dx : float
+        Spacing [m] (from the x column, else ``roughness.spacing``).
+    y : ndarray, shape (m,) or None
+        Trace positions [m] from a ``# y:`` header line, None if not given (or one trace).
+    layout : {"heights", "x-z", "traces"}
+    path : Path
+    last_line : int
+        Line number of the last data line (1-based).
+    """
+
+    z: np.ndarray
+    dx: float
+    y: np.ndarray | None
+    layout: str
+    path: Path
+    last_line: int
+
+
+_Y_HEADER = re.compile(r"^\s*#\s*y\s*:\s*(.*)$", re.IGNORECASE)
+
+
+def _tokens(text: str) -> list[str]:
+    return text.replace(",", " ").replace(";", " ").split()
+
+
+def _float(tok: str) -> float | None:
     try:
-        lines = path.read_text().splitlines()
+        return float(tok)
+    except ValueError:
+        return None
+
+
+def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6, *,
+                      base_dir: str | Path = ".", min_length: float | None = None,
+                      min_length_reason: str = "") -> MeasuredProfile:
+    """Read a measured profile from a text/CSV file.
+
+    Format: one row per section along the sliding direction; values separated by commas,
+    semicolons or whitespace; ``#`` starts a comment; a first non-comment line of names
+    (``x, z``) is skipped. Columns:
+
+    * one: heights at ``spacing``;
+    * two: x and z (x increasing, uniform within 1 %; the spacing is the mean step);
+    * three or more: a matrix of parallel traces at ``spacing``, one column per trace.
+      A comment line ``# y: y1 y2 ...`` (file units) gives the trace positions across the
+      width; with it, a file with one more column than positions has an x column first.
+      Without it, the traces are taken as equally spaced across the block width.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file; relative paths are relative to ``base_dir``.
+    units : {"m", "um", "nm"}
+        Unit of heights, x and y in the file.
+    spacing : float
+        Section spacing when there is no x column [m].
+    base_dir : str or Path
+        Directory relative paths are resolved against.
+    min_length : float, optional
+        Required covered length (n - 1) dx [m].
+    min_length_reason : str
+        What ``min_length`` is made of, for the error message.
+
+    Returns
+    -------
+    MeasuredProfile
+
+    Raises
+    ------
+    SceneError
+        Unreadable file; non-numeric, NaN or infinite value; inconsistent column count;
+        non-uniform or non-increasing x; too few points. The message names the file, the line
+        and the problem.
+    """
+    p = Path(path)
+    if not p.is_absolute():
+        p = Path(base_dir) / p
+    where = f"roughness.path {p}"
+    try:
+        text = p.read_text()
+    except UnicodeDecodeError:
+        raise SceneError(f"{where} cannot be read as text (binary file?), got "
+                         f"{p.stat().st_size} bytes") from None
     except OSError as exc:
-        raise SceneError(f"roughness.path {path} cannot be read: {exc.strerror}") from None
-    rows = []
-    for i, line in enumerate(lines, start=1):
-        text = line.split("#", 1)[0].strip()
-        if not text:
+        raise SceneError(f"{where} cannot be read: {exc.strerror}, got path "
+                         f"{str(path)!r}") from None
+    scale = _UNITS[units]
+    rows: list[list[float]] = []
+    lines: list[int] = []
+    y_hdr: tuple[int, list[float]] | None = None
+    header_seen = False
+    for i, line in enumerate(text.splitlines(), start=1):
+        m = _Y_HEADER.match(line)
+        if m and y_hdr is None:
+            vals = [_float(t) for t in _tokens(m.group(1))]
+            if not vals or any(v is None or not math.isfinite(v) for v in vals):
+                raise SceneError(f"{where} line {i}: '# y:' must list finite trace positions "
+                                 f"[{units}], got {m.group(1).strip()!r}")
+            y_hdr = (i, [float(v) for v in vals])
             continue
-        parts = [p for p in text.replace(",", " ").replace(";", " ").split() if p]
-        try:
-            vals = [float(p) for p in parts]
-        except ValueError:
-            raise SceneError(f"roughness.path {path} line {i}: not a number: "
-                             f"{text!r}") from None
+        body = line.split("#", 1)[0].strip()
+        if not body:
+            continue
+        toks = _tokens(body)
+        vals = [_float(t) for t in toks]
+        if any(v is None for v in vals):
+            if not rows and not header_seen and all(v is None for v in vals):
+                header_seen = True  # a line of column names
+                continue
+            bad = toks[[v is None for v in vals].index(True)]
+            raise SceneError(f"{where} line {i}: every value must be a number, got {bad!r}")
         if any(not math.isfinite(v) for v in vals):
-            raise SceneError(f"roughness.path {path} line {i}: NaN or infinite height: "
-                             f"{text!r}")
-        rows.append(vals)
+            raise SceneError(f"{where} line {i}: NaN or infinite values are not allowed, got "
+                             f"{body!r}")
+        if rows and len(vals) != len(rows[0]):
+            raise SceneError(f"{where} line {i}: every row must have {len(rows[0])} columns "
+                             f"like line {lines[0]}, got {len(vals)}")
+        rows.append(vals)  # type: ignore[arg-type]
+        lines.append(i)
     if not rows:
-        raise SceneError(f"roughness.path {path} holds no data")
-    ncol = {len(v) for v in rows}
-    if len(ncol) != 1 or ncol.pop() not in (1, 2):
-        raise SceneError(f"roughness.path {path}: need one column (heights) or two (x, z) on "
-                         f"every line, got {sorted({len(v) for v in rows})} columns")
-    data = np.array(rows)
-    scale = _UNITS[r.units]
-    if data.shape[1] == 1:
-        return data[:, 0] * scale, r.spacing
-    x = data[:, 0] * scale
-    dxs = np.diff(x)
-    dx = float(np.mean(dxs)) if dxs.size else 0.0
-    if dx <= 0 or np.max(np.abs(dxs - dx)) > 1e-6 * dx:
-        bad = int(np.argmax(np.abs(dxs - dx))) + 2
-        raise SceneError(f"roughness.path {path}: x must be uniformly spaced and increasing, "
-                         f"line {bad} breaks it (spacing {dxs[bad - 2]:.6g} m vs mean "
-                         f"{dx:.6g} m)")
-    return data[:, 1] * scale, dx
+        raise SceneError(f"{where} holds no data lines (only comments or blank lines), got "
+                         f"{len(text.splitlines())} lines")
+    data = np.array(rows, dtype=float) * scale
+    ncol = data.shape[1]
+    y = None
+    x = None
+    if y_hdr is not None:
+        hline, yv = y_hdr
+        if ncol == len(yv) + 1:
+            x, traces = data[:, 0], data[:, 1:]
+        elif ncol == len(yv):
+            traces = data
+        else:
+            raise SceneError(f"{where} line {hline}: '# y:' lists {len(yv)} trace positions, so "
+                             f"rows need {len(yv)} (or {len(yv) + 1} with x) columns, got "
+                             f"{ncol}")
+        y = np.asarray(yv) * scale
+        if np.any(np.diff(y) <= 0):
+            raise SceneError(f"{where} line {hline}: trace positions must increase strictly, "
+                             f"got {yv}")
+        layout = "traces"
+        z = traces if traces.shape[1] > 1 else traces[:, 0]
+        if z.ndim == 1:
+            layout, y = "heights", None
+    elif ncol == 1:
+        z, layout = data[:, 0], "heights"
+    elif ncol == 2:
+        x, z, layout = data[:, 0], data[:, 1], "x-z"
+    else:
+        z, layout = data, "traces"
+    dx = spacing
+    if x is not None:
+        if x.size < 2:
+            raise SceneError(f"{where} line {lines[-1]}: an x column needs at least two rows "
+                             f"to give the spacing, got {x.size}")
+        steps = np.diff(x)
+        dx = float((x[-1] - x[0]) / (x.size - 1))
+        if dx <= 0:
+            raise SceneError(f"{where} line {lines[1]}: x must increase, got x = "
+                             f"{x[0] / scale:g} then {x[1] / scale:g} {units}")
+        dev = np.abs(steps - dx)
+        j = int(np.argmax(dev))
+        if dev[j] > _X_STEP_RTOL * dx:
+            raise SceneError(f"{where} line {lines[j + 1]}: x must be uniformly spaced (within "
+                             f"{_X_STEP_RTOL:.0%} of the mean spacing {dx / scale:.6g} "
+                             f"{units}; resample non-uniform data), got a step of "
+                             f"{steps[j] / scale:.6g} {units}")
+    n = z.shape[0]
+    if min_length is not None and (n - 1) * dx < min_length:
+        why = f" ({min_length_reason})" if min_length_reason else ""
+        raise SceneError(f"{where} line {lines[-1]}: too few points for the stroke plus the "
+                         f"block length: need a length >= {min_length:.6g} m{why}, got {n} "
+                         f"points x {dx:.6g} m = {(n - 1) * dx:.6g} m")
+    return MeasuredProfile(z=z, dx=float(dx), y=y, layout=layout, path=p,
+                           last_line=lines[-1])
 
 
-def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = ".") -> Profile:
+# --------------------------------------------------------------------------------------------
+# build the profile
+# --------------------------------------------------------------------------------------------
+
+
+def _reduction_db(reduced: np.ndarray, raw_rms: float) -> float:
+    rr = float(np.sqrt(np.mean((reduced - reduced.mean()) ** 2)))
+    if raw_rms <= 0 or rr <= 0:
+        return float("-inf") if raw_rms > 0 else float("nan")
+    return 20.0 * math.log10(rr / raw_rms)
+
+
+def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,
+                  stroke: float | None = None) -> Profile:
     """Build the kinematic input profile of a scene.
 
     Parameters
@@ -156,88 +810,220 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     roughness : Roughness
         The ``[roughness]`` section.
     block : Block
-        For the functional filter length and the minimum profile length.
+        Length (functional filter, minimum profile length) and width (span averaging).
     base_dir : str or Path
-        Directory relative file paths are resolved against.
+        Directory relative file paths are resolved against (``Scene.base_dir``).
+    stroke : float, optional
+        Peak-to-peak tangential travel of the block [m]; the profile must cover
+        block.length + stroke. Default: block.length (the profile then spans at least two
+        block lengths). The solver checks the actual travel again at run time.
 
     Returns
     -------
     Profile
+        ``s0 = 0``, ``s_centre`` the middle grid point. ``reduce_3d`` adds to ``stats``:
+        ``raw_rms`` (surface rms), ``raw_trace_rms`` (one trace on the centre line),
+        ``reduced_rms`` (span average before the filter), ``reduction_db``,
+        ``reduction_db_cbrt2`` (the same surface averaged over the paper's 2^(1/3) layout, for
+        reference), ``n_traces``, ``trace_pitch``. A trace matrix adds ``raw_rms`` (mean trace
+        rms), ``reduced_rms``, ``reduction_db``, ``n_traces``.
 
     Raises
     ------
     SceneError
-        Unreadable or malformed files, profiles shorter than the block plus margin.
+        Unreadable or malformed files, profiles shorter than the block plus the stroke.
     """
     r = roughness
-    if r.reduce_3d:
-        raise SceneError("roughness.reduce_3d = true is not available in this version "
-                         "(3-D -> 2-D reduction is planned); use the reduced rms directly, "
-                         "got true")
+    bl = block.length
+    stroke = bl if stroke is None else float(stroke)
+    min_len = bl + stroke
+    reason = f"block.length {bl:g} m + stroke {stroke:g} m"
+    stats: dict = {"kind": r.kind}
+    periodic = False
     if r.kind == "file":
-        z, dx = _read_file(r, Path(base_dir))
+        meas = read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
+                                 min_length=min_len, min_length_reason=reason)
+        dx = meas.dx
+        stats.update(path=str(meas.path), layout=meas.layout)
+        if meas.z.ndim == 2:
+            traces = meas.z - meas.z.mean(axis=0)
+            y = meas.y if meas.y is not None else np.linspace(-block.width / 2,
+                                                              block.width / 2,
+                                                              traces.shape[1])
+            z = span_average(traces, y)
+            raw = float(np.mean(np.sqrt(np.mean(traces**2, axis=0))))
+            stats.update(n_traces=int(traces.shape[1]), raw_rms=raw,
+                         reduced_rms=float(np.sqrt(np.mean(z**2))),
+                         reduction_db=_reduction_db(z, raw),
+                         trace_span=float(np.ptp(y)))
+        else:
+            z = meas.z.copy()
+        # moments of the raw measured surface (before span averaging and filtering) feed the
+        # statistical contact model (contact.stiffness = "auto", physics.md §4.1)
+        raw_traces = meas.z if meas.z.ndim == 2 else meas.z[:, None]
+        per = [profile_statistics(raw_traces[:, j], dx) for j in range(raw_traces.shape[1])]
+        stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
+                                     for key in ("rms", "rms_slope", "rms_curvature"))
+        if r.filter != "none":
+            z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
     else:
         dx = r.spacing
-        n = int(round(r.trace_length / dx)) + 1
+        n = _n_points(r)
+        if (n - 1) * dx < min_len * (1.0 - 1e-12):
+            raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
+                             f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
         if r.kind == "none":
             z = np.zeros(n)
         elif r.kind == "sinusoid":
             s = np.arange(n) * dx
-            sc = s[n // 2]
-            z = r.amplitude * np.cos(2 * np.pi * (s - sc) / r.wavelength)
+            z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
+        elif not r.reduce_3d:
+            periodic = True
+            z = _synthesize_raw(r)
+            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            zr = float(np.sqrt(np.mean(z**2)))
+            z = z * (r.rms / zr) if zr > 0 else z
+            stats.update(seed=r.seed, target_rms=r.rms)
         else:
-            z = _synthetic(r)
+            periodic = True
+            z = _reduce_3d(r, block, stats)
+            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            stats.update(seed=r.seed)
     n = z.size
-    min_len = 2 * block.length
-    if (n - 1) * dx < min_len:
-        raise SceneError(f"roughness profile must be at least {min_len} m long (twice the "
-                         f"block length, for the stroke), got {(n - 1) * dx:.6g} m")
-    if r.kind in ("synthetic", "file"):
-        z = _functional_filter(z - z.mean(), dx, r.filter, block.length)
-    if r.kind == "synthetic":
-        zr = np.sqrt(np.mean(z**2))
-        z = z * (r.rms / zr) if zr > 0 else z
+    stats.update(n=int(n), length=float((n - 1) * dx), filter=r.filter)
+    stats.update(profile_statistics(z, dx, periodic=periodic))
     s_centre = (n // 2) * dx
-    stats = {"kind": r.kind, **profile_statistics(z, dx)}
-    return Profile(z=np.ascontiguousarray(z), dx=float(dx), s0=0.0, s_centre=float(s_centre),
-                   stats=stats)
+    return Profile(z=np.ascontiguousarray(z, dtype=float), dx=float(dx), s0=0.0,
+                   s_centre=float(s_centre), stats=stats)
+
+
+def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
+    """Span average of the 2-D surface over the block width, traces at the profile spacing.
+
+    ``roughness.trace_layout = "uniform"`` (default) uses a trace pitch equal to
+    ``roughness.spacing`` (10 um), far below the spanwise correlation length of the band
+    (>= 50 um), so the trapezoidal average is the continuous width average of physics.md §5.2
+    (-23 dB for the default surface, the analytic value is -23.1 dB). ``"cbrt2"`` uses the
+    paper's 2^(1/3) layout (about -10 dB; see :func:`cbrt2_positions`). Both reductions of the
+    same surface are reported in ``stats``.
+    """
+    width = block.width
+    if r.raw_rms == 0.0:
+        stats.update(raw_rms=0.0, reduced_rms=0.0, reduction_db=float("nan"))
+        return np.zeros(_n_points(r))
+    yu = uniform_positions(width, r.spacing)
+    yc = cbrt2_positions(width, r.spacing)
+    layouts = {"uniform": (yu, trapezoid_weights(yu)),
+               "cbrt2": (yc, trapezoid_weights(yc)),
+               "centre": (np.zeros(1), np.ones(1))}
+    out, info = synthesize_span_averages(r, layouts)
+    z = out[r.trace_layout]
+    used = yu if r.trace_layout == "uniform" else yc
+    stats.update(raw_rms=r.raw_rms,
+                 raw_trace_rms=float(np.sqrt(np.mean(out["centre"] ** 2))),
+                 reduced_rms=float(np.sqrt(np.mean(z**2))),
+                 reduction_db=_reduction_db(z, r.raw_rms),
+                 reduction_db_uniform=_reduction_db(out["uniform"], r.raw_rms),
+                 reduction_db_cbrt2=_reduction_db(out["cbrt2"], r.raw_rms),
+                 trace_layout=r.trace_layout, n_traces=int(used.size),
+                 trace_pitch=float(used[1] - used[0]), period_y=info["period_y"])
+    return z
+
+
+# --------------------------------------------------------------------------------------------
+# contact points (physics.md §5.4)
+# --------------------------------------------------------------------------------------------
+
+
+def _ranked(idx: np.ndarray, z: np.ndarray, s: np.ndarray, s_centre: float, tie: float
+            ) -> np.ndarray:
+    """idx sorted by height (highest first); heights within ``tie`` rank by distance to the
+    centre, then by position, so equal crests (a sinusoid) are taken from the centre out."""
+    if idx.size == 0:
+        return idx
+    zq = np.round((z[idx].max() - z[idx]) / tie)
+    order = np.lexsort((s[idx], np.abs(s[idx] - s_centre), zq))
+    return idx[order]
 
 
 def select_contacts(profile: Profile, n: int, window_length: float, min_separation: float
                     ) -> np.ndarray:
     """Profile coordinates of the n highest local maxima under the block, sorted.
 
-    Maxima closer than ``min_separation`` to a higher chosen one are skipped (one asperity,
-    one contact). A flat profile gives n points equally spaced over the window (the centre for
-    n = 1).
+    Rules, in order:
+
+    1. The window is ``|s - s_centre| <= window_length / 2`` (grid points).
+    2. Flat window (height range below 1e-12 of the largest |z|, or exactly zero, e.g. kind
+       ``none``): n points equally spaced with equal gaps to each other and to the window
+       edges, ``s_centre + linspace(-w/2, w/2, n + 2)[1:-1]`` (n = 1: the centre).
+       ``min_separation`` is not applied.
+    3. Otherwise the local maxima (z[i] >= z[i-1] and z[i] > z[i+1], neighbours taken from the
+       whole profile) are ranked by height; heights equal within 1e-9 of the window's height
+       range rank by distance to the centre (so on ``sinusoid`` one contact sits exactly at
+       the centre crest). Greedily, a maximum is taken if it is at least ``min_separation``
+       from every point already taken.
+    4. If fewer than n maxima qualify, the remaining points are the highest other grid points
+       of the window that respect the separation (a ``UserWarning`` says so): on a smooth
+       long-wave profile they sit on the flanks next to the crests and carry no static load.
+
+    Parameters
+    ----------
+    profile : Profile
+    n : int
+        Number of contact points N_c (>= 1).
+    window_length : float
+        Block length [m].
+    min_separation : float
+        Minimum distance between two chosen points [m].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Sorted profile coordinates [m] (grid points, except in the flat case).
 
     Raises
     ------
     SceneError
-        Fewer than n admissible maxima in the window.
+        n < 1, or not even rule 4 finds n points ``min_separation`` apart in the window.
     """
+    if n < 1:
+        raise SceneError(f"contact.points must be >= 1, got {n}")
     s = profile.s
     z = profile.z
-    inside = np.abs(s - profile.s_centre) <= window_length / 2 + 1e-12 * window_length
-    idx = np.flatnonzero(inside)
-    zi = z[idx]
-    if np.ptp(zi) <= 1e-15 * max(1.0, float(np.max(np.abs(zi)))):
-        if n == 1:
-            return np.array([profile.s_centre])
-        return profile.s_centre + np.linspace(-window_length / 2, window_length / 2,
-                                              n + 2)[1:-1]
-    interior = idx[1:-1]
-    is_max = (z[interior] >= z[interior - 1]) & (z[interior] > z[interior + 1])
-    cand = interior[is_max]
-    cand = cand[np.argsort(-z[cand], kind="stable")]
+    half = window_length / 2
+    sc = profile.s_centre
+    inside = np.flatnonzero(np.abs(s - sc) <= half + 1e-9 * profile.dx)
+    if inside.size == 0:
+        raise SceneError(f"block.length must cover at least one profile point, got "
+                         f"{window_length} m")
+    zi = z[inside]
+    zrange = float(np.ptp(zi))
+    if zrange == 0.0 or zrange <= 1e-12 * float(np.max(np.abs(zi))):
+        return sc + np.linspace(-half, half, n + 2)[1:-1]
+    tie = 1e-9 * zrange
+    i = inside[(inside > 0) & (inside < z.size - 1)]
+    cand = i[(z[i] >= z[i - 1]) & (z[i] > z[i + 1])]
+    tol = 1e-9 * profile.dx
     chosen: list[int] = []
-    for j in cand:
-        if all(abs(s[j] - s[c]) >= min_separation for c in chosen):
-            chosen.append(int(j))
+
+    def take(order: np.ndarray) -> None:
+        for j in order:
             if len(chosen) == n:
-                break
+                return
+            if not chosen or np.min(np.abs(s[chosen] - s[j])) >= min_separation - tol:
+                chosen.append(int(j))
+
+    take(_ranked(cand, z, s, sc, tie))
     if len(chosen) < n:
-        raise SceneError(f"contact.points must not exceed the {len(chosen)} profile maxima "
-                         f"under the block at least contact.min_separation = {min_separation} m "
-                         f"apart, got {n}")
+        n_max = len(chosen)
+        rest = np.setdiff1d(inside, np.asarray(chosen, dtype=int))
+        take(_ranked(rest, z, s, sc, tie))
+        if len(chosen) < n:
+            raise SceneError(f"contact.points: only {len(chosen)} points at least "
+                             f"contact.min_separation = {min_separation} m apart were found in "
+                             f"the block window of {window_length} m (highest first); lower "
+                             f"contact.points or contact.min_separation, got {n}")
+        warnings.warn(f"only {n_max} local maxima at least {min_separation} m apart under the "
+                      f"block; the other {n - n_max} contact points are the highest remaining "
+                      f"profile points", stacklevel=2)
     return np.sort(s[chosen])

@@ -1,0 +1,447 @@
+"""Statistical normal contact stiffness of the block on the plate (physics.md §4).
+
+This module owns the contact sub-program: summit statistics from spectral moments
+(Nayak / McCool), the Greenwood-Williamson (GW) and Greenwood-Tripp (GT) models solved at the
+static load m g, and the resulting tangent ("incremental") stiffness s_total that the solver
+splits over its contact springs, with the number of micro-contacts, real contact area, mean
+pressure, plasticity index and the rigid-plate contact resonance.
+
+Model summary (``h = d / sigma_s`` the separation of the flat from the mean summit plane in
+summit standard deviations, ``F_n(h) = integral_h^inf (s - h)^n phi*(s) ds``):
+
+GW, one equivalent rough surface (density eta, radius R, summit std sigma_s) on a flat::
+
+    P   = (4/3) eta A_n E* R^(1/2) sigma_s^(3/2) F_3/2(h)
+    k   = 2 eta A_n E* (R sigma_s)^(1/2) F_1/2(h)          (= dP/d(approach))
+    n_c = eta A_n F_0(h) ,   A_r = pi eta A_n R sigma_s F_1(h)
+
+GT, two rough surfaces each with summit density eta and radius beta, composite std sigma.
+Derived from two paraboloids of radius beta at lateral offset r, Hertz with the effective
+radius beta/2 (so E* is the usual 1/E* = sum (1 - nu_i^2)/E_i, which makes the constant
+agree with physics.md §4.1)::
+
+    P   = (16 sqrt(2) pi / 15) (eta beta sigma)^2 sqrt(sigma / beta) E* A_n F_5/2(h)
+    k   = (5/2) (P / sigma) F_3/2(h) / F_5/2(h)
+    n_c = 4 pi eta^2 beta sigma A_n F_1(h) ,   A_r = pi^2 (eta beta sigma)^2 A_n F_2(h)
+
+The equivalent GW surface of two surfaces with comparable summits has 1/R = 1/beta + 1/beta
+(physics.md §4.1), so GT is fed beta = 2 R, eta = eta_s, sigma = sigma_s. With that mapping
+the two models agree within 1 % in stiffness and micro-contact count for the default surface;
+with beta = R (reading "beta is the summit radius" literally) GT is 4.8-4.9 % softer.
+
+For Gaussian summits F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi) (D the parabolic
+cylinder function); an exponential summit distribution (standardised: phi*(s) = exp(-(s+1)),
+s >= -1) gives F_n = Gamma(n+1) exp(-(h+1)) and exactly k = P / sigma_s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, special
+
+from roughvib.scene import Scene, SceneError
+from roughvib.surface.roughness import spectral_moments
+
+__all__ = [
+    "GRAVITY",
+    "ContactSolution",
+    "ContactStiffness",
+    "SummitParameters",
+    "contact_stiffness",
+    "effective_modulus",
+    "gw_integral",
+    "solve_contact",
+    "summit_parameters",
+    "velocity_factor",
+]
+
+GRAVITY = 9.81  # m/s^2, the paper's value (same as roughvib.model.system.GRAVITY)
+
+# the paper's elevation effect: stiffness factor 1 at 10 mm/s and 0.33 at 100 mm/s [P]
+_VF_REF = 0.01
+_VF_EXPONENT = math.log10(0.33)
+
+_DISTRIBUTIONS = ("gaussian", "exponential")
+
+
+# --------------------------------------------------------------------------------------------
+# building blocks
+# --------------------------------------------------------------------------------------------
+
+
+def gw_integral(n: float, h: float | np.ndarray, distribution: str = "gaussian"
+                ) -> float | np.ndarray:
+    """F_n(h) = integral_h^inf (s - h)^n phi*(s) ds for a standardised summit distribution.
+
+    Parameters
+    ----------
+    n : float
+        Order (> -1), e.g. 0, 1/2, 1, 3/2, 2, 5/2.
+    h : float or ndarray
+        Standardised separation [-].
+    distribution : {"gaussian", "exponential"}
+        Standard normal phi*, or the standardised exponential exp(-(s+1)) on s >= -1 (mean 0,
+        std 1).
+
+    Returns
+    -------
+    float or ndarray
+        F_n(h) [-].
+    """
+    h = np.asarray(h, dtype=float)
+    if distribution == "gaussian":
+        d, _ = special.pbdv(-n - 1.0, h)
+        out = special.gamma(n + 1.0) * np.exp(-h * h / 4.0) * d / math.sqrt(2.0 * math.pi)
+    elif distribution == "exponential":
+        u = np.maximum(-(h + 1.0), 0.0)  # below the support the lower limit is s = -1
+        # integral_{max(h,-1)}^inf (s-h)^n e^{-(s+1)} ds
+        #   = Gamma(n+1) e^{-(h+1)}            for h >= -1
+        #   = e^{u} Gamma(n+1, u), u = -(1+h)  for h < -1
+        out = np.where(h >= -1.0, special.gamma(n + 1.0) * np.exp(-(h + 1.0)),
+                       np.exp(u) * special.gamma(n + 1.0) * special.gammaincc(n + 1.0, u))
+    else:
+        raise ValueError(f"distribution must be one of {_DISTRIBUTIONS}, got {distribution!r}")
+    return float(out) if out.ndim == 0 else out
+
+
+@dataclass(frozen=True)
+class SummitParameters:
+    """Summit statistics of an isotropic Gaussian surface (Nayak / McCool).
+
+    Attributes
+    ----------
+    density : float
+        eta_s = m4 / (6 pi sqrt(3) m2) [1/m^2].
+    radius : float
+        R = 1 / kappa_s, kappa_s = (8/3) sqrt(m4 / pi) [m].
+    std : float
+        sigma_s = sqrt((1 - 0.8968 / alpha) m0) [m].
+    alpha : float
+        Bandwidth parameter m0 m4 / m2^2 [-].
+    rms, rms_slope, rms_curvature : float
+        sqrt(m0) [m], sqrt(m2) [-], sqrt(m4) [1/m].
+    """
+
+    density: float
+    radius: float
+    std: float
+    alpha: float
+    rms: float
+    rms_slope: float
+    rms_curvature: float
+
+
+def summit_parameters(m0: float, m2: float, m4: float) -> SummitParameters:
+    """Summit density, radius and height spread from profile spectral moments (physics.md §4.1).
+
+    Parameters
+    ----------
+    m0, m2, m4 : float
+        Profile spectral moments of the (isotropic) surface: variance [m^2], mean-square slope
+        [-], mean-square curvature [1/m^2].
+
+    Returns
+    -------
+    SummitParameters
+
+    Raises
+    ------
+    ValueError
+        Non-positive moments or alpha <= 0.8968 (no real summit spread).
+    """
+    if not (m0 > 0 and m2 > 0 and m4 > 0):
+        raise ValueError(f"spectral moments must be > 0, got m0={m0}, m2={m2}, m4={m4}")
+    alpha = m0 * m4 / m2**2
+    if alpha <= 0.8968:
+        raise ValueError(f"bandwidth alpha = m0 m4 / m2^2 must exceed 0.8968, got {alpha}")
+    return SummitParameters(
+        density=m4 / (6.0 * math.pi * math.sqrt(3.0) * m2),
+        radius=1.0 / ((8.0 / 3.0) * math.sqrt(m4 / math.pi)),
+        std=math.sqrt((1.0 - 0.8968 / alpha) * m0),
+        alpha=alpha, rms=math.sqrt(m0), rms_slope=math.sqrt(m2), rms_curvature=math.sqrt(m4))
+
+
+def effective_modulus(e1: float, nu1: float, e2: float | None = None,
+                      nu2: float | None = None) -> float:
+    """Contact modulus E*: 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2 [Pa].
+
+    Parameters
+    ----------
+    e1, nu1 : float
+        Young's modulus [Pa] and Poisson ratio [-] of body 1.
+    e2, nu2 : float, optional
+        Body 2; default the same material (steel on steel: 115.4 GPa).
+    """
+    e2 = e1 if e2 is None else e2
+    nu2 = nu1 if nu2 is None else nu2
+    return 1.0 / ((1.0 - nu1**2) / e1 + (1.0 - nu2**2) / e2)
+
+
+def velocity_factor(v_rms: float) -> float:
+    """The paper's velocity ("elevation") factor of the contact stiffness (physics.md §4.2-3).
+
+    (v_rms / 0.01 m/s)^log10(0.33): 1 at 10 mm/s, 0.33 at 100 mm/s.
+
+    Parameters
+    ----------
+    v_rms : float
+        rms sliding velocity [m/s], > 0.
+    """
+    if not v_rms > 0:
+        raise ValueError(f"v_rms must be > 0 m/s, got {v_rms}")
+    return (v_rms / _VF_REF) ** _VF_EXPONENT
+
+
+@dataclass(frozen=True)
+class ContactSolution:
+    """A statistical contact solved at one load (see :func:`solve_contact`)."""
+
+    h: float
+    stiffness: float
+    micro_contacts: float
+    real_area: float
+
+
+def solve_contact(load: float, density: float, radius: float, std: float, area: float,
+                  modulus: float, model: str = "gw", distribution: str = "gaussian"
+                  ) -> ContactSolution:
+    """Solve a statistical contact model for the separation at a given load.
+
+    Parameters
+    ----------
+    load : float
+        Normal load P [N], > 0.
+    density : float
+        Summit density eta [1/m^2].
+    radius : float
+        GW: summit radius R of the equivalent surface [m]. GT: the radius beta of each of the
+        two surfaces' summits [m] (``contact_stiffness`` passes beta = 2 R).
+    std : float
+        Summit height std sigma_s (GT: composite sigma) [m].
+    area : float
+        Nominal area A_n [m^2].
+    modulus : float
+        E* [Pa].
+    model : {"gw", "gt"}
+    distribution : {"gaussian", "exponential"}
+        Standardised summit height distribution.
+
+    Returns
+    -------
+    ContactSolution
+        ``h`` [-], ``stiffness`` [N/m] (tangent dP/d(approach)), ``micro_contacts`` [-],
+        ``real_area`` [m^2].
+
+    Raises
+    ------
+    ValueError
+        Non-positive inputs, unknown model, or a load beyond the range of the model
+        (h < -8: the surfaces are pressed flat).
+    """
+    for name, v in (("load", load), ("density", density), ("radius", radius), ("std", std),
+                    ("area", area), ("modulus", modulus)):
+        if not (v > 0 and math.isfinite(v)):
+            raise ValueError(f"{name} must be a finite number > 0, got {v}")
+    if model == "gw":
+        c = (4.0 / 3.0) * density * area * modulus * math.sqrt(radius) * std**1.5
+        order = 1.5
+    elif model == "gt":
+        c = ((16.0 * math.sqrt(2.0) * math.pi / 15.0) * (density * radius * std) ** 2
+             * math.sqrt(std / radius) * modulus * area)
+        order = 2.5
+    else:
+        raise ValueError(f"model must be 'gw' or 'gt', got {model!r}")
+    target = math.log(load / c)
+
+    def f(h: float) -> float:
+        v = gw_integral(order, h, distribution)
+        return (math.log(v) if v > 0 else -1e300) - target
+
+    lo, hi = -8.0, 8.0
+    if f(lo) < 0:
+        raise ValueError(f"load {load} N exceeds the range of the {model.upper()} model "
+                         f"(separation h < {lo}): the surfaces would be pressed flat")
+    while f(hi) > 0:
+        hi *= 2.0
+        if hi > 64.0:
+            raise ValueError(f"load {load} N is too small for the {model.upper()} model "
+                             f"(separation h > 64)")
+    h = optimize.brentq(f, lo, hi, xtol=1e-14, rtol=1e-14, maxiter=200)
+    F = lambda n: gw_integral(n, h, distribution)  # noqa: E731
+    if model == "gw":
+        k = 2.0 * density * area * modulus * math.sqrt(radius * std) * F(0.5)
+        n_c = density * area * F(0.0)
+        a_r = math.pi * density * area * radius * std * F(1.0)
+    else:
+        k = 2.5 * load / std * F(1.5) / F(2.5)
+        n_c = 4.0 * math.pi * density**2 * radius * std * area * F(1.0)
+        a_r = math.pi**2 * (density * radius * std) ** 2 * area * F(2.0)
+    return ContactSolution(h=float(h), stiffness=float(k), micro_contacts=float(n_c),
+                     real_area=float(a_r))
+
+
+# --------------------------------------------------------------------------------------------
+# the scene-level result
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ContactStiffness:
+    """Statistical contact at the static load (physics.md §4).
+
+    Attributes
+    ----------
+    s_total : float
+        Total incremental normal stiffness [N/m], including the velocity factor.
+    micro_contacts : float
+        Expected number of micro-contacts n_c [-].
+    real_area : float
+        Real contact area A_r [m^2].
+    mean_pressure : float
+        P / A_r [Pa].
+    plasticity_index : float
+        psi = (E*/H) sqrt(sigma_s / R) [-] (> 1: first contact is plastic).
+    separation : float
+        h = d / sigma_s [-].
+    summit_density : float
+        eta_s [1/m^2].
+    summit_radius : float
+        R of the equivalent surface [m] (GT uses beta = 2 R per surface).
+    summit_std : float
+        sigma_s [m].
+    resonance_hz : float
+        Rigid-plate contact resonance sqrt(s_total / m) / (2 pi) [Hz].
+    model : str
+        "gw" or "gt".
+    load : float
+        Static load m g [N].
+    stiffness_ratio : float
+        kappa = k sigma_s / P before the velocity factor [-] (4.4-5.0 for Gaussian summits).
+    velocity_factor : float
+        Applied factor [-] (1 when ``contact.velocity_factor`` is off).
+    effective_modulus : float
+        E* [Pa].
+    nominal_area : float
+        A_n = block length x width [m^2].
+    surface_rms : float
+        rms of the raw surface used for the moments [m] (NaN if all summit keys were given).
+    summit_source : str
+        "moments", "keys" or "moments+keys".
+    """
+
+    s_total: float
+    micro_contacts: float
+    real_area: float
+    mean_pressure: float
+    plasticity_index: float
+    separation: float
+    summit_density: float
+    summit_radius: float
+    summit_std: float
+    resonance_hz: float
+    model: str
+    load: float
+    stiffness_ratio: float
+    velocity_factor: float
+    effective_modulus: float
+    nominal_area: float
+    surface_rms: float
+    summit_source: str
+
+    def as_dict(self) -> dict:
+        """Plain dict of the fields (JSON-ready)."""
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+def _scene_v_rms(scene: Scene) -> float:
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        v = math.sqrt(exc.velocity**2 + 0.5 * (exc.amplitude * exc.omega) ** 2)
+        if v > 0:
+            return v
+        raise SceneError("contact.velocity_factor needs a moving block: excitation.velocity or "
+                         "excitation.amplitude must be non-zero, got 0 m/s rms")
+    if exc.target_rms_velocity is None:
+        raise SceneError("contact.velocity_factor needs excitation.target_rms_velocity [m/s] "
+                         f"(the factor scales with the rms velocity), got force_amplitude = "
+                         f"{exc.force_amplitude} N only")
+    return float(exc.target_rms_velocity)
+
+
+def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None = None
+                      ) -> ContactStiffness:
+    """Tangent normal contact stiffness of the scene at the static load m g.
+
+    Summit parameters: ``contact.summit_density``, ``summit_radius``, ``summit_std`` where
+    given; the others from the profile spectral moments of the raw surface (McCool,
+    :func:`summit_parameters`). The moments default to the model PSD of ``[roughness]`` (its
+    band, roll-off and Hurst exponent) at the rms ``roughness.raw_rms``: the areal PSD when
+    ``reduce_3d`` is set (that surface is generated), the profile PSD of physics.md §5.1
+    otherwise (this reproduces the worked numbers of physics.md §4.2). Both surfaces are steel
+    of the plate's E and nu; A_n = block length x width.
+
+    Parameters
+    ----------
+    scene : Scene
+    moments : tuple of float, optional
+        (m0 [m^2], m2 [-], m4 [1/m^2]) of the raw surface, e.g. measured; overrides the model.
+
+    Returns
+    -------
+    ContactStiffness
+
+    Raises
+    ------
+    SceneError
+        raw_rms = 0 without summit keys, a load outside the model's range, or the velocity
+        factor without a velocity.
+    """
+    c, r, blk, plt = scene.contact, scene.roughness, scene.block, scene.plate
+    given = {"density": c.summit_density, "radius": c.summit_radius, "std": c.summit_std}
+    need_moments = any(v is None for v in given.values())
+    surface_rms = float("nan")
+    source = "keys"
+    if need_moments:
+        if moments is None:
+            if r.raw_rms <= 0:
+                raise SceneError("roughness.raw_rms must be > 0 m for contact.stiffness = "
+                                 "'auto' (or give contact.summit_density, summit_radius and "
+                                 "summit_std), got 0.0 m")
+            moments = spectral_moments(r, r.raw_rms, areal=r.reduce_3d)
+        try:
+            sp = summit_parameters(*moments)
+        except ValueError as err:
+            raise SceneError(f"roughness band gives no summit statistics ({err}); widen "
+                             f"roughness.shortest_wavelength .. longest_wavelength, got "
+                             f"[{r.shortest_wavelength}, {r.longest_wavelength}] m") from None
+        surface_rms = sp.rms
+        derived = {"density": sp.density, "radius": sp.radius, "std": sp.std}
+        source = "moments" if all(v is None for v in given.values()) else "moments+keys"
+        for key, v in given.items():
+            if v is None:
+                given[key] = derived[key]
+    eta, rad, std = float(given["density"]), float(given["radius"]), float(given["std"])
+    e_star = effective_modulus(plt.youngs_modulus, plt.poisson_ratio)
+    area = blk.length * blk.width
+    load = blk.mass * GRAVITY
+    beta = rad if c.model == "gw" else 2.0 * rad
+    try:
+        sol = solve_contact(load, eta, beta, std, area, e_star, model=c.model)
+    except ValueError as err:
+        raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
+                         f"on these summits ({err}), got summit density {eta:.4g} 1/m^2, "
+                         f"radius {rad:.4g} m, std {std:.4g} m") from None
+    vf = velocity_factor(_scene_v_rms(scene)) if c.velocity_factor else 1.0
+    s_total = sol.stiffness * vf
+    return ContactStiffness(
+        s_total=float(s_total), micro_contacts=sol.micro_contacts, real_area=sol.real_area,
+        mean_pressure=float(load / sol.real_area),
+        plasticity_index=float(e_star / c.hardness * math.sqrt(std / rad)),
+        separation=sol.h, summit_density=eta, summit_radius=rad, summit_std=std,
+        resonance_hz=float(math.sqrt(s_total / blk.mass) / (2.0 * math.pi)), model=c.model,
+        load=float(load), stiffness_ratio=float(sol.stiffness * std / load),
+        velocity_factor=float(vf), effective_modulus=float(e_star), nominal_area=float(area),
+        surface_rms=surface_rms, summit_source=source)

@@ -1,0 +1,325 @@
+"""Inspection report of a scene's surface: profile, spectra, contact table and plots.
+
+``write_surface_report(scene, out_dir)`` is what ``roughvib surface SCENE --out DIR`` writes:
+
+* ``profile.csv``: the kinematic input profile z(s) [m] with its statistics as comments;
+* ``spectrum_bands.csv``: third-octave wavelength band levels [dB re 1 um] of the whole
+  profile and of the stretch one contact scans during the scene's stroke (Hann-windowed; the
+  paper's Fig. 5: the contact does not see wavelengths longer than about its peak-to-peak
+  stroke), plus the model target for synthetic profiles;
+* ``spectrum_psd.csv``: the narrow-band wavenumber PSD of the profile;
+* ``contacts.csv`` and ``contacts.json``: the contact points (profile and plate coordinates,
+  heights, per-spring stiffness, scanned range) and the statistical contact (stiffness,
+  micro-contacts, real area, pressure, plasticity index, resonance);
+* ``profile.png`` and ``spectrum.png``.
+
+The band levels reuse :func:`roughvib.analysis.spectra.wavenumber_band_levels` (imported when
+the report is written; this is a report, downstream of the analysis stage). matplotlib is
+imported lazily and drawn through its Agg canvas, so no pyplot state or backend is touched.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from roughvib.scene import Scene, SceneError
+from roughvib.surface.contact import contact_stiffness
+from roughvib.surface.roughness import (
+    Profile,
+    band_psd,
+    build_profile,
+    select_contacts,
+)
+
+__all__ = ["scan_range", "write_surface_report"]
+
+
+def scan_range(scene: Scene) -> tuple[float, float, str]:
+    """Range of the block's tangential displacement, i.e. what each contact scans.
+
+    * ``prescribed``: min and max of velocity t + amplitude sin(omega t) over the output
+      duration;
+    * ``force`` with a target rms velocity: +-sqrt(2) v_rms / omega (harmonic motion,
+      physics.md §5.4);
+    * ``force`` with only T0: 0 ... 2 T0 / (m omega^2), the frictionless block started at rest
+      (an upper bound);
+    * no motion: (0, 0).
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    lo, hi : float
+        Displacement range relative to the start [m].
+    how : str
+        Which estimate was used.
+    """
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        t = np.linspace(0.0, scene.output.duration, 20001)
+        x = exc.velocity * t + exc.amplitude * np.sin(exc.omega * t)
+        return float(x.min()), float(x.max()), "prescribed motion over output.duration"
+    if exc.frequency > 0 and exc.target_rms_velocity is not None:
+        a = math.sqrt(2.0) * exc.target_rms_velocity / exc.omega
+        return -a, a, "+-sqrt(2) v_rms / omega"
+    if exc.frequency > 0 and exc.force_amplitude:
+        a = exc.force_amplitude / (scene.block.mass * exc.omega**2)
+        return 0.0, 2.0 * a, "frictionless upper bound 2 T0 / (m omega^2)"
+    return 0.0, 0.0, "no tangential motion"
+
+
+def _model_band_levels(profile: Profile, scene: Scene, lower: np.ndarray, upper: np.ndarray
+                       ) -> np.ndarray:
+    """Band levels of the synthesis target |H|^2 G, normalised to the profile's rms."""
+    r = scene.roughness
+    n = profile.z.size
+    k = 2.0 * np.pi * np.fft.rfftfreq(n, profile.dx)
+    g = band_psd(k, r)
+    if r.filter != "none":
+        sinc = np.sinc(k * scene.block.length / 2.0 / np.pi)
+        g = g * ((1.0 - sinc) if r.filter == "highpass" else sinc) ** 2
+    total = g.sum()
+    if total <= 0:
+        return np.full(lower.size, np.nan)
+    g = g / total * profile.stats["rms"] ** 2
+    out = np.full(lower.size, np.nan)
+    for i, (a, b) in enumerate(zip(lower, upper, strict=True)):
+        sel = (k >= a) & (k < b)
+        if sel.any():
+            p = g[sel].sum()
+            out[i] = 10.0 * math.log10(p / 1e-12) if p > 0 else -np.inf
+    return out
+
+
+def _json_ready(value):
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_json_ready(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    return value
+
+
+def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
+    """Write the surface inspection report of a scene (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    out_dir : str or Path
+        Created if missing; existing report files are overwritten.
+
+    Returns
+    -------
+    dict of str to Path
+        ``profile_csv``, ``spectrum_csv``, ``psd_csv``, ``contacts_csv``, ``contacts_json``,
+        ``profile_png``, ``spectrum_png``.
+
+    Raises
+    ------
+    SceneError
+        The profile cannot be built (e.g. a bad profile file).
+    """
+    from roughvib.analysis.spectra import wavenumber_band_levels, wavenumber_spectrum
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    lo, hi, how = scan_range(scene)
+    stroke = hi - lo
+    profile = build_profile(scene.roughness, scene.block, scene.base_dir,
+                            stroke=stroke if stroke > 0 else None)
+    c = scene.contact
+    s_pts = select_contacts(profile, c.points, scene.block.length, c.min_separation)
+    try:
+        cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+        statistical = cs.as_dict()
+    except SceneError as err:
+        cs = None
+        statistical = {"error": str(err)}
+    if isinstance(c.stiffness, str):
+        if cs is None:
+            raise SceneError(statistical["error"])
+        s_used, s_source = cs.s_total, "auto (statistical contact)"
+    else:
+        s_used, s_source = float(c.stiffness), "scene (contact.stiffness)"
+
+    paths: dict[str, Path] = {}
+    s = profile.s
+    z = profile.z
+    dx = profile.dx
+
+    # ---- profile ----------------------------------------------------------------------
+    p = out / "profile.csv"
+    with p.open("w", newline="") as fh:
+        fh.write(f"# roughvib surface report, scene {scene.name!r}\n")
+        for key, val in profile.stats.items():
+            fh.write(f"# {key} = {val}\n")
+        fh.write(f"# s_centre = {profile.s_centre} m (block centre at t = 0)\n")
+        w = csv.writer(fh)
+        w.writerow(["s_m", "z_m"])
+        w.writerows(zip(s.tolist(), z.tolist(), strict=True))
+    paths["profile_csv"] = p
+
+    # ---- contacts ---------------------------------------------------------------------
+    i_pts = np.rint((s_pts - profile.s0) / dx).astype(int)
+    on_grid = np.abs(profile.s0 + i_pts * dx - s_pts) < 1e-6 * dx
+    heights = np.where(on_grid, z[np.clip(i_pts, 0, z.size - 1)],
+                       np.interp(s_pts, s, z))
+    x0, y0 = scene.plate.block_position
+    rows = []
+    for j, (sp, zh) in enumerate(zip(s_pts, heights, strict=True)):
+        rows.append({"index": j, "s_m": float(sp), "offset_m": float(sp - profile.s_centre),
+                     "plate_x_m": float(x0 + sp - profile.s_centre), "plate_y_m": float(y0),
+                     "height_m": float(zh), "below_top_m": float(heights.max() - zh),
+                     "stiffness_N_per_m": s_used / c.points,
+                     "scan_from_m": float(sp + lo), "scan_to_m": float(sp + hi)})
+    p = out / "contacts.csv"
+    with p.open("w", newline="") as fh:
+        fh.write(f"# s_total = {s_used} N/m ({s_source}), {c.points} equal springs\n")
+        if cs is not None:
+            fh.write(f"# statistical ({cs.model}): s_total = {cs.s_total:.6g} N/m, "
+                     f"micro-contacts = {cs.micro_contacts:.4g}, real area = "
+                     f"{cs.real_area:.4g} m^2, mean pressure = {cs.mean_pressure:.4g} Pa, "
+                     f"plasticity index = {cs.plasticity_index:.3g}, resonance = "
+                     f"{cs.resonance_hz:.4g} Hz\n")
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    paths["contacts_csv"] = p
+
+    # ---- spectra ----------------------------------------------------------------------
+    lam_min, lam_max = 2.0 * dx, profile.length
+    lam_c, lev_global = wavenumber_band_levels(z, dx, lambda_min=lam_min, lambda_max=lam_max)
+    j_ref = int(np.argmin(np.abs(s_pts - profile.s_centre)))
+    seg = (s >= s_pts[j_ref] + lo - 1e-9 * dx) & (s <= s_pts[j_ref] + hi + 1e-9 * dx)
+    if seg.sum() >= 4:
+        # the scanned stretch is not periodic: a Hann window (power-normalised) keeps the
+        # leakage of its end mismatch out of the short-wavelength bands
+        zs = z[seg] - z[seg].mean()
+        win = np.hanning(zs.size)
+        zs = zs * win / math.sqrt(float(np.mean(win**2)))
+        _, lev_contact = wavenumber_band_levels(zs, dx, lambda_min=lam_min,
+                                                lambda_max=lam_max, detrend=None)
+    else:
+        lev_contact = np.full(lam_c.size, np.nan)
+    k_c = 2.0 * np.pi / lam_c
+    k_lo, k_hi = k_c * 10.0 ** (-0.05), k_c * 10.0 ** 0.05
+    if scene.roughness.kind == "synthetic" and not scene.roughness.reduce_3d:
+        lev_model = _model_band_levels(profile, scene, k_lo, k_hi)
+    else:
+        lev_model = np.full(lam_c.size, np.nan)
+    p = out / "spectrum_bands.csv"
+    with p.open("w", newline="") as fh:
+        fh.write("# third-octave wavelength bands, levels in dB re 1 um; contact = the stretch "
+                 f"of contact {j_ref} scanned over the stroke {lo:.6g} .. {hi:.6g} m ({how}); "
+                 "empty = no FFT bin in the band\n")
+        w = csv.writer(fh)
+        w.writerow(["wavelength_m", "wavenumber_rad_per_m", "global_dB", "contact_dB",
+                    "model_dB"])
+        for row in zip(lam_c, k_c, lev_global, lev_contact, lev_model, strict=True):
+            w.writerow([f"{v:.6g}" if np.isfinite(v) else "" for v in row])
+    paths["spectrum_csv"] = p
+
+    k_nb, psd_nb = wavenumber_spectrum(z, dx)
+    p = out / "spectrum_psd.csv"
+    with p.open("w", newline="") as fh:
+        fh.write("# one-sided wavenumber PSD (Welch, Hann), integral psd dk = variance\n")
+        w = csv.writer(fh)
+        w.writerow(["wavenumber_rad_per_m", "psd_m2_per_rad_per_m"])
+        w.writerows(zip(k_nb.tolist(), psd_nb.tolist(), strict=True))
+    paths["psd_csv"] = p
+
+    # ---- json -------------------------------------------------------------------------
+    report = {"scene": scene.name, "stiffness_used_N_per_m": s_used,
+              "stiffness_source": s_source, "statistical_contact": statistical,
+              "contacts": rows, "profile": {"stats": profile.stats, "dx_m": dx,
+                                            "s0_m": profile.s0,
+                                            "s_centre_m": profile.s_centre},
+              "stroke": {"from_m": lo, "to_m": hi, "peak_to_peak_m": stroke, "estimate": how,
+                         "reference_contact": j_ref}}
+    p = out / "contacts.json"
+    p.write_text(json.dumps(_json_ready(report), indent=2) + "\n")
+    paths["contacts_json"] = p
+
+    # ---- plots ------------------------------------------------------------------------
+    paths["profile_png"] = _plot_profile(out / "profile.png", profile, s_pts, heights,
+                                         scene.block.length, j_ref, lo, hi)
+    paths["spectrum_png"] = _plot_spectrum(out / "spectrum.png", lam_c, lev_global,
+                                           lev_contact, lev_model, stroke, k_nb, psd_nb)
+    return paths
+
+
+def _figure(nrows: int):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8.0, 3.2 * nrows), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, 1, squeeze=False)[:, 0]
+
+
+def _plot_profile(path: Path, profile: Profile, s_pts: np.ndarray, heights: np.ndarray,
+                  window: float, j_ref: int, lo: float, hi: float) -> Path:
+    fig, (ax1, ax2) = _figure(2)
+    s_mm = profile.s * 1e3
+    ax1.plot(s_mm, profile.z * 1e6, lw=0.4, color="C0")
+    a, b = (profile.s_centre - window / 2) * 1e3, (profile.s_centre + window / 2) * 1e3
+    ax1.axvspan(a, b, color="C1", alpha=0.15, label="block window")
+    ax1.set_xlabel("profile coordinate s [mm]")
+    ax1.set_ylabel("height z [µm]")
+    ax1.set_title(f"kinematic input profile ({profile.stats.get('kind')}, rms "
+                  f"{profile.stats.get('rms', 0.0) * 1e6:.3g} µm)")
+    ax1.legend(loc="upper right", fontsize=8)
+    inside = (profile.s >= profile.s_centre - window / 2) & \
+             (profile.s <= profile.s_centre + window / 2)
+    ax2.plot(s_mm[inside], profile.z[inside] * 1e6, lw=0.6, color="C0")
+    ax2.plot(s_pts * 1e3, heights * 1e6, "v", color="C3", label="contact points")
+    ax2.axvspan((s_pts[j_ref] + lo) * 1e3, (s_pts[j_ref] + hi) * 1e3, color="C2", alpha=0.2,
+                label=f"stroke of contact {j_ref}")
+    ax2.set_xlabel("profile coordinate s [mm]")
+    ax2.set_ylabel("height z [µm]")
+    ax2.set_title("under the block")
+    ax2.legend(loc="upper right", fontsize=8)
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def _plot_spectrum(path: Path, lam: np.ndarray, lev_g: np.ndarray, lev_c: np.ndarray,
+                   lev_m: np.ndarray, stroke: float, k_nb: np.ndarray, psd_nb: np.ndarray
+                   ) -> Path:
+    fig, (ax1, ax2) = _figure(2)
+    lam_mm = lam * 1e3
+    ax1.semilogx(lam_mm, lev_g, "o-", ms=3, label="whole profile")
+    ax1.semilogx(lam_mm, lev_c, "s-", ms=3, label="seen by one contact (stroke)")
+    if np.any(np.isfinite(lev_m)):
+        ax1.semilogx(lam_mm, lev_m, "k--", lw=0.8, label="synthesis target")
+    if stroke > 0:
+        ax1.axvline(stroke * 1e3, color="0.5", ls=":", label="peak-to-peak stroke")
+    finite = np.concatenate([v[np.isfinite(v)] for v in (lev_g, lev_c, lev_m)])
+    if finite.size:
+        top = float(finite.max())
+        ax1.set_ylim(top - 60.0, top + 5.0)  # bands emptied by the filter sit at -300 dB
+    ax1.invert_xaxis()
+    ax1.set_xlabel("wavelength [mm]")
+    ax1.set_ylabel("roughness level [dB re 1 µm]")
+    ax1.set_title("third-octave wavelength bands")
+    ax1.legend(fontsize=8)
+    pos = (k_nb > 0) & (psd_nb > 0)
+    ax2.loglog(k_nb[pos], psd_nb[pos], lw=0.8)
+    ax2.set_xlabel("wavenumber k [rad/m]")
+    ax2.set_ylabel("PSD [m² / (rad/m)]")
+    ax2.set_title("narrow-band wavenumber spectrum (Welch)")
+    fig.savefig(path, dpi=120)
+    return path

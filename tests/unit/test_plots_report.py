@@ -1,0 +1,436 @@
+"""Figures, figure data and the HTML run report.
+
+One short run (module fixture, ~10 s) feeds the figure and report tests; the analysis helpers
+are checked on signals with known content. A headless Chromium screenshot of the report runs
+when /usr/bin/chromium exists.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import io
+import math
+import re
+import shutil
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+import roughvib
+from roughvib.analysis import figures_data as fd
+from roughvib.analysis.spectra import band_levels
+from roughvib.plots import FIGURES, save_figure
+from roughvib.report import add_parsers, build_report, write_report
+from roughvib.results import EVENT_COLUMNS, Result
+from roughvib.scene import Scene, scene_to_toml
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+REQUIRED_FIGURES = {"velocity", "friction-velocity", "friction-displacement", "acceleration",
+                    "spectra", "wavenumber", "events"}
+UNIT = re.compile(r"\[[^\]]+\]")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """A 0.05 s paper run (plate modes to 5 kHz) saved and loaded back."""
+    scene = roughvib.load_scene("paper", {"output.duration": 0.05, "plate.max_frequency": 5000,
+                                          "solver.atol_acceleration": 1e-5,
+                                          "output.progress": False})
+    result = roughvib.simulate(scene)
+    assert result.ok, result.summary.get("message")
+    out = tmp_path_factory.mktemp("plots") / "run"
+    result.save(out)
+    return roughvib.load_result(out), out
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
+# --------------------------------------------------------------------------------------------
+# figures
+# --------------------------------------------------------------------------------------------
+
+def _categorical(axis) -> bool:
+    """An axis whose tick labels are words (e.g. 'contact 3'), not numbers."""
+    labels = [t.get_text() for t in axis.get_ticklabels() if t.get_text()]
+    return bool(labels) and all(re.search(r"[a-zA-Z]{3,}", s) for s in labels)
+
+
+def test_registry_names_the_paper_figures():
+    assert REQUIRED_FIGURES <= set(FIGURES)
+
+
+@pytest.mark.parametrize("name", sorted(REQUIRED_FIGURES))
+def test_figure_renders_with_units_on_every_axis(run, name):
+    result, _ = run
+    fig = FIGURES[name](result)
+    assert fig.axes
+    for ax in fig.axes:
+        assert ax.has_data(), f"{name}: an empty axes"
+        xl, yl = ax.get_xlabel(), ax.get_ylabel()
+        assert UNIT.search(xl), f"{name}: x label without unit: {xl!r}"
+        if not _categorical(ax.yaxis):
+            assert UNIT.search(yl), f"{name}: y label without unit: {yl!r}"
+        else:
+            assert yl, f"{name}: unlabelled categorical y axis"
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=40)
+    assert buf.getvalue().startswith(PNG_MAGIC)
+
+
+def test_plot_functions_are_pure_and_draw_into_given_axes(run):
+    import matplotlib.pyplot as plt
+
+    from roughvib import plots
+
+    result, _ = run
+    fig, ax = plt.subplots()
+    n_before = len(plt.get_fignums())
+    for fn in (plots.plot_velocity, plots.plot_friction_velocity, plots.plot_wavenumber,
+               plots.plot_tangential_stiffness):
+        ax.clear()
+        assert fn(result, ax=ax) is ax
+    fig2, axes = plt.subplots(1, 2)
+    out = plots.plot_spectra(result, axes=axes)
+    assert list(out) == list(axes)
+    assert len(plt.get_fignums()) == n_before + 1  # only the one made here
+    # without axes: exactly one new figure, returned through the Axes
+    n = len(plt.get_fignums())
+    a = plots.plot_acceleration(result)
+    assert len(plt.get_fignums()) == n + 1 and a[0].figure is a[1].figure
+
+
+def test_save_figure_writes_png_at_requested_dpi(run, tmp_path):
+    result, _ = run
+    fig = FIGURES["velocity"](result)
+    w_in = fig.get_size_inches()[0]
+    save_figure(fig, tmp_path / "v.png", dpi=50)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(tmp_path / "v.png")
+    assert abs(img.shape[1] - w_in * 50) <= 2
+
+
+def test_spectra_noise_floor_adds_a_block_curve(run):
+    from roughvib.plots import plot_spectra
+
+    result, _ = run
+    axes = plot_spectra(result, noise_rms=1e-3)
+    labels = [ln.get_label() for ln in axes[0].get_lines()]
+    assert any("noise" in s for s in labels)
+
+
+def _assert_units(ax):
+    assert UNIT.search(ax.get_xlabel()) and UNIT.search(ax.get_ylabel())
+
+
+def test_multi_run_figures(run):
+    from roughvib.plots import plot_band_comparison, plot_velocity_sweep
+
+    result, _ = run
+    ax = plot_band_comparison([result, result], ["a", "b"], quantity="plate")
+    _assert_units(ax)
+    assert len(ax.get_lines()) == 2
+    with pytest.raises(ValueError, match="one label per run"):
+        plot_band_comparison([result], ["a", "b"])
+    runs = [Result(xr.Dataset(), pd.DataFrame(), {"scene": "x", "metrics": {
+        "block_tangential_velocity_rms": v, "stick_fraction": 0.0,
+        "block_vertical_acceleration_level_db_re_1e-6": 30 * math.log10(v),
+        "plate_vertical_acceleration_level_db_re_1e-6": 33 * math.log10(v)}}, "")
+        for v in (0.01, 0.02, 0.04)]
+    ax = plot_velocity_sweep(runs)
+    _assert_units(ax)
+    assert any("9.0 dB/doubling" in t.get_text() for t in ax.get_legend().get_texts())
+
+
+# --------------------------------------------------------------------------------------------
+# figure data on signals of known content
+# --------------------------------------------------------------------------------------------
+
+def test_tapered_band_levels_tone_level_and_dynamic_range():
+    fs, n = 1e5, 100_000  # 1 s: integer cycles for every integer frequency
+    t = np.arange(n) / fs
+    a1, a2 = 1.0, 1e-7  # 140 dB apart
+    x = a1 * np.sin(2 * np.pi * 1000 * t) + a2 * np.sin(2 * np.pi * 20_000 * t)
+    fc, lev = fd.tapered_band_levels(x, fs)
+    i1 = int(np.argmin(abs(fc - 1000)))
+    i2 = int(np.argmin(abs(fc - 19_953)))
+    assert lev[i1] == pytest.approx(20 * math.log10(a1 / math.sqrt(2) / 1e-6), abs=0.01)
+    assert lev[i2] == pytest.approx(20 * math.log10(a2 / math.sqrt(2) / 1e-6), abs=0.01)
+
+
+def test_tapered_band_levels_suppress_leakage_of_a_truncated_record():
+    # a 7.3 Hz tone cut off mid-cycle: the rectangular window leaks a 1/f^2 floor into every
+    # band; the taper must keep the 5-20 kHz bands far lower
+    fs = 1e5
+    t = np.arange(28_571) / fs
+    x = np.sin(2 * np.pi * 7.3 * t + 0.4)
+    fc, rect = band_levels(x, fs)
+    fc2, tap = fd.tapered_band_levels(x, fs)
+    assert np.allclose(fc, fc2)
+    hi = (fc > 5e3) & (fc < 2e4)
+    assert np.all(tap[hi] < rect[hi] - 40.0)
+
+
+def test_tapered_band_levels_white_noise_density():
+    fs, n = 1e5, 200_000
+    x = np.random.default_rng(3).standard_normal(n) * 0.01
+    fc, lev = fd.tapered_band_levels(x, fs, fmin=1000, fmax=20_000)
+    lo, hi = fc * 10 ** (-1 / 20), fc * 10 ** (1 / 20)
+    expected = 10 * np.log10(0.01**2 * (hi - lo) / (fs / 2) / 1e-12)
+    assert np.max(np.abs(lev - expected)) < 0.5
+
+
+def _sdof_result(stiffness: float, mass: float, damping: float) -> Result:
+    """A block on springs over a base moving as band-limited noise, in closed form."""
+    scene = Scene().with_overrides({"block.mass": mass, "block.vertical_damping": damping,
+                                    "contact.stiffness": stiffness, "output.duration": 1.0})
+    fs, n, K = 1e5, 100_000, 2
+    rng = np.random.default_rng(7)
+    f = np.fft.rfftfreq(n, 1 / fs)
+    U = (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) * (f < 5000)
+    U[0] = 0
+    w = 2 * np.pi * f
+    T = stiffness / (stiffness - mass * w**2 + 1j * w * damping)  # m z'' = -r z' - s (z - u)
+    u = np.fft.irfft(U, n)
+    u *= 1e-8 / np.std(u)
+    z_dyn = np.fft.irfft(np.fft.rfft(u) * T, n)
+    z = mass * 9.81 / stiffness + z_dyn
+    F = (stiffness / K) * (z - u)
+    assert F.min() > 0
+    ds = xr.Dataset({"block_vertical_displacement": ("time", z),
+                     "contact_force": (("time", "contact"), np.repeat(F[:, None], K, 1))},
+                    coords={"time": np.arange(n) / fs, "contact": np.arange(K)})
+    summary = {"model": {"contact_stiffness_total": stiffness}}
+    return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_to_toml(scene))
+
+
+def test_transmissibility_peaks_at_the_spring_mass_resonance():
+    s, m, r = 3.1e6, 0.221, 20.0
+    res = _sdof_result(s, m, r)
+    f, T = fd.transmissibility(res, resolution=10.0)
+    fn = math.sqrt(s / m) / (2 * math.pi)
+    below = (f > 20) & (f < 0.2 * fn)
+    assert np.allclose(T[below], 1.0, atol=0.06)
+    sel = (f > 100) & (f < 3000)
+    assert abs(f[sel][np.argmax(T[sel])] - fn) <= 10.0
+    far = (f > 3 * fn) & (f < 4000)
+    assert np.allclose(T[far], (fn / f[far]) ** 2, rtol=0.15)
+
+
+def test_velocity_sweep_recovers_a_power_law():
+    v = np.array([0.01, 0.02, 0.04, 0.1])
+    runs = []
+    for vi in v:
+        summ = {"scene": "x", "metrics": {
+            "block_tangential_velocity_rms": vi, "stick_fraction": 0.0,
+            "block_vertical_acceleration_level_db_re_1e-6": 10 * 3.2 * math.log10(vi) + 150,
+            "plate_vertical_acceleration_level_db_re_1e-6": 10 * 3.5 * math.log10(vi) + 160}}
+        runs.append(Result(xr.Dataset(), pd.DataFrame(), summ, ""))
+    table, fits = fd.velocity_sweep(runs[::-1])
+    assert list(table["v_rms"]) == sorted(v)
+    assert fits["block"].exponent == pytest.approx(3.2)
+    assert fits["plate"].db_per_doubling == pytest.approx(3.5 * 10 * math.log10(2))
+
+
+def test_stiffness_guard_and_contact_input_stroke(run):
+    result, _ = run
+    loop, k, guard = fd.tangential_stiffness(result, v_guard=1e-5)
+    assert guard == 1e-5
+    assert np.all(np.isnan(k[np.abs(loop.velocity) < 1e-5]))
+    cs = fd.contact_input_spectra(result, contact=1)
+    x = result.dataset["block_tangential_displacement"].values[fd.analysis_window(result)]
+    assert cs.stroke == pytest.approx(np.ptp(x))
+    # the contact's spectrum has no bin between 0 and about 2 pi / stroke
+    assert cs.k_contact[1] == pytest.approx(2 * np.pi / cs.stroke, rel=0.5)
+    with pytest.raises(ValueError, match="contact must be"):
+        fd.contact_input_spectra(result, contact=99)
+
+
+def test_contact_resonance_spring_mass_from_the_scene(run):
+    result, _ = run
+    scene = fd.scene_of(result)
+    cr = fd.contact_resonance(result)
+    F = result.dataset["contact_force"].values[fd.analysis_window(result)]
+    closed = float(np.mean(F > 0))
+    expected = math.sqrt(scene.contact.stiffness * closed / scene.block.mass) / (2 * math.pi)
+    assert cr.spring_mass == pytest.approx(expected, rel=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# report
+# --------------------------------------------------------------------------------------------
+
+_VOID = {"meta", "img", "br", "hr", "link", "input", "col", "area", "base", "source", "wbr"}
+
+
+class _Checker(HTMLParser):
+    """Collects images, links and ids, and checks that elements nest and close."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.stack: list[str] = []
+        self.errors: list[str] = []
+        self.imgs: list[dict] = []
+        self.ids: set[str] = set()
+        self.tags: set[str] = set()
+        self.refs: list[str] = []
+        self.text: list[str] = []
+        self.doctype = False
+
+    def handle_decl(self, decl):
+        self.doctype = decl.lower() == "doctype html"
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.tags.add(tag)
+        if "id" in a:
+            self.ids.add(a["id"])
+        if tag == "img":
+            self.imgs.append(a)
+        for key in ("src", "href"):
+            if key in a and tag != "img":
+                self.refs.append(a[key])
+        if tag not in _VOID:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag):
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes {self.stack[-1:] or 'nothing'}")
+        else:
+            self.stack.pop()
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+@pytest.fixture(scope="module")
+def report(run):
+    _, out = run
+    path = write_report(out)
+    return path
+
+
+def test_report_is_valid_self_contained_html(report):
+    text = report.read_text(encoding="utf-8")
+    p = _Checker()
+    p.feed(text)
+    p.close()
+    assert p.doctype
+    assert not p.errors and not p.stack, (p.errors, p.stack)
+    assert {"html", "head", "body", "title", "table", "pre"} <= p.tags
+    assert "script" not in p.tags and "link" not in p.tags
+    assert all(r.startswith("#") for r in p.refs), p.refs  # in-page links only
+    for img in p.imgs:
+        assert img["src"].startswith("data:image/png;base64,")
+
+
+def test_report_embeds_every_figure(report):
+    p = _Checker()
+    p.feed(report.read_text(encoding="utf-8"))
+    for name in FIGURES:
+        assert f"fig-{name}" in p.ids
+    imgs = {img["alt"]: img["src"] for img in p.imgs}
+    assert set(imgs) == {f"figure {name}" for name in FIGURES}
+    for src in imgs.values():
+        png = base64.b64decode(src.split(",", 1)[1], validate=True)
+        assert png.startswith(PNG_MAGIC)
+
+
+def test_report_holds_scene_tables_and_phase_table(run, report):
+    result, _ = run
+    p = _Checker()
+    p.feed(report.read_text(encoding="utf-8"))
+    text = " ".join(p.text)
+    for section in ("levels", "resonance", "bands", "model", "solver", "energy", "phases",
+                    "figures", "scene"):
+        assert section in p.ids
+    assert "[block]" in text and "mass = 0.221" in text  # the scene, unescaped by the parser
+    assert "stick fraction [-]" in text and "dB re 1e-6 m/s²" in text
+    steps = result.summary["solver"]["steps"]
+    assert re.search(rf"\bsteps\b\s+{steps}\b", text)
+
+
+def test_report_survives_a_broken_figure(run, tmp_path, monkeypatch):
+    from roughvib import plots
+
+    def broken(result):
+        raise RuntimeError("no ink")
+
+    monkeypatch.setitem(plots.FIGURES, "broken", broken)
+    result, _ = run
+    html = build_report(result, dpi=30)
+    p = _Checker()
+    p.feed(html)
+    assert not p.errors and "fig-broken" in p.ids
+    assert "could not be drawn: RuntimeError: no ink" in " ".join(p.text)
+    assert len(p.imgs) == len(plots.FIGURES) - 1
+
+
+def test_report_of_a_failed_run(tmp_path):
+    summary = {"format_version": 1, "status": "event_storm", "message": "too many events",
+               "scene": "paper", "solver": {"steps": 12}, "last_events": [
+                   {"time": 0.1, "kind": "lift_off", "contact": 3, "tangential_velocity": 0.0,
+                    "normal_force": 1.0}]}
+    Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary,
+           scene_to_toml(Scene())).save(tmp_path / "bad")
+    path = write_report(tmp_path / "bad")
+    p = _Checker()
+    p.feed(path.read_text(encoding="utf-8"))
+    assert not p.errors and not p.imgs
+    assert "event_storm" in " ".join(p.text) and "last-events" in p.ids
+
+
+def test_build_report_escapes_text():
+    summ = {"status": "x<y>", "message": "<script>alert(1)</script>", "scene": "a&b"}
+    html = build_report(Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summ,
+                               "name = '<b>'"))
+    assert "<script>" not in html and "&lt;script&gt;" in html
+
+
+def test_report_cli_handler(run, tmp_path, capsys):
+    _, out = run
+    parser = argparse.ArgumentParser(prog="roughvib")
+    add_parsers(parser.add_subparsers(dest="command"))
+    target = tmp_path / "r.html"
+    args = parser.parse_args(["report", str(out), "--out", str(target), "--dpi", "40"])
+    assert args.func(args) == 0
+    assert target.exists() and capsys.readouterr().out.strip() == str(target)
+    args = parser.parse_args(["report", str(tmp_path / "nowhere")])
+    assert args.func(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("roughvib: error:") and "nowhere" in err
+    sub = parser._subparsers._group_actions[0].choices["report"]
+    assert "example" in sub.epilog and sub.formatter_class is argparse.RawDescriptionHelpFormatter
+
+
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason="needs /usr/bin/chromium")
+def test_report_screenshot_in_headless_chromium(report, tmp_path):
+    import matplotlib.image as mpimg
+
+    shot = tmp_path / "report.png"
+    cmd = [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu",
+           "--disable-background-networking", "--no-first-run",
+           f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
+           "--window-size=1200,2400", report.resolve().as_uri()]
+    proc = subprocess.run(cmd, capture_output=True, timeout=90, check=False)
+    assert shot.exists(), proc.stderr.decode(errors="replace")[-2000:]
+    img = mpimg.imread(shot)
+    assert img.shape[0] >= 2000 and img.shape[1] >= 1100
+    # a page that rendered text, tables and figures is not one flat colour
+    assert float(np.std(img[..., :3])) > 0.02
+    shutil.rmtree(tmp_path / "profile", ignore_errors=True)

@@ -1,0 +1,87 @@
+"""The surface inspection report: files, their agreement with the library, Fig. 5 behaviour."""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from roughvib.scene import load_scene
+from roughvib.surface.contact import contact_stiffness
+from roughvib.surface.roughness import build_profile, select_contacts
+from roughvib.surface_report import scan_range, write_surface_report
+
+
+def _rows(path):
+    with path.open() as fh:
+        return list(csv.DictReader(line for line in fh if not line.startswith("#")))
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    scene = load_scene("paper-100mms", {"contact.stiffness": "auto"})
+    out = tmp_path_factory.mktemp("surface")
+    return scene, write_surface_report(scene, out)
+
+
+def test_report_files_exist_and_match_the_library(report):
+    scene, paths = report
+    assert set(paths) == {"profile_csv", "spectrum_csv", "psd_csv", "contacts_csv",
+                          "contacts_json", "profile_png", "spectrum_png"}
+    for key in ("profile_png", "spectrum_png"):
+        assert paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    lo, hi, _ = scan_range(scene)
+    prof = build_profile(scene.roughness, scene.block, scene.base_dir, stroke=hi - lo)
+    rows = _rows(paths["profile_csv"])
+    np.testing.assert_allclose([float(r["z_m"]) for r in rows], prof.z, rtol=1e-15)
+    pts = select_contacts(prof, scene.contact.points, scene.block.length,
+                          scene.contact.min_separation)
+    crow = _rows(paths["contacts_csv"])
+    np.testing.assert_allclose([float(r["s_m"]) for r in crow], pts, rtol=1e-15)
+    cs = contact_stiffness(scene)
+    data = json.loads(paths["contacts_json"].read_text())
+    assert data["stiffness_used_N_per_m"] == pytest.approx(cs.s_total, rel=1e-12)
+    assert data["statistical_contact"]["micro_contacts"] == pytest.approx(cs.micro_contacts)
+    assert float(crow[0]["stiffness_N_per_m"]) == pytest.approx(cs.s_total / 10)
+    x0 = scene.plate.block_position[0]
+    np.testing.assert_allclose([float(r["plate_x_m"]) for r in crow],
+                               x0 + pts - prof.s_centre, rtol=1e-12)
+
+
+def test_contact_spectrum_loses_wavelengths_longer_than_the_stroke(report):
+    """Paper Fig. 5: one contact scans 2 sqrt(2) v_rms / omega = 6.4 mm at 100 mm/s."""
+    scene, paths = report
+    stroke = 2 * math.sqrt(2) * 0.1 / (2 * math.pi * 7)
+    rows = _rows(paths["spectrum_csv"])
+    lam = np.array([float(r["wavelength_m"]) for r in rows])
+
+    def col(name):
+        return np.array([float(r[name]) if r[name] else np.nan for r in rows])
+
+    glob, cont, model = col("global_dB"), col("contact_dB"), col("model_dB")
+    assert np.all(np.isnan(cont[lam > 1.3 * stroke]))
+    band = (lam > 1.3 * stroke) & (lam < 0.035)
+    assert band.sum() >= 5 and np.all(np.isfinite(glob[band]))
+    live = np.isfinite(model) & (lam > 1e-4)
+    np.testing.assert_allclose(glob[live], model[live], atol=0.01)
+    short = (lam > 60e-6) & (lam < 0.5e-3)
+    assert abs(np.nanmean(cont[short] - glob[short])) < 3.0
+
+
+def test_scan_range_estimates():
+    lo, hi, how = scan_range(load_scene("paper"))
+    a = math.sqrt(2) * 0.01 / (2 * math.pi * 7)
+    assert (lo, hi) == pytest.approx((-a, a)) and "v_rms" in how
+    w = 2 * math.pi * 7
+    # v > A w: monotonic, from 0 to x(T)
+    pres = load_scene("paper", {"excitation.kind": "prescribed", "excitation.velocity": 0.01,
+                                "excitation.amplitude": 1e-4, "output.duration": 0.1})
+    lo, hi, _ = scan_range(pres)
+    assert lo == 0.0
+    assert hi == pytest.approx(0.01 * 0.1 + 1e-4 * math.sin(w * 0.1), rel=1e-12)
+    # pure oscillation over three periods: +-A (to the 20001-point sampling)
+    osc = load_scene("paper", {"excitation.kind": "prescribed", "excitation.velocity": 0.0,
+                               "excitation.amplitude": 2e-4})
+    lo, hi, _ = scan_range(osc)
+    assert (lo, hi) == pytest.approx((-2e-4, 2e-4), rel=1e-6)

@@ -1,0 +1,407 @@
+"""Sweeps on dask.distributed: file format, case names, a small sweep, kill and resume, a failing
+case, the scheduler address, the report.
+
+One 2-worker LocalCluster (processes, one thread each) is shared by the module; the sweeps use
+0.01 s runs with plate modes to 3 kHz (about 1 s per case once a worker has loaded the kernels).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+import roughvib
+from roughvib import sweep as sw
+from roughvib.scene import SceneError
+
+distributed = pytest.importorskip("dask.distributed")
+
+FAST = {"output.duration": 0.01, "plate.max_frequency": 3000.0,
+        "solver.atol_acceleration": 1e-5}
+SET_TOML = "\n".join(f'"{k}" = {v!r}' for k, v in FAST.items())
+SMALL = f"""
+name = "small"
+base = "paper"
+[set]
+{SET_TOML}
+[grid]
+"excitation.target_rms_velocity" = [0.01, 0.02]
+"roughness.seed" = [1, 2]
+"""
+VARIABLE_TIME = ("wall_time", "solver_wall_time")
+
+
+def _write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="roughvib")
+    sw.add_parsers(p.add_subparsers(dest="command"))
+    return p
+
+
+def _stamp(case_dir: Path) -> dict[str, tuple[int, int]]:
+    """Inode and mtime of a case directory and its files."""
+    out = {".": (case_dir.stat().st_ino, case_dir.stat().st_mtime_ns)}
+    for f in sorted(case_dir.iterdir()):
+        st = f.stat()
+        out[f.name] = (st.st_ino, st.st_mtime_ns)
+    return out
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, env=dict(sw.THREAD_ENV)) as cluster, \
+            distributed.Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def small_run(client, tmp_path_factory):
+    root = tmp_path_factory.mktemp("small")
+    spec = _write(root / "small.toml", SMALL)
+    run = sw.run_sweep(spec, root / "out", client=client, progress=False)
+    return spec, run
+
+
+# --------------------------------------------------------------------------------------------
+# sweep files and case names
+# --------------------------------------------------------------------------------------------
+
+
+def test_grid_is_the_product_in_file_order_and_names_are_stable_and_safe(tmp_path):
+    spec = sw.load_sweep(_write(tmp_path / "s.toml", SMALL))
+    cases = spec.cases()
+    assert spec.dims == ("excitation.target_rms_velocity", "roughness.seed")
+    assert spec.shape == (2, 2)
+    assert [tuple(c.values.values()) for c in cases] == [(0.01, 1), (0.01, 2), (0.02, 1),
+                                                         (0.02, 2)]
+    assert [c.index for c in cases] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    names = [c.name for c in cases]
+    assert len(set(names)) == 4
+    for n in names:
+        assert all(ch.isalnum() or ch in "._=,+-" for ch in n) and not n.startswith(".")
+    assert names[1].startswith("target_rms_velocity=0.01,seed=2-")
+    # same file again, nested-table spelling, extended grid: existing names unchanged
+    nested = SMALL.replace('"excitation.target_rms_velocity" = [0.01, 0.02]',
+                           "excitation.target_rms_velocity = [0.01, 0.02, 0.04]")
+    again = sw.load_sweep(_write(tmp_path / "n.toml", nested)).cases()
+    assert [c.name for c in again][:4] == names and len(again) == 6
+    # another base (a fixed value changed): new names
+    other = sw.load_sweep(_write(tmp_path / "o.toml",
+                                 SMALL.replace('"output.duration" = 0.01',
+                                               '"output.duration" = 0.02')))
+    assert not set(names) & {c.name for c in other.cases()}
+
+
+def test_grid_and_case_list_combine_and_case_keys_fill_from_the_base(tmp_path):
+    spec = sw.load_sweep({"base": "paper", "grid": {"roughness.seed": [1, 2]},
+                          "case": [{"block.mass": 0.543}, {"friction.mu_slip": 0.2}]})
+    assert spec.dims == ("roughness.seed", "case") and spec.shape == (2, 2)
+    assert spec.varied_keys == ["roughness.seed", "block.mass", "friction.mu_slip"]
+    assert spec.base_value("block.mass") == roughvib.load_scene("paper").block.mass
+    assert [c.values for c in spec.cases()][1] == {"roughness.seed": 1,
+                                                    "friction.mu_slip": 0.2}
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ('[grid]\n"block.colour" = [1, 2]', "grid.block.colour is not a known key of [block]"),
+    ('[grid]\n"blok.mass" = [1, 2]', "grid.blok.mass is not a scene key"),
+    ('[grid]\n"block.mass" = 0.3', "grid.block.mass must be a non-empty list"),
+    ('[grid]\n"block.mass" = []', "grid.block.mass must be a non-empty list"),
+    ('[grid]\n"block.mass" = [0.3, 0.3]', "grid.block.mass has the value 0.3 more than once"),
+    ('[grid]\n"block.mass" = [0.3]\n[[case]]\n"block.mass" = 0.2',
+     "case[0].block.mass is also a grid key"),
+    ('[[case]]\n"block.mass" = 0.2\n[[case]]\n"block.mass" = 0.2', "case[1] repeats case[0]"),
+    ('[set]\n"block.mass" = -1\n[grid]\n"roughness.seed" = [1]', "block.mass must be > 0 kg"),
+    ('bas = "paper"\n[grid]\n"roughness.seed" = [1]', "bas is not a sweep file key"),
+    ('base = "nope"\n[grid]\n"roughness.seed" = [1]', "base: scene 'nope' is neither"),
+    ('base = "paper"', "a sweep file needs a [grid] table or [[case]] entries"),
+    ('[grid\n', "is not valid TOML"),
+])
+def test_bad_sweep_files_raise_one_line_scene_errors(tmp_path, text, fragment):
+    path = _write(tmp_path / "bad.toml", text)
+    with pytest.raises(SceneError) as info:
+        sw.load_sweep(path)
+    assert fragment in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_builtin_paper_velocity_sweep():
+    assert "paper-velocity" in sw.builtin_sweeps()
+    spec = sw.load_sweep("paper-velocity")
+    assert spec.grid["excitation.target_rms_velocity"] == [0.01, 0.02, 0.04, 0.1]
+    assert spec.base == roughvib.load_scene("paper")
+    assert spec.to_json()["seed_keys"] == ["roughness.seed"]
+    with pytest.raises(SceneError, match="neither a built-in sweep"):
+        sw.load_sweep("no-such-sweep")
+
+
+def test_units_of_scene_keys_come_from_the_scene_docstrings():
+    assert sw.scene_key_units("block.mass") == "kg"
+    assert sw.scene_key_units("excitation.target_rms_velocity") == "m/s"
+    assert sw.scene_key_units("plate.width") == "m"
+    assert sw.scene_key_units("friction.mu_stick") == "1"
+    assert sw.scene_key_units("roughness.seed") is None
+
+
+# --------------------------------------------------------------------------------------------
+# the scheduler and the local cluster
+# --------------------------------------------------------------------------------------------
+
+
+class _Connected(Exception):
+    pass
+
+
+def test_scheduler_address_is_passed_to_dask_client(monkeypatch, tmp_path):
+    seen = []
+
+    class FakeClient:
+        def __init__(self, address=None, *a, **kw):
+            seen.append(address)
+            raise _Connected
+
+    def no_local_cluster(*a, **kw):
+        raise AssertionError("a LocalCluster was started although a scheduler was given")
+
+    monkeypatch.setattr(distributed, "Client", FakeClient)
+    monkeypatch.setattr(distributed, "LocalCluster", no_local_cluster)
+    spec = _write(tmp_path / "s.toml", SMALL)
+    args = _parser().parse_args(["sweep", str(spec), "--out", str(tmp_path / "out"),
+                                 "--scheduler", "tcp://head:8786", "--no-progress"])
+    with pytest.raises(_Connected):
+        args.func(args)
+    assert seen == ["tcp://head:8786"]
+
+
+def test_local_cluster_has_single_threaded_workers(monkeypatch, tmp_path):
+    seen = {}
+
+    def fake_cluster(**kw):
+        seen.update(kw)
+        raise _Connected
+
+    monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
+    with pytest.raises(_Connected):
+        sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out", workers=3,
+                     progress=False)
+    assert seen["n_workers"] == 3 and seen["threads_per_worker"] == 1 and seen["processes"]
+    assert seen["env"]["NUMBA_NUM_THREADS"] == "1" and seen["env"]["OMP_NUM_THREADS"] == "1"
+    with pytest.raises(SceneError, match="workers must be >= 1, got 0"):
+        sw.run_sweep(tmp_path / "s.toml", tmp_path / "out", workers=0)
+
+
+# --------------------------------------------------------------------------------------------
+# running sweeps
+# --------------------------------------------------------------------------------------------
+
+
+def test_small_sweep_completes_and_its_table_is_right(small_run, tmp_path):
+    spec_path, run = small_run
+    out = run.directory
+    assert (run.skipped, run.ran, run.failed) == (0, 4, 0)
+    table = pd.read_csv(out / "sweep.csv")
+    assert list(table["excitation.target_rms_velocity"]) == [0.01, 0.01, 0.02, 0.02]
+    assert list(table["roughness.seed"]) == [1, 2, 1, 2]
+    assert (table["status"] == "success").all()
+    assert (table["wall_time"] > 0).all()
+    for _, row in table.iterrows():
+        case = out / "cases" / row["case"]
+        summary = json.loads((case / "summary.json").read_text())
+        scene = tomllib.loads((case / "scene.toml").read_text())
+        assert scene["roughness"]["seed"] == row["roughness.seed"]
+        assert summary["calibration"]["target_rms_velocity"] == \
+            row["excitation.target_rms_velocity"]
+        m = summary["metrics"]
+        for col in ("block_vertical_acceleration_level_db_re_1e-6",
+                    "plate_vertical_acceleration_level_db_re_1e-6", "stick_fraction",
+                    "block_tangential_velocity_rms"):
+            assert row[col] == pytest.approx(m[col], rel=1e-11)
+        assert row["force_amplitude"] == pytest.approx(summary["force_amplitude"], rel=1e-11)
+        assert row["steps"] == summary["solver"]["steps"]
+        assert (case / "result.nc").is_file() and (case / "case.json").is_file()
+    # faster driving: larger friction velocity for both seeds
+    v = table.set_index(["excitation.target_rms_velocity", "roughness.seed"])[
+        "block_tangential_velocity_rms"]
+    assert v[(0.02, 1)] > 1.5 * v[(0.01, 1)] and v[(0.02, 2)] > 1.5 * v[(0.01, 2)]
+    # one case recomputed here, in this process, from the scene it should have run
+    direct = roughvib.simulate(roughvib.load_scene(
+        "paper", {**FAST, "excitation.target_rms_velocity": 0.02, "roughness.seed": 2}),
+        progress=False)
+    row = table.iloc[3]
+    for col in ("block_vertical_acceleration_level_db_re_1e-6",
+                "plate_vertical_acceleration_level_db_re_1e-6"):
+        assert row[col] == pytest.approx(direct.summary["metrics"][col], rel=1e-9)
+    # sweep.nc: metrics on the grid's dimensions, with units
+    ds = xr.load_dataset(out / "sweep.nc", engine="h5netcdf")
+    assert ds["block_vertical_acceleration_level_db_re_1e-6"].dims == (
+        "excitation.target_rms_velocity", "roughness.seed")
+    assert ds["excitation.target_rms_velocity"].attrs["units"] == "m/s"
+    assert ds["block_vertical_acceleration_level_db_re_1e-6"].attrs["units"] == \
+        "dB re 1e-6 m s-2"
+    sel = ds.sel({"excitation.target_rms_velocity": 0.02, "roughness.seed": 2})
+    assert float(sel["plate_vertical_acceleration_level_db_re_1e-6"]) == pytest.approx(
+        row["plate_vertical_acceleration_level_db_re_1e-6"], rel=1e-11)
+    assert str(sel["case_name"].values) == row["case"]
+    # a second run finds everything complete and touches nothing
+    before = {c: _stamp(out / "cases" / c) for c in table["case"]}
+    again = sw.run_sweep(spec_path, out, progress=False)
+    assert (again.skipped, again.ran, again.failed) == (4, 0, 0)
+    assert {c: _stamp(out / "cases" / c) for c in table["case"]} == before
+
+
+_KILLABLE = """
+import sys
+from roughvib.sweep import run_sweep
+run_sweep(sys.argv[1], sys.argv[2], workers=2, progress=False)
+"""
+
+
+def _completed(cases_dir: Path) -> set[str]:
+    done = set()
+    if not cases_dir.is_dir():
+        return done
+    for d in cases_dir.iterdir():
+        if d.name.startswith("."):
+            continue
+        try:
+            if json.loads((d / "summary.json").read_text())["status"] == "success":
+                done.add(d.name)
+        except (OSError, ValueError, KeyError):
+            pass
+    return done
+
+
+def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, client, tmp_path):
+    spec = _write(tmp_path / "small.toml", SMALL)
+    out = tmp_path / "out"
+    err = open(tmp_path / "stderr.txt", "w")  # noqa: SIM115 - closed below
+    proc = subprocess.Popen([sys.executable, "-c", _KILLABLE, str(spec), str(out)],
+                            stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 150
+        while not _completed(out / "cases"):
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail("the sweep subprocess ended or stalled before a case completed:\n"
+                            + (tmp_path / "stderr.txt").read_text()[-2000:])
+            time.sleep(0.02)
+    finally:
+        # the whole process group: the client and its LocalCluster's worker processes
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        err.close()
+    done = _completed(out / "cases")
+    assert 1 <= len(done) < 4
+    stamps = {c: _stamp(out / "cases" / c) for c in done}
+
+    run = sw.run_sweep(spec, out, client=client, progress=False)
+    assert (run.skipped, run.ran, run.failed) == (len(done), 4 - len(done), 0)
+    assert {c: _stamp(out / "cases" / c) for c in done} == stamps
+    assert not [p.name for p in (out / "cases").iterdir() if p.name.startswith(".")]
+    resumed = pd.read_csv(out / "sweep.csv").drop(columns=list(VARIABLE_TIME))
+    reference = pd.read_csv(small_run[1].directory / "sweep.csv").drop(
+        columns=list(VARIABLE_TIME))
+    pd.testing.assert_frame_equal(resumed, reference)
+
+
+def test_invalid_case_fails_alone_with_its_message(client, tmp_path, capsys):
+    text = f"""
+base = "paper"
+[set]
+{SET_TOML}
+[[case]]
+"block.mass" = 0.3
+[[case]]
+"block.mass" = -1.0
+"""
+    spec = _write(tmp_path / "cases.toml", text)
+    out = tmp_path / "out"
+    args = _parser().parse_args(["sweep", str(spec), "--out", str(out), "--scheduler",
+                                 client.scheduler.address, "--no-progress"])
+    assert args.func(args) == 1  # some cases failed
+    printed = capsys.readouterr().out
+    with pytest.raises(SceneError) as expected:
+        roughvib.load_scene("paper", {**FAST, "block.mass": -1.0})
+    table = pd.read_csv(out / "sweep.csv")
+    assert list(table["status"]) == ["success", "input_error"]
+    assert table.loc[1, "message"] == str(expected.value)
+    assert str(expected.value) in printed
+    assert np.isnan(table.loc[1, "block_vertical_acceleration_level_db_re_1e-6"])
+    assert np.isfinite(table.loc[0, "block_vertical_acceleration_level_db_re_1e-6"])
+    failed_dir = out / "cases" / table.loc[1, "case"]
+    assert json.loads((failed_dir / "summary.json").read_text())["status"] == "input_error"
+    assert roughvib.load_result(failed_dir).status == "input_error"
+    ds = xr.load_dataset(out / "sweep.nc", engine="h5netcdf")
+    assert ds["status"].dims == ("case",)
+    assert list(ds["block.mass"].values) == [0.3, -1.0]
+    assert ds["block.mass"].attrs["units"] == "kg"
+    # re-run: the failed case runs again (and fails again), the good one is kept
+    ok_stamp = _stamp(out / "cases" / table.loc[0, "case"])
+    failed_inode = failed_dir.stat().st_ino
+    run = sw.run_sweep(spec, out, client=client, progress=False)
+    assert (run.skipped, run.ran, run.failed) == (1, 1, 1)
+    assert _stamp(out / "cases" / table.loc[0, "case"]) == ok_stamp
+    assert failed_dir.stat().st_ino != failed_inode
+
+
+# --------------------------------------------------------------------------------------------
+# report
+# --------------------------------------------------------------------------------------------
+
+
+def test_report_fits_db_per_doubling_per_seed(small_run, capsys):
+    out = small_run[1].directory
+    args = _parser().parse_args(["sweep-report", str(out)])
+    assert args.func(args) == 0
+    md = Path(capsys.readouterr().out.strip())
+    assert md == out / "report" / "report.md"
+    png = out / "report" / "velocity.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (out / "report" / "load.png").exists()
+    fits = pd.read_csv(out / "report" / "fits.csv")
+    table = pd.read_csv(out / "sweep.csv")
+    for quantity, col in (("block level", "block_vertical_acceleration_level_db_re_1e-6"),
+                          ("plate level", "plate_vertical_acceleration_level_db_re_1e-6")):
+        slopes = [np.polyfit(np.log2(g["block_tangential_velocity_rms"]), g[col], 1)[0]
+                  for _, g in table.groupby("roughness.seed")]
+        f = fits[fits["quantity"] == quantity].iloc[0]
+        assert f["n_seeds"] == 2
+        assert f["db_per_doubling"] == pytest.approx(np.mean(slopes), rel=1e-5)
+        assert f["ci_low"] < f["db_per_doubling"] < f["ci_high"]
+        assert f"{f['db_per_doubling']:.2f}" in md.read_text()
+    html = (out / "report" / "report.html").read_text()
+    assert 'src="velocity.png"' in html and "dB per doubling" in html
+
+
+def test_report_of_a_directory_that_is_no_sweep_is_a_one_line_error(tmp_path):
+    args = _parser().parse_args(["sweep-report", str(tmp_path)])
+    with pytest.raises(SceneError, match="is not a sweep directory"):
+        args.func(args)
+
+
+def test_sweep_commands_have_help_with_examples(capsys):
+    for cmd in (["sweep", "--help"], ["sweep-report", "--help"]):
+        with pytest.raises(SystemExit) as info:
+            _parser().parse_args(cmd)
+        assert info.value.code == 0
+        assert "example" in capsys.readouterr().out
+    args = _parser().parse_args(["sweep", "--list"])
+    assert args.func(args) == 0
+    assert capsys.readouterr().out.startswith("paper-velocity")
