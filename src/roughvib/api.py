@@ -8,7 +8,9 @@ the solver statistics.
 from __future__ import annotations
 
 import math
+import os
 import time
+import tomllib
 from datetime import UTC, datetime
 
 import numpy as np
@@ -19,10 +21,17 @@ from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import System, assemble
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
-from roughvib.scene import Scene, SceneError, replace_section, scene_to_toml
+from roughvib.scene import (
+    Scene,
+    SceneError,
+    replace_section,
+    scene_from_dict,
+    scene_to_toml,
+)
+from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
 from roughvib.solvers.ida import RawSolution, solve_ida
 
-__all__ = ["energy_audit", "simulate"]
+__all__ = ["energy_audit", "resume", "simulate"]
 
 
 def energy_audit(system: System, raw: RawSolution) -> dict:
@@ -151,7 +160,9 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
 
 
 def simulate(scene: Scene, *, progress: bool | None = None,
-             force_amplitude: float | None = None) -> Result:
+             force_amplitude: float | None = None,
+             checkpoint_dir: str | os.PathLike | None = None,
+             _resume_from: Checkpoint | None = None) -> Result:
     """Run a scene and return its :class:`~roughvib.results.Result`.
 
     Parameters
@@ -162,6 +173,9 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         Progress bar on stderr (default: ``scene.output.progress``).
     force_amplitude : float, optional
         Override T0 [N] (skips the calibration).
+    checkpoint_dir : path, optional
+        With ``output.checkpoint_interval > 0``: write ``checkpoint.pkl`` there (replaced
+        atomically at each checkpoint); continue a stopped run with :func:`resume`.
 
     Returns
     -------
@@ -181,7 +195,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     _check_travel(system, _estimate_travel(scene))
     t_pre = time.perf_counter() - t0
     if scene.solver.method == "ida":
-        raw = solve_ida(system, progress=progress)
+        raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                        resume=_resume_from)
     elif scene.solver.method == "paper":
         from roughvib.solvers.paper_scheme import solve_paper_scheme
 
@@ -235,3 +250,37 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
     return Result(ds, events, summary, scene_toml, extra={"system": system})
+
+
+def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:
+    """Continue a run from ``directory/checkpoint.pkl`` (written with
+    ``output.checkpoint_interval > 0``) to its end.
+
+    The scene is the one stored in the checkpoint; the result (time series, events, energy
+    audit, metrics) is identical to an uninterrupted run of that scene. Checkpoints keep being
+    written to ``directory``.
+
+    Parameters
+    ----------
+    directory : path
+        The run's output directory.
+    progress : bool, optional
+        Progress bar on stderr (default: the scene's ``output.progress``).
+
+    Returns
+    -------
+    Result
+
+    Raises
+    ------
+    SceneError
+        No checkpoint, a checkpoint of another format version, or one that does not fit the
+        scene it carries.
+    """
+    cp = read_checkpoint(directory)
+    try:
+        data = tomllib.loads(cp.scene_toml)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
+    scene = scene_from_dict(data, base_dir=cp.base_dir)
+    return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)

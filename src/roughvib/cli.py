@@ -21,6 +21,14 @@ class InputError(Exception):
     """Bad command-line input (exit status 2)."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that runs stop the way Ctrl-C stops them."""
+
+
+def _on_sigterm(signum, frame):  # pragma: no cover - exercised through a subprocess
+    raise Terminated()
+
+
 def _parse_value(text: str) -> Any:
     """A --set value: TOML syntax (numbers, true/false, [a, b], "str"); bare words are strings."""
     try:
@@ -83,15 +91,40 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from roughvib.api import simulate
+    from roughvib.api import resume, simulate
     from roughvib.scene import load_scene
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
-    scene = load_scene(args.scene, _parse_sets(args.set))
-    if args.no_progress:
-        scene = scene.with_overrides({"output.progress": False})
-    out_dir = Path(args.out) if args.out else Path("runs") / scene.name
-    result = simulate(scene)
+    if args.resume:
+        if args.scene is not None or args.set or args.out:
+            raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
+                             "--set or --out with it")
+        out_dir = Path(args.resume)
+        runner = lambda: resume(out_dir, progress=False if args.no_progress else None)  # noqa: E731
+    else:
+        scene = load_scene(args.scene or "paper", _parse_sets(args.set))
+        if args.no_progress:
+            scene = scene.with_overrides({"output.progress": False})
+        out_dir = Path(args.out) if args.out else Path("runs") / scene.name
+        cp_dir = out_dir if scene.output.checkpoint_interval > 0 else None
+        if cp_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
+            raise InputError(f"{out_dir / CHECKPOINT_NAME} exists: continue it with 'roughvib "
+                             f"run --resume {out_dir}', or remove it to start again")
+        runner = lambda: simulate(scene, checkpoint_dir=cp_dir)  # noqa: E731
+    try:
+        result = runner()
+    except KeyboardInterrupt as exc:
+        cp = out_dir / CHECKPOINT_NAME
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        if cp.exists():
+            print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
+                  f"'roughvib run --resume {out_dir}'", file=sys.stderr)
+        else:
+            print(f"roughvib: {what}; nothing was written", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
     result.save(out_dir)
+    if result.ok:
+        (out_dir / CHECKPOINT_NAME).unlink(missing_ok=True)
     if not args.quiet:
         _print_summary(result.summary, out_dir)
     if not result.ok:
@@ -261,7 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib surface paper --out runs/paper-surface\n"
                "  roughvib report runs/paper\n"
                "  roughvib sweep paper-velocity --out runs/velocity\n\n"
-               "exit status: 0 success, 1 solver failure, 2 bad input")
+               "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
+               "(Ctrl-C), 143 terminated (SIGTERM)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     r = sub.add_parser(
@@ -272,10 +306,15 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib run                         # built-in 'paper' scene\n"
                "  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib run my_scene.toml --set block.mass=0.543 "
-               "--set output.duration=0.2\n")
-    r.add_argument("scene", nargs="?", default="paper",
+               "--set output.duration=0.2\n"
+               "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
+               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n")
+    r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
+    r.add_argument("--resume", metavar="DIR",
+                   help="continue the run whose checkpoint is in DIR (written when "
+                        "output.checkpoint_interval > 0) and write its results there")
     r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
@@ -374,16 +413,27 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
+    import signal
+
     from roughvib.scene import SceneError
 
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave it alone
+        previous = None
     try:
         return args.func(args)
     except (SceneError, InputError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:
-        print("roughvib: interrupted; nothing was written", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
+              file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

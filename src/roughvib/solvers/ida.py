@@ -20,6 +20,7 @@ exposed by sksundae; see :class:`_IdaCounters`); unknown return codes are caught
 from __future__ import annotations
 
 import collections
+import copy
 import ctypes
 import glob
 import os
@@ -27,6 +28,7 @@ import sys
 import time
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,6 +37,8 @@ import sksundae as sun
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime, switch
 from roughvib.model.system import System
+from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -202,7 +206,24 @@ def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     return pattern, perm
 
 
-def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
+def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
+    """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
+    if scene_to_toml(system.scene) != cp.scene_toml:
+        raise SceneError("the checkpoint was written by a different scene; resume with the "
+                         "scene stored in the checkpoint (roughvib run --resume DIR)")
+    if not (1 <= cp.k < n) or cp.outputs.shape != (cp.k, n_out) or \
+            cp.y.shape != (system.layout.size,):
+        raise SceneError(f"the checkpoint does not fit this model (rows {cp.outputs.shape}, "
+                         f"{cp.y.shape[0]} states; expected {n} rows of {n_out} outputs and "
+                         f"{system.layout.size} states)")
+    if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
+        raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
+                         f"from the recalibrated {system.force_amplitude!r} N")
+
+
+def solve_ida(system: System, *, progress: bool | None = None,
+              checkpoint_dir: str | os.PathLike | None = None,
+              resume: Checkpoint | None = None) -> RawSolution:
     """Integrate a system over ``scene.output.duration`` with event-driven IDA.
 
     Parameters
@@ -211,6 +232,12 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
         From :func:`roughvib.model.system.assemble`.
     progress : bool, optional
         Progress bar on stderr (default: scene.output.progress).
+    checkpoint_dir : path, optional
+        Where ``checkpoint.pkl`` is written every ``output.checkpoint_interval`` of simulated
+        time (nothing is written when the interval is 0 or this is None; IDA is restarted at
+        each checkpoint time either way, so runs with and without a directory agree).
+    resume : Checkpoint, optional
+        Continue from this checkpoint (of the same scene) instead of starting at t = 0.
 
     Returns
     -------
@@ -233,11 +260,26 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
     outs = np.full((n, n_out), np.nan)
 
     reg, rf = system.new_regime_arrays()
-    y0, closed = system.static_equilibrium()
-    regime = initial_regime(closed, system.fp, lay.tangential, system.coulomb)
-    regime.pack(reg, rf)
-    y, yp = system.consistent(0.0, y0, reg, rf)
-    y_initial = y.copy()
+    if resume is None:
+        y0, closed = system.static_equilibrium()
+        regime = initial_regime(closed, system.fp, lay.tangential, system.coulomb)
+        regime.pack(reg, rf)
+        t_start, k_start = 0.0, 1
+        y, yp = system.consistent(0.0, y0, reg, rf)
+        y_initial = y.copy()
+    else:
+        _check_resume(resume, system, n, n_out)
+        regime = resume.regime
+        reg[:] = resume.reg
+        rf[:] = resume.rf
+        t_start, k_start = float(resume.t), int(resume.k)
+        outs[:k_start] = resume.outputs
+        y, yp = system.consistent(t_start, np.array(resume.y, dtype=float), reg, rf)
+        y_initial = np.array(resume.y_initial, dtype=float)
+    cp_interval = scene.output.checkpoint_interval
+    # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
+    cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
+    scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
 
     args = system.kernel_args(reg, rf)
     ev_args = system.event_args(reg, rf)
@@ -276,7 +318,7 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
         warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
         solver = sun.ida.IDA(resfn, **options)
     cy = solver._IDA__IDA  # the Cython object: skip one Python layer per step
-    cy.init_step(0.0, y, yp)
+    cy.init_step(t_start, y, yp)
     counters = _IdaCounters(cy)
 
     stats = collections.Counter()
@@ -286,15 +328,29 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
     t_last_restart = 0.0
     last_fired: set[int] = set()
     refire_ignored = 0
+    wall_before = cpu_before = 0.0
+    if resume is not None:
+        prev = dict(resume.stats)
+        wall_before = float(prev.pop("wall_time", 0.0))
+        cpu_before = float(prev.pop("cpu_time", 0.0))
+        stats.update(prev)
+        stats["resumes"] += 1
+        events = list(resume.events)
+        recent = collections.deque(resume.loop["recent"])
+        t_last_restart = float(resume.loop["t_last_restart"])
+        last_fired = set(resume.loop["last_fired"])
+        refire_ignored = int(resume.loop["refire_ignored"])
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
 
-    kn.outputs(0.0, y, outs[0], *args)
+    if resume is None:
+        kn.outputs(0.0, y, outs[0], *args)
     outbuf = np.empty(n_out)
-    bar = tqdm(total=float(out_cfg.duration), unit="s", unit_scale=False, disable=not progress,
-               file=sys.stderr, desc=f"roughvib {scene.name}", leave=False,
+    bar = tqdm(total=float(out_cfg.duration), initial=t_start, unit="s", unit_scale=False,
+               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
+               leave=False,
                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
-    bar_next = 0
+    bar_next = k_start
     bar_stride = max(1, n // 200)
     vx_i = lay.index("block.vx")
     dwell = scene.friction.dwell_time
@@ -309,7 +365,21 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
             stats["error_test_failures"] += counters.error_test_failures() or 0
             stats["nonlinear_convergence_failures"] += counters.nonlinear_conv_failures() or 0
 
-    k = 1
+    def write_cp(k_next: int, t_cp: float, y_cp: np.ndarray) -> None:
+        st = dict(stats)
+        st["wall_time"] = wall_before + time.perf_counter() - wall0
+        st["cpu_time"] = cpu_before + time.process_time() - cpu0
+        st["refires_ignored"] = refire_ignored
+        write_checkpoint(checkpoint_dir, Checkpoint(
+            scene_toml=scene_toml, t=t_cp, k=k_next, y=y_cp.copy(), y_initial=y_initial,
+            outputs=outs[:k_next].copy(), reg=reg.copy(), rf=rf.copy(),
+            regime=copy.deepcopy(regime), events=list(events), stats=st,
+            loop={"recent": list(recent), "t_last_restart": t_last_restart,
+                  "last_fired": sorted(last_fired), "refire_ignored": refire_ignored},
+            force_amplitude=float(system.force_amplitude),
+            base_dir=str(Path(scene.base_dir).resolve())))
+
+    k = k_start
     r = None
     try:
         while k < n:
@@ -405,6 +475,20 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
                 bar.refresh()
                 bar_next = k + bar_stride
             k += 1
+            if cp_stride and (k - 1) % cp_stride == 0 and k < n:
+                # restart IDA at the checkpoint time from a consistent state, exactly as a
+                # resumed run does, so that both continue bit-identically
+                close_segment(r)
+                t_cp = float(grid[k - 1])
+                y_cp = np.array(yk, dtype=float)
+                t_last_restart = t_cp
+                last_fired = set()
+                stats["checkpoints"] += 1
+                if scene_toml:
+                    write_cp(k, t_cp, y_cp)
+                y, yp = system.consistent(t_cp, y_cp, reg, rf)
+                cy.init_step(t_cp, y, yp)
+                r = None
         if r is not None:
             close_segment(r)
             y = np.array(r.y, dtype=float) if r.status != 2 else y
@@ -415,8 +499,8 @@ def solve_ida(system: System, *, progress: bool | None = None) -> RawSolution:
     finally:
         bar.close()
 
-    stats["wall_time"] = time.perf_counter() - wall0
-    stats["cpu_time"] = time.process_time() - cpu0
+    stats["wall_time"] = wall_before + time.perf_counter() - wall0
+    stats["cpu_time"] = cpu_before + time.process_time() - cpu0
     stats["refires_ignored"] = refire_ignored
     stats["events_total"] = len(events)
     stats_d = dict(stats)
