@@ -83,3 +83,21 @@ def test_total_level_and_noise_floor():
     y = add_noise_floor(np.zeros(200_000), FS, 1e-3, seed=4)
     assert np.std(y) == pytest.approx(1e-3, rel=0.01)
     np.testing.assert_array_equal(y, add_noise_floor(np.zeros(200_000), FS, 1e-3, seed=4))
+
+
+@pytest.mark.parametrize("window", ["boxcar", "hann"])
+def test_a_band_160_db_below_the_total_is_measured(window):
+    """Per-band sums, not differences of a cumulative sum: those lose a band ~130 dB below the
+    total power to round-off. Two tones with whole numbers of cycles in the record."""
+    fs, n = 1e5, 100_000
+    t = np.arange(n) / fs
+    x = np.sin(2 * np.pi * 1000.0 * t) + 1e-8 * np.sin(2 * np.pi * 10_000.0 * t)
+    fc, lev = band_levels(x, fs, fmin=20.0, fmax=20e3, window=window)
+    i = int(np.argmin(np.abs(fc - 10_000.0)))
+    expected = 20 * np.log10(1e-8 / np.sqrt(2) / 1e-6)  # -43.0 dB re 1e-6
+    assert lev[i] == pytest.approx(expected, abs=0.01)
+
+
+def test_unknown_window_is_refused():
+    with pytest.raises(ValueError, match="window must be one of boxcar, hann"):
+        band_levels(np.ones(16), 1e3, window="kaiser")

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
-from scipy import signal as sps
 
 from roughvib.analysis.levels import (
     VelocityExponent,
@@ -44,8 +43,8 @@ from roughvib.analysis.levels import (
 )
 from roughvib.analysis.spectra import (
     add_noise_floor,
+    band_levels,
     narrowband_psd,
-    third_octave_bands,
     total_level,
     wavenumber_spectrum,
 )
@@ -330,27 +329,8 @@ def tapered_band_levels(x: ArrayLike, fs: float, *, fmin: float = 20.0, fmax: fl
     if x.ndim != 1 or x.size < 8:
         raise ValueError(f"tapered_band_levels needs a 1-D record of >= 8 samples, got shape "
                          f"{x.shape}")
-    if not fs > 0:
-        raise ValueError(f"fs must be > 0 Hz, got {fs}")
-    fc, lo, hi = third_octave_bands(fmin, fmax)
-    keep = hi <= fs / 2.0 * (1.0 + 1e-12)
-    fc, lo, hi = fc[keep], lo[keep], hi[keep]
-    w = sps.get_window("hann", x.size, fftbins=True)
-    xw = (x - x.mean()) * w / math.sqrt(float(np.mean(w * w)))
-    n = x.size
-    X = np.fft.rfft(xw)
-    p = (X.real**2 + X.imag**2) / float(n) ** 2
-    p[1:(p.size if n % 2 else p.size - 1)] *= 2.0  # one-sided: mirror image of interior bins
-    f = np.fft.rfftfreq(n, 1.0 / fs)
-    i_lo = np.searchsorted(f, lo, side="left")
-    i_hi = np.searchsorted(f, hi, side="left")
-    # an explicit sum per band: differences of a cumulative sum would lose bands more than
-    # ~130 dB below the total power to round-off
-    pw = np.array([p[a:b].sum() for a, b in zip(i_lo, i_hi, strict=True)])
-    with np.errstate(divide="ignore"):
-        lev = 10.0 * np.log10(pw / ref**2)
-    lev[(i_hi - i_lo) < 4] = np.nan
-    return fc, lev
+    return band_levels(x, fs, fmin=fmin, fmax=fmax, ref=ref, detrend="constant",
+                       window="hann")
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,10 @@ rectangular window: a tone that does not complete an integer number of cycles in
 spreads power into its neighbours, at a level that falls off with the number of bins between
 the tone and the band (for a 1 s record and a 1 kHz tone half-way between two bins: -31.5 dB
 in the adjacent band, 0.008 dB lost from its own). For the broadband responses of a rough
-contact this is immaterial.
+contact this is usually immaterial, but where the spectrum spans a large dynamic range (quiet
+bands far above a loud low-frequency line; the figures and the report) use
+``window="hann"``: leakage then falls as 1/f^6 (measured: 8 dB of leakage against -59 dB in a
+quiet band of a truncated 1 s record), at the price of needing 4 bins per band.
 
 Units: time signals in their own unit (accelerations [m/s^2], levels in dB re 1e-6 m/s^2 by
 default), profiles in metres (levels in dB re 1 µm), frequencies in Hz, wavenumbers in rad/m.
@@ -134,30 +137,47 @@ def _one_sided_power(x: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return np.fft.rfftfreq(n, 1.0 / fs), p
 
 
+_WINDOWS = ("boxcar", "hann")
+
+
 def _band_sums(x: ArrayLike, fs: float, lower: np.ndarray, upper: np.ndarray, axis: int,
-               detrend: str | None) -> tuple[np.ndarray, np.ndarray]:
+               detrend: str | None, window: str = "boxcar") -> tuple[np.ndarray, np.ndarray]:
     """Band powers (bands on the last axis) and the number of FFT bins in each band."""
     if not fs > 0:
         raise ValueError(f"fs must be > 0 Hz, got {fs}")
+    if window not in _WINDOWS:
+        raise ValueError(f"window must be one of {', '.join(_WINDOWS)}, got {window!r}")
     x = np.moveaxis(np.asarray(x, dtype=float), axis, -1)
     if x.shape[-1] < 2:
         raise ValueError(f"a spectrum needs at least 2 samples along axis {axis}, "
                          f"got {x.shape[-1]}")
     lower = np.atleast_1d(np.asarray(lower, dtype=float))
     upper = np.atleast_1d(np.asarray(upper, dtype=float))
-    f, p = _one_sided_power(_detrended(x, -1, detrend), fs)
+    xd = _detrended(x, -1, detrend)
+    if window == "hann":
+        # periodic Hann, rescaled to unit mean square so that band powers stay unbiased
+        w = sps.get_window("hann", x.shape[-1], fftbins=True)
+        xd = xd * (w / np.sqrt(np.mean(w * w)))
+    f, p = _one_sided_power(xd, fs)
     # bin j belongs to the band with lower <= f_j < upper
     i_lo = np.searchsorted(f, lower, side="left")
     i_hi = np.searchsorted(f, upper, side="left")
-    c = np.concatenate([np.zeros(p.shape[:-1] + (1,)), np.cumsum(p, axis=-1)], axis=-1)
-    return c[..., i_hi] - c[..., i_lo], i_hi - i_lo
+    # an explicit sum per band: differences of a cumulative sum lose bands more than about
+    # 130 dB below the total power to round-off
+    pw = np.stack([p[..., a:b].sum(axis=-1) for a, b in zip(i_lo, i_hi, strict=True)],
+                  axis=-1)
+    return pw, i_hi - i_lo
 
 
 def band_powers(x: ArrayLike, fs: float, lower: ArrayLike, upper: ArrayLike, *,
-                axis: int = -1, detrend: str | None = "constant") -> np.ndarray:
+                axis: int = -1, detrend: str | None = "constant",
+                window: str = "boxcar") -> np.ndarray:
     """Mean-square content of ``x`` in arbitrary frequency bands, from the one-sided FFT.
 
-    The whole record is transformed with a rectangular window. FFT bin j (frequency
+    The whole record is transformed, with a rectangular window by default or a periodic Hann
+    window rescaled to unit mean square (``window="hann"``: leakage falls as 1/f^6 instead of
+    1/f^2, so quiet bands next to loud ones are measured, at the cost of a main lobe of ±2
+    bins). FFT bin j (frequency
     ``j fs / n``) belongs to a band when ``lower <= f_j < upper`` (half-open, so a bin on a
     shared edge is counted once, in the upper band). Interior bins carry twice their two-sided
     power; the DC bin and, for an even record length, the Nyquist bin carry it once. A band
@@ -176,14 +196,16 @@ def band_powers(x: ArrayLike, fs: float, lower: ArrayLike, upper: ArrayLike, *,
     detrend : {'constant', 'linear', None}
         Removed from the record before the transform. A constant only changes the DC bin,
         so it changes no band with ``lower > 0``; a linear trend changes all bins.
+    window : {'boxcar', 'hann'}
+        Taper of the record (see above).
 
     Returns
     -------
     ndarray, shape of ``x`` with ``axis`` replaced by n_bands
         Band powers [unit^2]. For a signal whose content lies inside the bands they sum to
-        ``mean(x**2)`` exactly (after detrending).
+        ``mean(x**2)`` exactly (after detrending; for ``hann``, of the tapered record).
     """
-    pw, _ = _band_sums(x, fs, np.asarray(lower), np.asarray(upper), axis, detrend)
+    pw, _ = _band_sums(x, fs, np.asarray(lower), np.asarray(upper), axis, detrend, window)
     return np.moveaxis(pw, -1, axis)
 
 
@@ -193,8 +215,8 @@ def _power_to_db(power: np.ndarray, ref: float) -> np.ndarray:
 
 
 def band_levels(x: ArrayLike, fs: float, *, fmin: float = 20.0, fmax: float = 50e3,
-                ref: float = 1e-6, axis: int = -1, detrend: str | None = "constant"
-                ) -> tuple[np.ndarray, np.ndarray]:
+                ref: float = 1e-6, axis: int = -1, detrend: str | None = "constant",
+                window: str = "boxcar") -> tuple[np.ndarray, np.ndarray]:
     """Third-octave band levels of a signal, from FFT bin powers summed per band.
 
     The method is :func:`band_powers` on the bands of :func:`third_octave_bands`: the whole
@@ -217,6 +239,10 @@ def band_levels(x: ArrayLike, fs: float, *, fmin: float = 20.0, fmax: float = 50
         Time axis of ``x``; the bands replace it in the output.
     detrend : {'constant', 'linear', None}
         Trend removed before the transform (see :func:`band_powers`).
+    window : {'boxcar', 'hann'}
+        Taper (see :func:`band_powers`). Use ``hann`` for spectra with a large dynamic range
+        (the rectangular window's leakage fills quiet bands); it needs at least 4 bins per
+        band, i.e. a record longer than about 4 / (0.23 fmin) (0.9 s for 20 Hz).
 
     Returns
     -------
@@ -224,8 +250,8 @@ def band_levels(x: ArrayLike, fs: float, *, fmin: float = 20.0, fmax: float = 50
         Exact band centres [Hz].
     levels : ndarray, shape of ``x`` with ``axis`` replaced by n_bands
         ``10 log10(band power / ref**2)`` [dB re ref]. ``-inf`` for a band with zero power;
-        ``NaN`` for a band that holds no FFT bin (the record, of duration n/fs, is too short
-        for the band's width: the bin spacing fs/n exceeds it), so that such bands never pass
+        ``NaN`` for a band that holds no FFT bin (fewer than 4 with ``hann``: the record, of
+        duration n/fs, is too short for the band's width), so that such bands never pass
         for measured silence.
     """
     if not ref > 0:
@@ -233,9 +259,9 @@ def band_levels(x: ArrayLike, fs: float, *, fmin: float = 20.0, fmax: float = 50
     fc, lo, hi = third_octave_bands(fmin, fmax)
     keep = hi <= fs / 2.0 * (1.0 + _EDGE_RTOL)
     fc, lo, hi = fc[keep], lo[keep], hi[keep]
-    pw, nbins = _band_sums(x, fs, lo, hi, axis, detrend)
+    pw, nbins = _band_sums(x, fs, lo, hi, axis, detrend, window)
     lev = _power_to_db(pw, ref)
-    lev[..., nbins == 0] = np.nan
+    lev[..., nbins < (4 if window == "hann" else 1)] = np.nan
     return fc, np.moveaxis(lev, -1, axis)
 
 
