@@ -243,6 +243,9 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     }
     if raw.status != "success":
         summary["last_events"] = events.tail(20).to_dict(orient="records")
+        summary["partial_result"] = {
+            "file": "partial.nc", "t_end": float(ds["time"].values[-1]) if ds.sizes["time"]
+            else None, "note": "time series up to the failure; load_result(dir, partial=True)"}
     if system.tangential and scene.excitation.target_rms_velocity is not None and \
             raw.status == "success":
         target = scene.excitation.target_rms_velocity

@@ -130,6 +130,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not result.ok:
         print(f"roughvib: run failed ({result.status}): {result.summary.get('message')}",
               file=sys.stderr)
+        t_end = (result.summary.get("partial_result") or {}).get("t_end")
+        if t_end is not None:
+            print(f"roughvib: the time series up to t = {t_end:.6g} s and the event log are in "
+                  f"{out_dir}/partial.nc and events.csv", file=sys.stderr)
         return EXIT_SOLVER
     return EXIT_OK
 

@@ -111,7 +111,10 @@ class Result:
         """Write result.nc, events.csv, summary.json and scene.toml into ``directory``.
 
         The files are written to a temporary directory next to it and moved into place when
-        complete. A failed run (status != success) writes summary.json and scene.toml only.
+        complete. A failed run (status != success) writes summary.json, scene.toml, the event
+        log and, if any output rows were filled, ``partial.nc`` (the time series up to the
+        failure; never ``result.nc``, so nothing takes it for a complete run; read it with
+        ``load_result(directory, partial=True)``).
         """
         out = Path(directory)
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -120,17 +123,23 @@ class Result:
             names = ["summary.json", "scene.toml"]
             (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2))
             (tmp / "scene.toml").write_text(self.scene_toml)
-            if self.ok:
+            nc = "result.nc" if self.ok else "partial.nc"
+            if self.ok or self.dataset.sizes.get("time", 0) > 0:
                 ds = self.dataset.copy()
                 ds.attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
                             for k, v in ds.attrs.items()}
-                ds.to_netcdf(tmp / "result.nc", engine="h5netcdf")
+                if not self.ok:
+                    ds.attrs.update(status=self.status,
+                                    message=str(self.summary.get("message", "")))
+                ds.to_netcdf(tmp / nc, engine="h5netcdf")
+                names.append(nc)
+            if self.ok or len(self.events):
                 ev = self.events.copy()
                 ev["contact"] = ev["contact"].astype("Int64")
                 ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
-                names += ["result.nc", "events.csv"]
+                names.append("events.csv")
             out.mkdir(parents=True, exist_ok=True)
-            for stale in ("result.nc", "events.csv"):
+            for stale in ("result.nc", "partial.nc", "events.csv"):
                 if stale not in names and (out / stale).exists():
                     (out / stale).unlink()
             for name in names:
@@ -149,8 +158,15 @@ def events_frame(records: list) -> pd.DataFrame:
     return df
 
 
-def load_result(directory: str | os.PathLike) -> Result:
+def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Result:
     """Read a result directory written by :meth:`Result.save`.
+
+    Parameters
+    ----------
+    directory : path
+    partial : bool
+        For a failed run, also read the time series up to the failure (``partial.nc``) and
+        the event log; by default a failed run comes back with an empty dataset.
 
     Raises
     ------
@@ -167,9 +183,12 @@ def load_result(directory: str | os.PathLike) -> Result:
         raise ValueError(f"{d}: result format version {fv} is not supported (this roughvib "
                          f"reads version {FORMAT_VERSION})")
     scene_toml = (d / "scene.toml").read_text() if (d / "scene.toml").exists() else ""
-    if summary.get("status") != "success":
+    ok = summary.get("status") == "success"
+    if not ok and not (partial and (d / "partial.nc").exists()):
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ds = xr.load_dataset(d / "result.nc", engine="h5netcdf")
+    ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
+    if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
+        return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
     ev = pd.read_csv(d / "events.csv")
     ev["contact"] = ev["contact"].astype("Int64")
     return Result(ds, ev, summary, scene_toml)

@@ -151,6 +151,14 @@ def test_failed_run_exits_1_and_writes_nothing_partial(tmp_path, capsys):
     assert "more than 2 events" in summary["message"]
     assert not (out / "result.nc").exists()
     assert not any(p.name.startswith(".fail.tmp") for p in tmp_path.iterdir())
+    # nothing lost: the time series up to the failure and the whole event log are kept
+    part = load_result(out, partial=True)
+    t_end = float(part.dataset["time"].values[-1])
+    storm = part.events[part.events["kind"] == "event_storm"]
+    assert len(storm) == 1 and t_end <= float(storm["time"].iloc[0]) + 1e-5
+    assert np.all(np.isfinite(part.dataset["normal_force"].values))
+    assert part.dataset.attrs["status"] == "event_storm"
+    assert load_result(out).dataset.sizes.get("time", 0) == 0  # default: no series
 
 
 def test_progress_bar_on_stderr(tmp_path):
