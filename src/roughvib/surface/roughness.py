@@ -189,6 +189,18 @@ def _shape_moment(n: float, kl: float, k0: float, kh: float, q: float) -> float:
     return flat + tail
 
 
+def _psd_shape(k: np.ndarray, roughness: Roughness, q: float
+               ) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """Band-limited shape: 1 for k_L <= k < k_0, (k/k_0)^-q up to k_H, 0 outside; and the
+    band (k_L, k_0, k_H) [rad/m]."""
+    kl, k0, kh = _band(roughness)
+    k = np.asarray(k, dtype=float)
+    g = np.zeros_like(k)
+    band = (k >= kl) & (k <= kh)
+    g[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
+    return g, (kl, k0, kh)
+
+
 def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
     """One-sided profile PSD G(k) of physics.md §5.1.
 
@@ -209,12 +221,8 @@ def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> n
     ndarray, shape of ``k``
         [m^2/(rad/m)] (or the dimensionless shape).
     """
-    kl, k0, kh = _band(roughness)
     q = 1.0 + 2.0 * roughness.hurst
-    k = np.asarray(k, dtype=float)
-    g = np.zeros_like(k)
-    band = (k >= kl) & (k <= kh)
-    g[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
+    g, (kl, k0, kh) = _psd_shape(k, roughness, q)
     if rms is not None:
         g *= rms**2 / _shape_moment(0.0, kl, k0, kh, q)
     return g
@@ -240,12 +248,8 @@ def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> 
     ndarray, shape of ``k``
         [m^2/(rad/m)^2] (or the shape).
     """
-    kl, k0, kh = _band(roughness)
     q = 2.0 + 2.0 * roughness.hurst
-    k = np.asarray(k, dtype=float)
-    s = np.zeros_like(k)
-    band = (k >= kl) & (k <= kh)
-    s[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
+    s, (kl, k0, kh) = _psd_shape(k, roughness, q)
     if rms is not None:
         s *= rms**2 / (2.0 * np.pi * _shape_moment(1.0, kl, k0, kh, q))
     return s
