@@ -14,6 +14,7 @@ import pytest
 import xarray as xr
 
 import roughvib
+from roughvib.analysis.compare import band_level_errors, max_abs_db, relative_rms_error
 from roughvib.api import resume, simulate
 from roughvib.cli import main
 from roughvib.scene import SceneError
@@ -43,11 +44,14 @@ def test_resume_from_the_last_checkpoint_gives_identical_results(tmp_path):
     assert b.summary["solver"]["resumes"] == 1
     _assert_identical(a, b)
     # the checkpoint restarts IDA, so the run differs from one without checkpoints, but only
-    # within the solver tolerance: the plate response agrees to a small fraction of its range
+    # within the solver tolerance (rtol 1e-6): compared as design.md asks, by velocity and
+    # band levels rather than pointwise lightly damped plate modes
     c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
-    acc_a = a.dataset["plate_vertical_acceleration"].values
-    acc_c = c.dataset["plate_vertical_acceleration"].values
-    assert np.max(np.abs(acc_a - acc_c)) < 1e-3 * np.max(np.abs(acc_c))
+    v = "block_tangential_velocity"
+    assert relative_rms_error(a.dataset[v].values, c.dataset[v].values) < 1e-5
+    for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
+        fc, d = band_level_errors(a.dataset[v].values, c.dataset[v].values, 1e5)
+        assert max_abs_db(fc, d, 100.0, 5000.0) < 0.3, v
 
 
 def test_checkpoint_errors_are_one_line(tmp_path, capsys):
