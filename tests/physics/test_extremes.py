@@ -1,0 +1,272 @@
+"""Extreme scenes (physics.md §8): every run is either right, checked by invariants, or stops
+with a status that names the cause and gives a hint.
+
+Invariants (``_invariants``): no NaN; contact forces never negative; the energy audit closes
+within a multiple of rtol; event counts bounded. Where a case runs whole excitation periods,
+the mean normal force equals m g (the block has no mean vertical acceleration). Case-specific
+checks compare against closed forms (static equilibrium, linear scaling with the roughness)
+or against the same run at a tighter tolerance. docs/robustness.md tabulates the outcomes.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import roughvib
+from roughvib.analysis.compare import band_level_errors, max_abs_db
+from roughvib.api import simulate
+from roughvib.model.system import GRAVITY
+
+RTOL = 1e-6
+
+
+def _run(name="paper", **over):
+    base = {"output.progress": False, "solver.rtol": RTOL}
+    base.update(over)
+    return simulate(roughvib.load_scene(name, base))
+
+
+def _invariants(r, *, energy_factor=50.0, max_events=None):
+    assert r.ok, r.summary["message"]
+    ds = r.dataset
+    for name in ds.data_vars:
+        if "no friction model" in ds[name].attrs.get("comment", ""):
+            continue  # prescribed tangential motion: NaN by the result contract
+        assert np.all(np.isfinite(ds[name].values)), f"NaN/inf in {name}"
+    F = ds["contact_force"].values
+    assert F.min() >= -1e-9 * max(1.0, np.abs(F).max()), f"negative contact force {F.min()}"
+    audit = r.summary["energy_audit"]
+    rtol = r.summary["solver"]["rtol"]
+    # a run where nothing moves has no energy scale: then the residual itself must vanish
+    assert (abs(audit["relative_residual"]) < energy_factor * rtol
+            or abs(audit["residual"]) < 1e-15), audit
+    if max_events is not None:
+        assert len(r.events) <= max_events
+    return ds
+
+
+def _mean_force_over_periods(r, mass, periods):
+    t = r.dataset["time"].values
+    n = int(round(periods / 7.0 / (t[1] - t[0])))
+    fn = r.dataset["normal_force"].values[:n]
+    return float(np.mean(fn)), mass * GRAVITY
+
+
+# ---- stiffness, damping, modes --------------------------------------------------------------
+
+@pytest.mark.parametrize("stiffness", [1e8, 1e10])
+def test_very_stiff_contact(stiffness):
+    r = _run(**{"contact.stiffness": stiffness, "output.duration": 0.005,
+                "plate.max_frequency": 3000.0})
+    ds = _invariants(r, max_events=2000)
+    # statics: the initial contact forces carry the block exactly
+    assert ds["contact_force"].values[0].sum() == pytest.approx(0.221 * GRAVITY, rel=1e-9)
+
+
+def test_tiny_damping_keeps_the_energy_balance():
+    """Loss factor 1e-5 and no dampers: almost nothing dissipates vertically, so the energy
+    stored in the plate and block must match the work of the roughness input."""
+    r = _run(**{"plate.loss_factor": 1e-5, "block.vertical_damping": 0.0,
+                "block.tangential_damping": 0.0, "output.duration": 0.01,
+                "plate.max_frequency": 5000.0})
+    _invariants(r)
+    tight = _run(**{"plate.loss_factor": 1e-5, "block.vertical_damping": 0.0,
+                    "block.tangential_damping": 0.0, "output.duration": 0.01,
+                    "plate.max_frequency": 5000.0, "solver.rtol": 1e-8,
+                    "solver.atol_acceleration": 1e-10})
+    for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
+        fc, d = band_level_errors(r.dataset[v].values, tight.dataset[v].values, 1e5)
+        assert max_abs_db(fc, d, 200.0, 5000.0) < 1.0, v
+
+
+@pytest.mark.slow
+def test_many_modes_to_100_khz():
+    """All modes to 100 kHz. Their number follows the lattice-point count of a simply
+    supported a x b plate: N = a b k^2 / (4 pi) - (a + b) k / (2 pi), k^4 = omega^2 rho h / D
+    (798 for the default plate)."""
+    r = _run(**{"plate.max_frequency": 1e5, "output.duration": 0.003})
+    _invariants(r)
+    p = roughvib.load_scene("paper").plate
+    d = p.youngs_modulus * p.thickness**3 / (12 * (1 - p.poisson_ratio**2))
+    k = math.sqrt(2 * math.pi * 1e5) * (p.density * p.thickness / d) ** 0.25
+    n_weyl = p.length * p.width * k**2 / (4 * math.pi) - (p.length + p.width) * k / (2 * math.pi)
+    assert r.summary["model"]["modes"] == pytest.approx(n_weyl, rel=0.02)
+
+
+# ---- velocity ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("velocity", [0.3, 1.0])
+def test_high_sliding_velocity(velocity):
+    """Constant sliding at 0.3 and 1 m/s (prescribed): lift-offs and touch-downs alternate per
+    contact, and the run is stable under a tighter tolerance."""
+    over = {"excitation.kind": "prescribed", "excitation.velocity": velocity,
+            "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
+            "output.duration": 0.004, "plate.max_frequency": 5000.0}
+    r = _run(**over)
+    _invariants(r, max_events=20_000)
+    for k in range(r.summary["model"]["contacts"]):
+        kinds = r.events[r.events["contact"] == k].sort_values("time")["kind"].tolist()
+        kinds = [x for x in kinds if x in ("lift_off", "touch_down")]
+        assert all(a != b for a, b in zip(kinds, kinds[1:], strict=False)), k
+    tight = _run(**over, **{"solver.rtol": 1e-8, "solver.atol_acceleration": 1e-10})
+    for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
+        fc, d = band_level_errors(r.dataset[v].values, tight.dataset[v].values, 1e5)
+        assert max_abs_db(fc, d, 1000.0, 5000.0) < 1.0, v
+
+
+# ---- contact regimes -------------------------------------------------------------------------
+
+def _bounce(amplitude, **extra):
+    over = {"plate.kind": "rigid", "contact.points": 1, "roughness.kind": "sinusoid",
+            "roughness.amplitude": amplitude, "roughness.wavelength": 0.5e-3,
+            "excitation.kind": "prescribed", "excitation.velocity": 0.1,
+            "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
+            "output.duration": 0.02}
+    over.update(extra)
+    return _run(**over)
+
+
+def test_lift_off_chatter_is_resolved_event_by_event():
+    """A sinusoid whose kinematic acceleration A w^2 is 80 g: the block flies over the crests;
+    every lift-off is followed by a touch-down and the energy audit closes. With impacts the
+    audit residual converges only like sqrt(rtol) (measured 7e-5, 2e-5, 8e-6, 2.3e-6 at rtol
+    1e-6 ... 1e-9; docs/robustness.md), so the bound is 0.1 sqrt(rtol) and it must shrink."""
+    r = _bounce(10e-6)
+    _invariants(r, max_events=500, energy_factor=0.1 / math.sqrt(RTOL))
+    tight = _bounce(10e-6, **{"solver.rtol": 1e-9})
+    assert (abs(tight.summary["energy_audit"]["relative_residual"])
+            < abs(r.summary["energy_audit"]["relative_residual"]) / 5)
+    n_lift = int((r.events["kind"] == "lift_off").sum())
+    assert n_lift >= 3
+    assert abs(n_lift - int((r.events["kind"] == "touch_down").sum())) <= 1
+
+
+def test_grazing_contact_either_holds_or_names_the_storm():
+    """Roughness acceleration A w^2 = g exactly: the contact force grazes zero at every crest.
+    The run must stay right (no negative force, audit closed) or stop as an event storm."""
+    w = 2 * math.pi * 0.1 / 0.5e-3
+    # base-excited oscillator below its contact resonance wn^2 = s / m: block acceleration
+    # amplitude A w^2 / (1 - w^2 / wn^2) reaches g at this A
+    r = _bounce(GRAVITY * (1 - w**2 * 0.221 / 3.1e6) / w**2)
+    if r.ok:
+        _invariants(r, max_events=500, energy_factor=0.1 / math.sqrt(RTOL))
+    else:
+        assert r.status == "event_storm" and "Hint" in r.summary["message"]
+
+
+def test_event_storm_stops_with_time_regime_and_hint():
+    r = _bounce(10e-6, **{"solver.max_events": 2, "solver.event_window": 0.1})
+    assert r.status == "event_storm"
+    msg = r.summary["message"]
+    assert "more than 2 events within 0.1 s at t = " in msg
+    assert "contact 0" in msg and "regime closed=" in msg and "Hint:" in msg
+
+
+def test_zero_roughness_leaves_the_vertical_static():
+    """No roughness: friction acts tangentially only, so the normal force stays m g exactly
+    while the block slides back and forth."""
+    r = _run(**{"roughness.kind": "none", "output.duration": 0.02,
+                "plate.max_frequency": 3000.0})
+    ds = _invariants(r)
+    np.testing.assert_allclose(ds["normal_force"].values, 0.221 * GRAVITY, rtol=1e-9)
+    assert np.max(np.abs(ds["block_tangential_velocity"].values)) > 1e-3
+    assert np.max(np.abs(ds["plate_vertical_acceleration"].values)) < 1e-9
+
+
+def _impulse_defect(r, mass, r1):
+    """Vertical momentum balance of the block over the run, relative to m g T. With vertical
+    positive down, m v' = m g - F - r1 v, so integral F dt = m g T - m dv - r1 dz exactly;
+    the integral is taken by trapezoids on the output grid."""
+    ds = r.dataset
+    t = ds["time"].values
+    f = ds["normal_force"].values
+    v = ds["block_vertical_velocity"].values
+    z = ds["block_vertical_displacement"].values
+    T = t[-1] - t[0]
+    impulse = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(t)))
+    expected = mass * GRAVITY * T - mass * (v[-1] - v[0]) - r1 * (z[-1] - z[0])
+    return (impulse - expected) / (mass * GRAVITY * T)
+
+
+def test_very_light_load_over_a_whole_period():
+    """0.01 kg: the contact opens often. Over a whole period the contact impulse equals the
+    weight's impulse minus the block's momentum change and the damper's impulse r1 dz (the
+    mean normal force is m g up to these, 0.4 % here)."""
+    r = _run(**{"block.mass": 0.01, "output.duration": 1 / 7, "output.transient": 0.0,
+                "plate.max_frequency": 3000.0})
+    _invariants(r, max_events=50_000)
+    assert abs(_impulse_defect(r, 0.01, 83.0)) < 1e-4
+    mean, mg = _mean_force_over_periods(r, 0.01, 1)
+    assert mean == pytest.approx(mg, rel=1e-2)
+
+
+def test_heavy_load_tiny_roughness_is_linear():
+    """Heavy block on tiny roughness never lifts off: the response is linear in the roughness,
+    so doubling the rms raises every level by 20 log10(2) = 6.02 dB."""
+    lev = []
+    for rms in (1e-9, 2e-9):
+        r = _run(**{"block.mass": 2.0, "roughness.rms": rms, "excitation.kind": "prescribed",
+                    "excitation.velocity": 0.01, "excitation.amplitude": 0.0,
+                    "excitation.target_rms_velocity": "none", "output.duration": 0.02,
+                    "plate.max_frequency": 5000.0, "solver.atol_acceleration": 1e-12})
+        _invariants(r, max_events=0)
+        lev.append({v: 20 * np.log10(np.std(r.dataset[v].values[500:]))
+                    for v in ("plate_vertical_acceleration", "block_vertical_acceleration")})
+    for v in lev[0]:
+        assert lev[1][v] - lev[0][v] == pytest.approx(20 * math.log10(2), abs=0.02), v
+
+
+def test_stick_only_excitation_never_slips():
+    """Coulomb friction with a drive below mu_stick m g: the block sticks for ever, its
+    tangential velocity is exactly zero and friction balances the drive."""
+    r = _run(**{"friction.law": "coulomb", "excitation.force_amplitude": 0.5,
+                "excitation.target_rms_velocity": "none", "output.duration": 0.05,
+                "plate.max_frequency": 3000.0, "roughness.kind": "none"})
+    ds = _invariants(r)
+    assert np.max(np.abs(ds["block_tangential_velocity"].values)) < 1e-12
+    assert not (r.events["kind"] == "slip").any()
+
+
+@pytest.mark.parametrize("points", [1, 10])
+def test_one_contact_versus_ten(points):
+    """The same total stiffness on 1 or 10 contacts: statics carry m g either way."""
+    r = _run(**{"contact.points": points, "output.duration": 0.01,
+                "plate.max_frequency": 3000.0})
+    ds = _invariants(r)
+    assert ds["contact_force"].values[0].sum() == pytest.approx(0.221 * GRAVITY, rel=1e-9)
+
+
+def test_cubic_and_quintic_interpolation_agree_to_20_khz():
+    """On a profile grid of 2.5 um (20 points per shortest wavelength) the interpolant no
+    longer matters: cubic and quintic agree within 1 dB in every band to 20 kHz (measured
+    0.03 dB). On the default 10 um grid they differ by up to 8.5 dB near the contact resonance
+    and 0.9 dB above 3 kHz (docs/robustness.md), so the grid, not the solver, limits there."""
+    res = {}
+    for interp in ("cubic", "quintic"):
+        res[interp] = _run(**{"roughness.interpolation": interp, "output.duration": 0.02,
+                              "plate.max_frequency": 2e4, "roughness.spacing": 2.5e-6})
+        _invariants(res[interp])
+    for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
+        fc, d = band_level_errors(res["cubic"].dataset[v].values,
+                                  res["quintic"].dataset[v].values, 1e5)
+        assert max_abs_db(fc, d, 200.0, 20e3) < 1.0, v
+
+
+@pytest.mark.slow
+def test_long_run_of_20_periods_does_not_drift():
+    periods = 20
+    r = _run(**{"output.duration": periods / 7, "plate.max_frequency": 2000.0,
+                "output.transient": 0.0})
+    _invariants(r)
+    t = r.dataset["time"].values
+    n = int(round(1 / 7 / (t[1] - t[0])))
+    fn = r.dataset["normal_force"].values
+    x = r.dataset["block_tangential_displacement"].values
+    assert abs(_impulse_defect(r, 0.221, 83.0)) < 1e-5
+    for p in range(periods):
+        assert np.mean(fn[p * n:(p + 1) * n]) == pytest.approx(0.221 * GRAVITY, rel=1e-3), p
+    # the stroke's centre does not wander: the mean position of the last period is that of
+    # the second (the first holds the start transient) within 5 % of the stroke
+    stroke = np.ptp(x[n:2 * n])
+    assert abs(np.mean(x[-n:]) - np.mean(x[n:2 * n])) < 0.05 * stroke
