@@ -270,3 +270,24 @@ def test_long_run_of_20_periods_does_not_drift():
     # the second (the first holds the start transient) within 5 % of the stroke
     stroke = np.ptp(x[n:2 * n])
     assert abs(np.mean(x[-n:]) - np.mean(x[n:2 * n])) < 0.05 * stroke
+
+
+def test_ida_failure_message_names_the_contact_closest_to_switching():
+    """The diagnostic behind an ``ida_error``: the contact whose margin is nearest zero. At the
+    static equilibrium of one contact on a crest its margin is the static force."""
+    from roughvib.model.system import assemble
+    from roughvib.solvers.ida import _IDA_HINTS, _closest_contact
+
+    scene = roughvib.load_scene("paper", {"contact.points": 3, "plate.max_frequency": 3000.0,
+                                          "output.progress": False})
+    system = assemble(scene)
+    reg, rf = system.new_regime_arrays()
+    y0, closed = system.static_equilibrium()
+    from roughvib.model.regimes import initial_regime
+
+    initial_regime(closed, system.fp, True, system.coulomb).pack(reg, rf)
+    text = _closest_contact(0.0, y0, 3, system.event_args(reg, rf))
+    forces = y0[system.layout.slice("contact.force")]
+    k = int(np.argmin(np.abs(forces)))
+    assert f"contact {k} is closest to switching" in text
+    assert all("solver." in h for h in _IDA_HINTS.values())

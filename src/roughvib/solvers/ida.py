@@ -245,6 +245,31 @@ def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     return pattern, perm
 
 
+_IDA_HINTS = {
+    -3: "the error test failed down to the minimum step: a discontinuity the event functions "
+        "do not see, or a grazing contact; try a tighter solver.rtol or a smaller "
+        "solver.max_step, and check the event log's last entries",
+    -4: "Newton failed to converge: the contact or friction regime may be inconsistent with "
+        "the state (look at the last events), or contact.stiffness is extreme; try a smaller "
+        "solver.max_step",
+    0: "tighten solver.rtol, limit solver.max_step, or run the fixed-step 'exact-modal' "
+       "scheme to see whether the scene itself is ill-posed",
+}
+
+
+def _closest_contact(t: float, y: np.ndarray, n_contacts: int, ev_args: tuple) -> str:
+    """'; contact k closest to switching' from the contact margins at the failure."""
+    if n_contacts == 0:
+        return ""
+    buf = np.empty(n_contacts + 3)
+    try:
+        kn.events(t, np.asarray(y, dtype=float), buf, *ev_args)
+    except Exception:  # noqa: BLE001 - diagnostics only, never mask the failure itself
+        return ""
+    k = int(np.argmin(np.abs(buf[:n_contacts])))
+    return f"; contact {k} is closest to switching (margin {buf[k]:.3g})"
+
+
 def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
     """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
     if scene_to_toml(system.scene) != cp.scene_toml:
@@ -505,9 +530,12 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     k += 1
                 continue
             if r.status < 0:
+                # r.y keeps IDA's last accepted state (shared/ida-notes.md §4.4)
+                near = _closest_contact(grid[k - 1], r.y, K, ev_args)
                 raise SolverFailure(
                     "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "
-                    f"{r.message} (regime {regime.describe()})", grid[k - 1])
+                    f"{r.message} (regime {regime.describe()}{near}). "
+                    f"Hint: {_IDA_HINTS.get(r.status, _IDA_HINTS[0])}", grid[k - 1])
             yk = r.y
             kn.outputs(grid[k], yk, outs[k], *args)
             if vx_i >= 0 and not system.coulomb:
