@@ -568,6 +568,11 @@ class Solver:
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
     max_step : float
         Largest internal step [s]; 0 means unbounded.
+    linear_solver : {"sparse", "gmres"}
+        IDA's linear solver for the Newton systems. ``sparse``: SuperLU_MT on the analytic
+        arrow-shaped CSC Jacobian. ``gmres``: matrix-free GMRES (Krylov dimension 1) with the
+        exact block-elimination preconditioner and analytic Jacobian-vector products of
+        :mod:`roughvib.model.krylov` (docs/performance.md compares both).
     max_events : int
         Event-storm guard: at most this many events within ``event_window``.
     event_window : float
@@ -581,6 +586,7 @@ class Solver:
     atol_acceleration: float = 1e-8
     max_order: int = 2
     max_step: float = 0.0
+    linear_solver: str = "sparse"
     max_events: int = 500
     event_window: float = 1e-3
 
@@ -596,6 +602,8 @@ class Solver:
              _positive(f"{p}.atol_acceleration", self.atol_acceleration, "m/s^2"))
         _set(self, "max_order", _integer(f"{p}.max_order", self.max_order, 1, 5))
         _set(self, "max_step", _nonneg(f"{p}.max_step", self.max_step, "s"))
+        _set(self, "linear_solver", _choice(f"{p}.linear_solver", self.linear_solver,
+                                            ("sparse", "gmres")))
         _set(self, "max_events", _integer(f"{p}.max_events", self.max_events, 1))
         _set(self, "event_window", _positive(f"{p}.event_window", self.event_window, "s"))
 

@@ -35,6 +35,8 @@ import scipy.sparse as sp
 import sksundae as sun
 
 from roughvib.model import kernels as kn
+from roughvib.model import krylov
+from roughvib.model.krylov import krylov_workspace
 from roughvib.model.regimes import initial_regime, switch
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
@@ -203,6 +205,10 @@ class _IdaCounters:
     def nonlinear_conv_failures(self) -> int | None:
         return self._get("IDAGetNumNonlinSolvConvFails") if self.ok else None
 
+    def count(self, name: str) -> int | None:
+        """Any ``IDAGetNum*`` counter by its C name (None when unavailable)."""
+        return self._get(name) if self.ok else None
+
 
 def _atol_vector(system: System) -> np.ndarray:
     """Per-component absolute tolerances scaled from solver.atol (a displacement, m)."""
@@ -268,6 +274,30 @@ def _closest_contact(t: float, y: np.ndarray, n_contacts: int, ev_args: tuple) -
         return ""
     k = int(np.argmin(np.abs(buf[:n_contacts])))
     return f"; contact {k} is closest to switching (margin {buf[k]:.3g})"
+
+
+def _krylov_options(system: System, args: tuple) -> dict:
+    """IDA options of the matrix-free path: GMRES(1) + exact preconditioner + analytic Jv.
+
+    Both callbacks evaluate the Newton matrix at IDA's current iterate, so the preconditioned
+    system is the identity and one Krylov iteration solves it (ida-notes §3).
+    """
+    (off, fpa, omega2, cdamp, phi, _phi_obs, stiff, cres, spos, prof, reg, _rf, work) = args
+    ws = krylov_workspace(system.layout.size, system.n_modes, system.n_contacts)
+    pwork = np.zeros_like(work)  # keeps the factorised iterate's compressions between calls
+    jac_vec = krylov.jac_vec
+    precond_solve = krylov.precond_solve
+
+    def psolve(t, yy, yyp, res, rv, zv, cj, delta):
+        precond_solve(t, yy, cj, rv, zv, off, fpa, omega2, cdamp, phi, stiff, cres, spos, prof,
+                      reg, pwork, *ws)
+
+    def jv(t, yy, yyp, res, v, out, cj):
+        jac_vec(t, yy, cj, v, out, off, fpa, omega2, cdamp, phi, stiff, cres, spos, prof, reg,
+                work)
+
+    return dict(linsolver="gmres", krylov_dim=1, precond=sun.ida.IDAPrecond(None, psolve),
+                jactimes=sun.ida.IDAJacTimes(None, jv))
 
 
 def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
@@ -373,10 +403,13 @@ def solve_ida(system: System, *, progress: bool | None = None,
 
     options = dict(
         rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
-        linsolver="sparse", sparsity=pattern, jacfn=jacfn, eventsfn=eventsfn,
-        num_events=n_ev, max_num_steps=1_000_000, max_step=scfg.max_step,
+        eventsfn=eventsfn, num_events=n_ev, max_num_steps=1_000_000, max_step=scfg.max_step,
         max_order=scfg.max_order,
     )
+    if scfg.linear_solver == "gmres":
+        options.update(_krylov_options(system, args))
+    else:
+        options.update(linsolver="sparse", sparsity=pattern, jacfn=jacfn)
     with warnings.catch_warnings():
         # sksundae warns that its own sparse FD Jacobian is unused: we pass an analytic one
         warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
@@ -434,6 +467,11 @@ def solve_ida(system: System, *, progress: bool | None = None,
             stats["steps"] += s
             stats["error_test_failures"] += counters.error_test_failures() or 0
             stats["nonlinear_convergence_failures"] += counters.nonlinear_conv_failures() or 0
+            stats["nonlinear_iterations"] += counters.count("IDAGetNumNonlinSolvIters") or 0
+            if scfg.linear_solver == "gmres":
+                stats["linear_iterations"] += counters.count("IDAGetNumLinIters") or 0
+                stats["linear_convergence_failures"] += \
+                    counters.count("IDAGetNumLinConvFails") or 0
 
     def write_cp(k_next: int, t_cp: float, y_cp: np.ndarray) -> None:
         st = dict(stats)
