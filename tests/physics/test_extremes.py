@@ -15,6 +15,7 @@ import pytest
 
 import roughvib
 from roughvib.analysis.compare import band_level_errors, max_abs_db
+from roughvib.analysis.spectra import band_powers, third_octave_bands
 from roughvib.api import simulate
 from roughvib.model.system import GRAVITY
 
@@ -66,18 +67,29 @@ def test_very_stiff_contact(stiffness):
 
 def test_tiny_damping_keeps_the_energy_balance():
     """Loss factor 1e-5 and no dampers: almost nothing dissipates vertically, so the energy
-    stored in the plate and block must match the work of the roughness input."""
-    r = _run(**{"plate.loss_factor": 1e-5, "block.vertical_damping": 0.0,
-                "block.tangential_damping": 0.0, "output.duration": 0.01,
-                "plate.max_frequency": 5000.0})
+    stored in the plate and block must match the work of the roughness input. Band levels
+    converge with the tolerance: against rtol 1e-10, rtol 1e-8 is within 0.2 dB in every band
+    200 Hz - 5 kHz, and the default rtol keeps the promise of docs/theory.md (bands above
+    30 dB re 1e-6 m/s^2 within 1 dB; the quiet 4-5 kHz bands, 40-50 dB below the peak, read up
+    to 2.3 dB low at rtol 1e-6, which a rectangular window's leakage used to hide)."""
+    base = {"plate.loss_factor": 1e-5, "block.vertical_damping": 0.0,
+            "block.tangential_damping": 0.0, "output.duration": 0.01,
+            "plate.max_frequency": 5000.0}
+    r = _run(**base)
     _invariants(r)
-    tight = _run(**{"plate.loss_factor": 1e-5, "block.vertical_damping": 0.0,
-                    "block.tangential_damping": 0.0, "output.duration": 0.01,
-                    "plate.max_frequency": 5000.0, "solver.rtol": 1e-8,
-                    "solver.atol_acceleration": 1e-10})
+    tight = _run(**base, **{"solver.rtol": 1e-8, "solver.atol_acceleration": 1e-10})
+    ref = _run(**base, **{"solver.rtol": 1e-10, "solver.atol_acceleration": 1e-12})
+    fc, lo, hi = third_octave_bands(100.0, 50e3)
+    keep = hi <= 5e4 * (1 + 1e-12)
     for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
-        fc, d = band_level_errors(r.dataset[v].values, tight.dataset[v].values, 1e5)
-        assert max_abs_db(fc, d, 200.0, 5000.0) < 1.0, v
+        x_ref = ref.dataset[v].values
+        fc_, d_tight = band_level_errors(tight.dataset[v].values, x_ref, 1e5)
+        assert max_abs_db(fc_, d_tight, 200.0, 5000.0) < 0.2, v
+        _, d = band_level_errors(r.dataset[v].values, x_ref, 1e5)
+        level = 10 * np.log10(band_powers(x_ref, 1e5, lo[keep], hi[keep], window="hann")
+                              / 1e-12 + 1e-300)
+        loud = (fc_ >= 200.0) & (fc_ <= 5000.0) & (level > 30.0)
+        assert loud.sum() >= 3 and np.nanmax(np.abs(d[loud])) < 1.0, v
 
 
 @pytest.mark.slow
@@ -239,18 +251,24 @@ def test_one_contact_versus_ten(points):
 
 def test_cubic_and_quintic_interpolation_agree_to_20_khz():
     """On a profile grid of 2.5 um (20 points per shortest wavelength) the interpolant no
-    longer matters: cubic and quintic agree within 1 dB in every band to 20 kHz (measured
-    0.03 dB). On the default 10 um grid they differ by up to 8.5 dB near the contact resonance
-    and 0.9 dB above 3 kHz (docs/robustness.md), so the grid, not the solver, limits there."""
+    longer matters where the spectrum lives: solved tightly (rtol 1e-8, the solver error then
+    stays below 0.3 dB to 6 kHz), cubic and quintic agree within 0.5 dB in every band above
+    20 dB re 1e-6 m/s^2 (within 50 dB of the peak; measured 0.3 dB). Far below that the cubic
+    spline's jumps in the third derivative excite the node-passing frequency v / dx (about
+    4 kHz here): block bands 80-140 dB below the peak read 6-15 dB higher than with quintic
+    (docs/robustness.md). On the default 10 um grid they differ by up to 8.5 dB near the
+    contact resonance."""
     res = {}
     for interp in ("cubic", "quintic"):
         res[interp] = _run(**{"roughness.interpolation": interp, "output.duration": 0.02,
-                              "plate.max_frequency": 2e4, "roughness.spacing": 2.5e-6})
+                              "plate.max_frequency": 2e4, "roughness.spacing": 2.5e-6,
+                              "solver.rtol": 1e-8, "solver.atol_acceleration": 1e-10})
         _invariants(res[interp])
     for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
         fc, d = band_level_errors(res["cubic"].dataset[v].values,
-                                  res["quintic"].dataset[v].values, 1e5)
-        assert max_abs_db(fc, d, 200.0, 20e3) < 1.0, v
+                                  res["quintic"].dataset[v].values, 1e5, floor_db=20.0)
+        assert np.isfinite(d).sum() >= 4, v
+        assert max_abs_db(fc, d, 200.0, 20e3) < 0.5, v
 
 
 @pytest.mark.slow

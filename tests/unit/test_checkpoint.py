@@ -45,12 +45,15 @@ def test_resume_from_the_last_checkpoint_gives_identical_results(tmp_path):
     _assert_identical(a, b)
     # the checkpoint restarts IDA, so the run differs from one without checkpoints, but only
     # within the solver tolerance (rtol 1e-6): compared as design.md asks, by velocity and
-    # band levels rather than pointwise lightly damped plate modes
+    # band levels rather than pointwise lightly damped plate modes, over the bands the default
+    # tolerance resolves (above 30 dB re 1e-6 m/s^2, docs/theory.md; the 4 kHz plate band,
+    # 60 dB below the peak, is 1.5-2 dB off a tight reference in both runs)
     c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
     v = "block_tangential_velocity"
     assert relative_rms_error(a.dataset[v].values, c.dataset[v].values) < 1e-5
     for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
-        fc, d = band_level_errors(a.dataset[v].values, c.dataset[v].values, 1e5)
+        fc, d = band_level_errors(a.dataset[v].values, c.dataset[v].values, 1e5, floor_db=30.0)
+        assert np.isfinite(d).sum() >= 8, v
         assert max_abs_db(fc, d, 100.0, 5000.0) < 0.3, v
 
 
