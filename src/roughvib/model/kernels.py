@@ -76,6 +76,27 @@ N_OUT_FIXED = len(OUT_NAMES)
 
 
 @njit(cache=True)
+def prescribed_motion(t, fp):
+    """Prescribed tangential motion x(t) = v t + A sin(w t) and its velocity ([m], [m/s])."""
+    w = fp[FP_PW]
+    return fp[FP_PV] * t + fp[FP_PA] * math.sin(w * t), fp[FP_PV] + fp[FP_PA] * w * math.cos(w * t)
+
+
+@njit(cache=True)
+def block_parameters(fp):
+    """The block and Feldmann-law scalars the fixed-step loops use, unpacked once.
+
+    Returns
+    -------
+    m, g, r1, r2, mu_slip, mu_stick, a1, a2, v_h, eps, v_stick : float
+        Mass [kg], gravity [m/s^2], dampers [N s/m], friction coefficients [-], law
+        parameters a1, a2 [s/m], hysteresis, latch and stick velocities [m/s].
+    """
+    return (fp[FP_MASS], fp[FP_GRAV], fp[FP_R1], fp[FP_R2], fp[FP_MU_SLIP], fp[FP_MU_STICK],
+            fp[FP_A1], fp[FP_A2], fp[FP_VH], fp[FP_EPS], fp[FP_VSTICK])
+
+
+@njit(cache=True)
 def tangential_kinematics(t, y, off, fp):
     """Tangential block position and velocity: states, or the prescribed motion.
 
@@ -87,8 +108,7 @@ def tangential_kinematics(t, y, off, fp):
     ix = off[4]
     if ix >= 0:
         return y[ix], y[off[5]]
-    w = fp[FP_PW]
-    return fp[FP_PV] * t + fp[FP_PA] * math.sin(w * t), fp[FP_PV] + fp[FP_PA] * w * math.cos(w * t)
+    return prescribed_motion(t, fp)
 
 
 @njit(cache=True)

@@ -185,15 +185,8 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     """
     R = Phi.shape[0]
     K = stiff.size
-    m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
-    g = fp[kn.FP_GRAV]
-    r1 = fp[kn.FP_R1]
-    r2 = fp[kn.FP_R2]
-    mu_sl, mu_st, a1, a2 = fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2]
-    vh = fp[kn.FP_VH]
-    eps = fp[kn.FP_EPS]
-    vst = fp[kn.FP_VSTICK]
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     # G1 in contact coordinates: G1c_kj = sum_r phi_rk phi_rj G1_r[0] / M + C_res
     G1c = cres.copy()
     for r in range(R):
@@ -301,9 +294,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
                 return n_ev, 1, n
             x1 = x0 + 0.5 * h * (v0 + v1)
         else:
-            w_ = fp[kn.FP_PW]
-            x1 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
-            v1 = fp[kn.FP_PV] + fp[kn.FP_PA] * w_ * math.cos(w_ * t1)
+            x1, v1 = kn.prescribed_motion(t1, fp)
         # ---- modal free response and plate displacement at the contacts ----------------
         for k in range(K):
             wfree[k] = 0.0

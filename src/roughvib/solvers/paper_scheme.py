@@ -72,14 +72,7 @@ def impulse_responses(phi, phi_obs, omega, zeta, M, h, n):
 def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangential, zv, tang, Fv,
                Fhist, out, ev_t, ev_kind, ev_contact):
     K = stiff.size
-    m = fp[kn.FP_MASS]
-    g = fp[kn.FP_GRAV]
-    r1 = fp[kn.FP_R1]
-    r2 = fp[kn.FP_R2]
-    mu_sl, mu_st, a1, a2 = fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2]
-    vh = fp[kn.FP_VH]
-    eps = fp[kn.FP_EPS]
-    vst = fp[kn.FP_VSTICK]
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     w = np.empty(K)
     d = np.empty(K)
     dh = np.empty(K)
@@ -105,8 +98,7 @@ def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangentia
         # Newton-Raphson on (z1, vz1, x1, vx1), Heaviside inside the iteration
         z0, vz0, x0, vx0 = zv[0], zv[1], tang[0], tang[1]
         if not tangential:  # prescribed motion: x1 is known
-            w_ = fp[kn.FP_PW]
-            x0 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
+            x0, _ = kn.prescribed_motion(t1, fp)
         z1, vz1, x1, vx1 = z0, vz0, x0, vx0
         s_l = tang[2]
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
@@ -157,9 +149,7 @@ def _run_paper(h, n_steps, out_every, G, Ga, D, stiff, spos, prof, fp, tangentia
         if not ok:
             return n_ev, 1, n
         if not tangential:
-            w_ = fp[kn.FP_PW]
-            x1 = fp[kn.FP_PV] * t1 + fp[kn.FP_PA] * math.sin(w_ * t1)
-            vx1 = fp[kn.FP_PV] + fp[kn.FP_PA] * w_ * math.cos(w_ * t1)
+            x1, vx1 = kn.prescribed_motion(t1, fp)
         S = 0.0
         for k in range(K):
             hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
