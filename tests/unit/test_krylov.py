@@ -1,14 +1,11 @@
 """Krylov path: the block-elimination preconditioner is the exact inverse of the analytic
 Jacobian, and the matrix-free J v equals it, in every regime (model/krylov.py)."""
 
-import os
-import subprocess
-import sys
-import textwrap
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from kernel_scene import SMALL_SCENE
 
 import roughvib
 from roughvib.model import kernels as kn
@@ -28,10 +25,7 @@ CASES = [
 
 
 def _scene(**kw):
-    over = {"plate.max_frequency": 3e3, "output.duration": 0.01,
-            "excitation.force_amplitude": 0.9, "excitation.target_rms_velocity": "none"}
-    over.update(kw)
-    return roughvib.load_scene("paper", over)
+    return roughvib.load_scene("paper", {**SMALL_SCENE, **kw})
 
 
 def _states(system, trial, rng):
@@ -131,7 +125,7 @@ def test_preconditioner_caches_by_cj_and_iterate():
         np.testing.assert_array_equal(cached, fresh)
 
 
-def test_krylov_kernels_without_jit_match_compiled(tmp_path):
+def test_krylov_kernels_without_jit_match_compiled(run_without_jit):
     system = assemble(_scene())
     rng = np.random.default_rng(2)
     y, reg, _ = _states(system, 2, rng)
@@ -140,18 +134,8 @@ def test_krylov_kernels_without_jit_match_compiled(tmp_path):
     ws = krylov.krylov_workspace(n, system.n_modes, system.n_contacts)
     z = _psolve(system, 0.002, y, 2e4, reg, v, ws, np.zeros_like(system.work))
     jv = _jv(system, 0.002, y, 2e4, reg, v)
-    for name, arr in (("y", y), ("v", v), ("reg", reg)):
-        np.save(tmp_path / f"{name}.npy", arr)
-    code = textwrap.dedent(f"""
-        import numpy as np, numba, roughvib
-        from roughvib.model import krylov
-        from roughvib.model.system import assemble
-        assert numba.config.DISABLE_JIT
-        s = assemble(roughvib.load_scene("paper", {{"plate.max_frequency": 3e3,
-            "output.duration": 0.01, "excitation.force_amplitude": 0.9,
-            "excitation.target_rms_velocity": "none"}}))
-        y = np.load(r"{tmp_path / 'y.npy'}"); v = np.load(r"{tmp_path / 'v.npy'}")
-        reg = np.load(r"{tmp_path / 'reg.npy'}")
+    plain = run_without_jit("""
+        y, v, reg = inp["y"], inp["v"], inp["reg"]
         ws = krylov.krylov_workspace(y.size, s.n_modes, s.n_contacts)
         z = np.empty_like(v); jv = np.empty_like(v)
         krylov.precond_solve(0.002, y, 2e4, v, z, s.off, s.fp, s.omega2, s.cdamp, s.phi,
@@ -159,9 +143,7 @@ def test_krylov_kernels_without_jit_match_compiled(tmp_path):
                              np.zeros_like(s.work), *ws)
         krylov.jac_vec(0.002, y, 2e4, v, jv, s.off, s.fp, s.omega2, s.cdamp, s.phi, s.stiff,
                        s.cres, s.contact_s, s.prof, reg, np.zeros_like(s.work))
-        np.save(r"{tmp_path / 'z.npy'}", z); np.save(r"{tmp_path / 'jv.npy'}", jv)
-    """)
-    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300)
-    np.testing.assert_allclose(np.load(tmp_path / "z.npy"), z, rtol=1e-12, atol=1e-300)
-    np.testing.assert_allclose(np.load(tmp_path / "jv.npy"), jv, rtol=1e-12, atol=1e-300)
+        out.update(z=z, jv=jv)
+    """, y=y, v=v, reg=reg)
+    np.testing.assert_allclose(plain["z"], z, rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(plain["jv"], jv, rtol=1e-12, atol=1e-300)

@@ -1,13 +1,10 @@
 """Kernels of the hybrid DAE: analytic Jacobian vs finite differences, plain-Python parity."""
 
-import os
-import subprocess
-import sys
-import textwrap
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from kernel_scene import SMALL_SCENE
 
 import roughvib
 from roughvib.model import kernels as kn
@@ -17,10 +14,7 @@ from roughvib.solvers.ida import _sparsity
 
 
 def _small_scene(**kw):
-    over = {"plate.max_frequency": 3e3, "output.duration": 0.01,
-            "excitation.force_amplitude": 0.9, "excitation.target_rms_velocity": "none"}
-    over.update(kw)
-    return roughvib.load_scene("paper", over)
+    return roughvib.load_scene("paper", {**SMALL_SCENE, **kw})
 
 
 def _fd_jacobian(system, t, y, yp, cj, reg, rf):
@@ -111,7 +105,7 @@ def test_static_equilibrium_carries_the_weight():
     assert abs(yp[system.layout.index("block.vz")]) < 1e-12
 
 
-def test_kernels_without_jit_match_compiled(tmp_path):
+def test_kernels_without_jit_match_compiled(run_without_jit):
     """The residual computed with NUMBA_DISABLE_JIT=1 equals the compiled one."""
     system = assemble(_small_scene())
     y, closed = system.static_equilibrium()
@@ -123,25 +117,10 @@ def test_kernels_without_jit_match_compiled(tmp_path):
     res = np.empty_like(y)
     yp = np.linspace(-1e-3, 1e-3, y.size)
     kn.residual(0.002, y, yp, res, *system.kernel_args(reg, rf))
-    np.save(tmp_path / "y.npy", y)
-    np.save(tmp_path / "yp.npy", yp)
-    np.save(tmp_path / "reg.npy", reg)
-    code = textwrap.dedent(f"""
-        import numpy as np, roughvib
-        from roughvib.model import kernels as kn
-        from roughvib.model.system import assemble
-        import numba
-        assert numba.config.DISABLE_JIT
-        system = assemble(roughvib.load_scene("paper", {{"plate.max_frequency": 3e3,
-            "output.duration": 0.01, "excitation.force_amplitude": 0.9,
-            "excitation.target_rms_velocity": "none"}}))
-        y = np.load(r"{tmp_path / 'y.npy'}"); yp = np.load(r"{tmp_path / 'yp.npy'}")
-        reg = np.load(r"{tmp_path / 'reg.npy'}"); rf = np.zeros(1)
+    plain = run_without_jit("""
+        y, yp = inp["y"], inp["yp"]
         res = np.empty_like(y)
-        kn.residual(0.002, y, yp, res, *system.kernel_args(reg, rf))
-        np.save(r"{tmp_path / 'res.npy'}", res)
-    """)
-    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300)
-    plain = np.load(tmp_path / "res.npy")
-    np.testing.assert_allclose(plain, res, rtol=1e-12, atol=1e-18)
+        kn.residual(0.002, y, yp, res, *s.kernel_args(inp["reg"], np.zeros(1)))
+        out["res"] = res
+    """, y=y, yp=yp, reg=reg)
+    np.testing.assert_allclose(plain["res"], res, rtol=1e-12, atol=1e-18)
