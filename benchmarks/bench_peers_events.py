@@ -43,12 +43,12 @@ reference. The ratios to IDA are printed with a JSON record.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import platform
 import sys
 import time
-import types
 import warnings
 from pathlib import Path
 
@@ -153,11 +153,21 @@ class ScipyEvents:
         self._fill_args = (self.diff, self.ainv, self.full, off, fp, phi, cres, spos, prof,
                            work)
         # compile both kernels now (not inside a timed run)
-        y0, closed = s.static_equilibrium()
-        initial_regime(closed, s.fp, s.tangential, s.coulomb).pack(self.reg, self.rf)
-        self._factor()
+        _, y0 = self._reset()
         self.rhs(0.0, y0[self.diff])
         self.nfev = 0
+
+    def _reset(self):
+        """Back to the start: the initial regime packed and factored, the static equilibrium.
+
+        Returns (regime, y0).
+        """
+        s = self.system
+        y0, closed = s.static_equilibrium()
+        regime = initial_regime(closed, s.fp, s.tangential, s.coulomb)
+        regime.pack(self.reg, self.rf)
+        self._factor()
+        return regime, y0
 
     def _factor(self) -> None:
         """Inverse of the closed-set contact matrix (zero rows/columns for open contacts)."""
@@ -187,17 +197,11 @@ class ScipyEvents:
         """The absolute tolerances IDA's ladder uses at this rtol (differential states)."""
         sc = self.scene.with_overrides({"solver.rtol": rtol,
                                         "solver.atol_acceleration": rtol * 1e-2})
-        s = self.system
-        shim = types.SimpleNamespace(scene=sc, layout=s.layout, n_modes=s.n_modes,
-                                     omega2=s.omega2, stiff=s.stiff)
-        return _atol_vector(shim)[self.diff]
+        return _atol_vector(dataclasses.replace(self.system, scene=sc))[self.diff]
 
     def time_rhs(self, n: int = 5000) -> float:
         """Seconds per right-hand side call (through the Python wrapper scipy calls)."""
-        s = self.system
-        y0, closed = s.static_equilibrium()
-        initial_regime(closed, s.fp, s.tangential, s.coulomb).pack(self.reg, self.rf)
-        self._factor()
+        _, y0 = self._reset()
         yd = y0[self.diff].copy()
         self.deadline = math.inf
         t0 = time.perf_counter()
@@ -220,9 +224,7 @@ class ScipyEvents:
         feldmann = vx_i >= 0 and not s.coulomb
         dwell = scene.friction.dwell_time
 
-        y0, closed = s.static_equilibrium()
-        regime = initial_regime(closed, s.fp, s.tangential, s.coulomb)
-        regime.pack(reg, rf)
+        regime, y0 = self._reset()
         y, _ = s.consistent(0.0, y0, reg, rf)
         kn.outputs(0.0, y, outs[0], *self.args)
         events: list[tuple[float, str, int]] = []

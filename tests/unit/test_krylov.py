@@ -1,7 +1,6 @@
 """Krylov path: the block-elimination preconditioner is the exact inverse of the analytic
 Jacobian, and the matrix-free J v equals it, in every regime (model/krylov.py)."""
 
-
 import numpy as np
 import pytest
 import scipy.sparse as sp

@@ -1,6 +1,5 @@
 """Kernels of the hybrid DAE: analytic Jacobian vs finite differences, plain-Python parity."""
 
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
