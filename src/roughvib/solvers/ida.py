@@ -37,10 +37,11 @@ import sksundae as sun
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
-from roughvib.model.regimes import initial_regime, switch
+from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
+from roughvib.solvers.events import EventBook, EventRecord, SolverFailure
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -54,59 +55,6 @@ REFIRE_DT = 1e-12  # s
 # It is capped at the same fraction of the output step: after a free flight (an exact parabola)
 # BDF's last step is huge, and restarting a touch-down with it failed the error test 10 times.
 RESTART_STEP_FRACTION = 0.01
-
-
-class SolverFailure(RuntimeError):
-    """The integration could not continue; ``status`` names the cause."""
-
-    def __init__(self, status: str, message: str, t: float):
-        super().__init__(message)
-        self.status = status
-        self.t = t
-
-
-@dataclass
-class EventRecord:
-    """One entry of the event log (the regime before and after, and the trigger values).
-
-    Attributes
-    ----------
-    time : float [s]
-    kind : str
-        ``lift_off``, ``touch_down``, ``stick``, ``slip``, ``friction_branch``,
-        ``latch_flip`` or ``event_storm``.
-    contact : int
-        Contact index for contact events, -1 for block-level events.
-    regime_before, regime_after : str
-        :meth:`Regime.describe` texts.
-    margin_before, margin_after : float
-        The root function that fired, at the event, evaluated with the regime before (≈ 0,
-        it just crossed) and with the regime after the switch (the new regime's margin for
-        the same root: for contacts the compression in m with the sign of that regime, for
-        friction the velocity [m/s], force margin [N] or phase margin [m^2/s^2]).
-    tangential_velocity : float [m/s]
-        After the switch.
-    normal_force : float [N]
-        Sum of contact forces after the switch.
-    contact_force : float [N]
-        Force of the event's contact after the switch (NaN for block-level events).
-    friction_before, friction_after : float [N]
-        Friction force on the block just before and just after the switch (left and right
-        limits: it jumps at Coulomb stick/slip transitions).
-    """
-
-    time: float
-    kind: str
-    contact: int
-    regime_before: str
-    regime_after: str
-    margin_before: float
-    margin_after: float
-    tangential_velocity: float
-    normal_force: float
-    contact_force: float
-    friction_before: float
-    friction_after: float
 
 
 @dataclass
@@ -448,7 +396,6 @@ def solve_ida(system: System, *, progress: bool | None = None,
 
     if resume is None:
         kn.outputs(0.0, y, outs[0], *args)
-    outbuf = np.empty(n_out)
     bar = tqdm(total=float(out_cfg.duration), initial=t_start, unit="s", unit_scale=False,
                disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
                leave=False,
@@ -456,7 +403,6 @@ def solve_ida(system: System, *, progress: bool | None = None,
     bar_next = k_start
     bar_stride = max(1, n // 200)
     vx_i = lay.index("block.vx")
-    dwell = scene.friction.dwell_time
     first_result = True
 
     def close_segment(r) -> None:
@@ -488,6 +434,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
             force_amplitude=float(system.force_amplitude),
             base_dir=str(Path(scene.base_dir).resolve())))
 
+    book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
     k = k_start
     r = None
     try:
@@ -511,52 +458,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     refire_ignored += 1
                     last_fired = set()
                     continue
-                ye = np.array(r.y, dtype=float)
-                before = regime.describe()
-                evbuf = np.empty(n_ev)
-                kn.events(te, ye, evbuf, *ev_args)
-                kn.outputs(te, ye, outbuf, *args)
-                fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
-                kinds = []
-                for idx in sorted(fired):
-                    for tr in switch(regime, idx, te, ye, system.fp, K, vx_i,
-                                     lay.slice("contact.force"), dwell):
-                        kinds.append((tr.kind, tr.contact, idx))
-                        if tr.guard:
-                            stats[f"guard_{tr.guard}"] += 1
-                regime.pack(reg, rf)
                 close_segment(r)
-                y, yp = system.consistent(te, ye, reg, rf)
-                after = regime.describe()
-                evafter = np.empty(n_ev)
-                kn.events(te, y, evafter, *ev_args)
-                kn.outputs(te, y, outbuf, *args)
-                fric_after = float(outbuf[kn.OUT_NAMES.index("friction_force")])
-                fsum = float(outbuf[kn.OUT_NAMES.index("normal_force")])
-                vx = float(outbuf[kn.OUT_NAMES.index("block_tangential_velocity")])
-                for kind, c, idx in kinds:
-                    cf = float(outbuf[kn.N_OUT_FIXED + c]) if c >= 0 else float("nan")
-                    events.append(EventRecord(te, kind, c, before, after, float(evbuf[idx]),
-                                              float(evafter[idx]), vx, fsum, cf, fric_before,
-                                              fric_after))
-                    stats[f"events_{kind}"] += 1
-                    recent.append(te)
-                while recent and recent[0] < te - scfg.event_window:
-                    recent.popleft()
-                if len(recent) > scfg.max_events:
-                    kinds_txt = ", ".join(f"{kd}" + (f" (contact {c})" if c >= 0 else "")
-                                          for kd, c, _ in kinds)
-                    events.append(EventRecord(te, "event_storm", -1, before, after, 0.0, 0.0,
-                                              vx, fsum, float("nan"), fric_before, fric_after))
-                    raise SolverFailure(
-                        "event_storm",
-                        f"event storm: more than {scfg.max_events} events within "
-                        f"{scfg.event_window:g} s at t = {te:.6g} s (last: {kinds_txt}; "
-                        f"regime {after}). Hint: raise solver.max_events or "
-                        f"solver.event_window if the events are physical, or check for "
-                        f"grazing contact (roughness much smaller than the static "
-                        f"compression changes).", te)
-                stats["restarts"] += 1
+                y, yp = book.apply(te, np.asarray(r.y, dtype=float), fired)
                 # first step after the restart: RESTART_STEP_FRACTION of the last step
                 h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
                 cy.init_step(te, y, yp)

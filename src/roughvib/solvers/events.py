@@ -1,0 +1,160 @@
+"""What happens at a root, for every event-driven solver: switch, log, guard, consistent restart.
+
+The solvers own *when* a root fires (IDA's root finding, or the adaptive exact-modal scheme's
+own search); :class:`EventBook` owns what follows, so that both produce the same event log:
+the regime is switched by :func:`roughvib.model.regimes.switch`, the state made consistent by
+:meth:`System.consistent`, both limits of the margins and of the friction force are logged,
+and the event-storm guard (``solver.max_events`` within ``solver.event_window``) stops the run.
+"""
+
+from __future__ import annotations
+
+import collections
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from roughvib.model import kernels as kn
+from roughvib.model.regimes import Regime, switch
+from roughvib.model.system import System
+
+__all__ = ["EventBook", "EventRecord", "SolverFailure"]
+
+
+class SolverFailure(RuntimeError):
+    """The integration could not continue; ``status`` names the cause."""
+
+    def __init__(self, status: str, message: str, t: float):
+        super().__init__(message)
+        self.status = status
+        self.t = t
+
+
+@dataclass
+class EventRecord:
+    """One entry of the event log (the regime before and after, and the trigger values).
+
+    Attributes
+    ----------
+    time : float [s]
+    kind : str
+        ``lift_off``, ``touch_down``, ``stick``, ``slip``, ``friction_branch``,
+        ``latch_flip`` or ``event_storm``.
+    contact : int
+        Contact index for contact events, -1 for block-level events.
+    regime_before, regime_after : str
+        :meth:`Regime.describe` texts.
+    margin_before, margin_after : float
+        The root function that fired, at the event, evaluated with the regime before (≈ 0,
+        it just crossed) and with the regime after the switch (the new regime's margin for
+        the same root: for contacts the compression in m with the sign of that regime, for
+        friction the velocity [m/s], force margin [N] or phase margin [m^2/s^2]).
+    tangential_velocity : float [m/s]
+        After the switch.
+    normal_force : float [N]
+        Sum of contact forces after the switch.
+    contact_force : float [N]
+        Force of the event's contact after the switch (NaN for block-level events).
+    friction_before, friction_after : float [N]
+        Friction force on the block just before and just after the switch (left and right
+        limits: it jumps at Coulomb stick/slip transitions).
+    """
+
+    time: float
+    kind: str
+    contact: int
+    regime_before: str
+    regime_after: str
+    margin_before: float
+    margin_after: float
+    tangential_velocity: float
+    normal_force: float
+    contact_force: float
+    friction_before: float
+    friction_after: float
+
+
+@dataclass
+class EventBook:
+    """The regime of a run and the log of its switches.
+
+    Parameters
+    ----------
+    system : System
+    regime : Regime
+        Switched in place; ``reg``/``rf`` (the kernels' view of it) are repacked after every
+        switch.
+    reg, rf : ndarray
+        From :meth:`System.new_regime_arrays`.
+    """
+
+    system: System
+    regime: Regime
+    reg: np.ndarray
+    rf: np.ndarray
+    events: list[EventRecord] = field(default_factory=list)
+    recent: collections.deque = field(default_factory=collections.deque)
+    stats: collections.Counter = field(default_factory=collections.Counter)
+
+    def apply(self, te: float, ye: np.ndarray, fired: set[int]
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Switch the regime for the roots ``fired`` at time ``te`` and state ``ye``.
+
+        Returns the consistent (y, yp) of the new regime to restart from. Raises
+        :class:`SolverFailure` (status ``event_storm``) when the storm guard trips; the
+        storm is the last entry of the log then.
+        """
+        system, regime, reg, rf = self.system, self.regime, self.reg, self.rf
+        scfg = system.scene.solver
+        lay = system.layout
+        K = system.n_contacts
+        args = system.kernel_args(reg, rf)
+        ev_args = system.event_args(reg, rf)
+        ye = np.array(ye, dtype=float)
+        n_ev = K + 3
+        outbuf = np.empty(kn.N_OUT_FIXED + 2 * K)
+        before = regime.describe()
+        evbuf = np.empty(n_ev)
+        kn.events(te, ye, evbuf, *ev_args)
+        kn.outputs(te, ye, outbuf, *args)
+        fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+        kinds = []
+        for idx in sorted(fired):
+            for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
+                             lay.slice("contact.force"), system.scene.friction.dwell_time):
+                kinds.append((tr.kind, tr.contact, idx))
+                if tr.guard:
+                    self.stats[f"guard_{tr.guard}"] += 1
+        regime.pack(reg, rf)
+        y, yp = system.consistent(te, ye, reg, rf)
+        after = regime.describe()
+        evafter = np.empty(n_ev)
+        kn.events(te, y, evafter, *ev_args)
+        kn.outputs(te, y, outbuf, *args)
+        fric_after = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+        fsum = float(outbuf[kn.OUT_NAMES.index("normal_force")])
+        vx = float(outbuf[kn.OUT_NAMES.index("block_tangential_velocity")])
+        for kind, c, idx in kinds:
+            cf = float(outbuf[kn.N_OUT_FIXED + c]) if c >= 0 else float("nan")
+            self.events.append(EventRecord(te, kind, c, before, after, float(evbuf[idx]),
+                                           float(evafter[idx]), vx, fsum, cf, fric_before,
+                                           fric_after))
+            self.stats[f"events_{kind}"] += 1
+            self.recent.append(te)
+        while self.recent and self.recent[0] < te - scfg.event_window:
+            self.recent.popleft()
+        if len(self.recent) > scfg.max_events:
+            kinds_txt = ", ".join(f"{kd}" + (f" (contact {c})" if c >= 0 else "")
+                                  for kd, c, _ in kinds)
+            self.events.append(EventRecord(te, "event_storm", -1, before, after, 0.0, 0.0, vx,
+                                           fsum, float("nan"), fric_before, fric_after))
+            raise SolverFailure(
+                "event_storm",
+                f"event storm: more than {scfg.max_events} events within "
+                f"{scfg.event_window:g} s at t = {te:.6g} s (last: {kinds_txt}; "
+                f"regime {after}). Hint: raise solver.max_events or "
+                f"solver.event_window if the events are physical, or check for "
+                f"grazing contact (roughness much smaller than the static "
+                f"compression changes).", te)
+        self.stats["restarts"] += 1
+        return y, yp
