@@ -197,6 +197,10 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     if scene.solver.method == "ida":
         raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
                         resume=_resume_from)
+    elif scene.solver.method == "adaptive-modal":
+        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
+
+        raw = solve_adaptive_modal(system, progress=progress)
     elif scene.solver.method == "paper":
         from roughvib.solvers.paper_scheme import solve_paper_scheme
 

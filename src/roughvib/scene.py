@@ -543,8 +543,11 @@ class Solver:
 
     Attributes
     ----------
-    method : {"ida", "exact-modal", "newmark", "paper", "moreau"}
-        ``ida``: event-driven adaptive DAE solver (the reference). Fixed-step baselines
+    method : {"ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau"}
+        ``ida``: event-driven adaptive DAE solver (the reference). ``adaptive-modal``: exact
+        per-mode propagation with error-controlled dyadic steps (step doubling, IDA's
+        tolerances) and located events (the fast reference; Feldmann law or prescribed
+        motion). Fixed-step baselines
         (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
         piecewise-linear force and an implicit contact/block step (physics.md §2.5);
         ``newmark`` average-acceleration Newmark on the modal model; ``paper`` the paper's
@@ -593,8 +596,8 @@ class Solver:
     def __post_init__(self) -> None:
         p = "solver"
         _set(self, "method", _choice(f"{p}.method", self.method,
-                                     ("ida", "exact-modal", "newmark", "paper",
-                                      "moreau")))
+                                     ("ida", "adaptive-modal", "exact-modal", "newmark",
+                                      "paper", "moreau")))
         _set(self, "step", _positive(f"{p}.step", self.step, "s"))
         _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
         _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))

@@ -1,7 +1,8 @@
-"""End-to-end physics of the event-driven IDA solver against closed forms and conservation.
+"""End-to-end physics of the event-driven solvers against closed forms and conservation.
 
 Every reference here is independent of the time integration: statics, free flight under
 gravity, the frequency-domain steady state of the linear(ised) model, energy conservation.
+The closed-form cases run for both event-driven solvers, IDA and adaptive-modal.
 """
 
 import math
@@ -14,6 +15,7 @@ from roughvib.api import simulate
 from roughvib.model.system import GRAVITY
 
 G = GRAVITY
+EVENT_DRIVEN = ["ida", "adaptive-modal"]
 
 
 def _run(name="paper", **over):
@@ -29,8 +31,10 @@ def _fit_harmonic(t, x, omega):
     return c[0] - 1j * c[1]
 
 
-def test_zero_roughness_zero_drive_stays_static_to_round_off():
-    r = _run(**{"roughness.kind": "none", "excitation.force_amplitude": 0.0,
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_zero_roughness_zero_drive_stays_static_to_round_off(method):
+    r = _run(**{"solver.method": method, "roughness.kind": "none",
+                "excitation.force_amplitude": 0.0,
                 "excitation.target_rms_velocity": "none", "friction.hysteresis_velocity": 0.0,
                 "output.duration": 0.01, "plate.max_frequency": 5e3})
     assert r.ok, r.summary["message"]
@@ -44,10 +48,11 @@ def test_zero_roughness_zero_drive_stays_static_to_round_off():
     assert len(r.events) == 0
 
 
-@pytest.fixture(scope="module")
-def bouncing():
+@pytest.fixture(scope="module", params=EVENT_DRIVEN)
+def bouncing(request):
     """Rigid plate, one contact on a sinusoid whose kinematic acceleration exceeds g."""
-    return _run(**{"plate.kind": "rigid", "contact.points": 1, "roughness.kind": "sinusoid",
+    return _run(**{"solver.method": request.param, "plate.kind": "rigid", "contact.points": 1,
+                   "roughness.kind": "sinusoid",
                    "roughness.amplitude": 10e-6, "roughness.wavelength": 0.5e-3,
                    "excitation.kind": "prescribed", "excitation.velocity": 0.1,
                    "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
@@ -110,11 +115,13 @@ def test_event_log_agrees_with_resampled_contact_forces(bouncing):
     assert (r.events["contact"].dropna() == 0).all()
 
 
-def test_linear_rigid_plate_matches_closed_form():
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_linear_rigid_plate_matches_closed_form(method):
     """One contact, no lift-off: m z'' + r1 z' + s (z + h(x0 + V t)) = m g (closed form)."""
     A, lam, V = 0.1e-6, 1e-3, 0.05
     s, m, r1 = 3.1e6, 0.221, 83.0
-    r = _run(**{"plate.kind": "rigid", "contact.points": 1, "roughness.kind": "sinusoid",
+    r = _run(**{"solver.method": method, "plate.kind": "rigid", "contact.points": 1,
+                "roughness.kind": "sinusoid",
                 "roughness.amplitude": A, "roughness.wavelength": lam,
                 "excitation.kind": "prescribed", "excitation.velocity": V,
                 "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
@@ -132,10 +139,12 @@ def test_linear_rigid_plate_matches_closed_form():
     assert np.max(np.abs(acc - expected)) < 2e-4 * np.max(np.abs(expected))
 
 
-def test_linear_modal_plate_matches_frequency_domain_solution():
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_linear_modal_plate_matches_frequency_domain_solution(method):
     """One contact on a modal plate: steady state equals F = s H / (1 + s G(w) - s Y_m(w))."""
     A, lam, V = 0.05e-6, 1e-3, 0.2
-    over = {"contact.points": 1, "roughness.kind": "sinusoid", "roughness.amplitude": A,
+    over = {"solver.method": method, "contact.points": 1, "roughness.kind": "sinusoid",
+            "roughness.amplitude": A,
             "roughness.wavelength": lam, "excitation.kind": "prescribed",
             "excitation.velocity": V, "excitation.amplitude": 0.0,
             "excitation.target_rms_velocity": "none", "plate.max_frequency": 3e3,
@@ -165,11 +174,12 @@ def test_linear_modal_plate_matches_frequency_domain_solution():
     assert abs(got_p - (-(w**2) * Wo)) < 2e-3 * abs(w**2 * Wo)
 
 
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("name", ["paper", "paper-100mms", "paper-heavy",
                                   "paper-heavy-100mms"])
-def test_energy_audit_closes_on_each_builtin_scene(name):
+def test_energy_audit_closes_on_each_builtin_scene(name, method):
     rtol = 1e-6
-    r = _run(name, **{"output.duration": 0.015, "solver.rtol": rtol})
+    r = _run(name, **{"solver.method": method, "output.duration": 0.015, "solver.rtol": rtol})
     assert r.ok, r.summary["message"]
     audit = r.summary["energy_audit"]
     assert audit["excitation_work"] > 0 and audit["friction_dissipation"] > 0

@@ -1,0 +1,824 @@
+"""Adaptive exact-modal solver: exact plate propagation, error-controlled steps, located events.
+
+The plate modes couple to the block only through the K contact forces, and each mode is a
+linear oscillator. Over a step of length h with the modal force linear in time (first-order
+hold), a mode is propagated exactly, whatever omega h is (physics.md §2.5; the fixed-step
+``exact-modal`` scheme):
+
+    [q, q']_{n+1} = Phi(h) [q, q']_n + G0(h) u_n + G1(h) u_{n+1},   u = phi^T F / M.
+
+The block's vertical and tangential motion use the trapezoidal rule, so the only implicit
+problem per step is the K contact forces and the tangential velocity, solved by Newton on a
+(K+1)-square system (no matrix of the plate's size is ever formed). The step is second order;
+unlike BDF2 it has no error at all in the modes' own dynamics, only in the force history.
+
+What this module adds to the fixed-step scheme, to make it a reference-grade solver:
+
+* **Error control** by step doubling: every step of length h is also taken as two steps of
+  h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps (kept), in
+  IDA's weighted RMS norm with the same tolerance vector (``solver.rtol``, ``solver.atol``,
+  ``solver.atol_acceleration``: :func:`roughvib.solvers.ida._atol_vector`). Step sizes are
+  dyadic fractions of the output step, so the propagators of each size are computed once and
+  cached, and every output time is a step boundary (no interpolation of the modes).
+* **Events as in IDA**: the regime is fixed within a step (no active set, no max()); the
+  margins of :func:`roughvib.model.kernels.events` are checked at every half step, and a
+  downward crossing is located by the Illinois method on the margin of a re-taken step of
+  variable length from the last state before it (to ``ROOT_TOL``). The regime is then
+  switched and the state made consistent by the same code as IDA's restart
+  (:class:`roughvib.solvers.events.EventBook`). A one-step method needs no warm-up after a
+  restart: an event costs its root search, not a ramp-up of order and step.
+
+Propagators: for omega h > 1 the closed form of the damped oscillator; below, a power series
+(20 terms) of the same matrix exponential, because the closed form's ``1 - cos`` terms lose
+all digits for omega h -> 0 (both branches are tested against scipy's expm).
+
+Limits: the Feldmann law or prescribed motion (the set-valued Coulomb law needs ``ida`` or
+``moreau``); underdamped modes (plate loss factor < 2).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+from numba import njit
+
+from roughvib.friction import feldmann_mu
+from roughvib.model import kernels as kn
+from roughvib.model.regimes import initial_regime
+from roughvib.model.system import System
+from roughvib.scene import SceneError
+from roughvib.solvers.events import EventBook, SolverFailure
+from roughvib.solvers.ida import RawSolution, _atol_vector
+from roughvib.surface.interp import profile_eval
+
+__all__ = ["solve_adaptive_modal", "step_maps"]
+
+NLEV = 40            # dyadic levels below the largest step (h_min = h_max / 2^39)
+SLOT_FLY = NLEV      # cache slots for steps that are not dyadic (after an event) ...
+SLOT_FLY2 = NLEV + 1  # ... their half step
+SLOT_ROOT = NLEV + 2  # ... and the trial steps of the root search
+N_SLOTS = NLEV + 3
+SERIES_LIMIT = 1.0   # omega h below which the propagators come from the power series
+N_SERIES = 22        # terms: 1 / 22! < 1e-21
+ROOT_TOL = 1e-13     # s, width of the bracket that locates an event
+NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights
+SAFETY = 0.9
+
+# codes of _advance
+ADV_CHUNK = 0
+ADV_EVENT = 1
+ADV_DONE = 2
+ADV_MIN_STEP = -1
+ADV_NEWTON = -2
+ADV_NONFINITE = -3
+
+# integer loop state / statistics (int64 array `ist`)
+I_K = 0          # next output index
+I_LEV = 1        # current dyadic level
+I_STEPS = 2      # accepted steps (each = two half steps)
+I_REJECT = 3     # rejected steps
+I_STEP_EVALS = 4  # implicit steps taken (3 per attempt, plus root-search trials)
+I_ROOT_EVALS = 5  # trial steps of the root searches
+I_MAPS = 6       # propagator computations
+I_NEWTON = 7     # Newton iterations
+I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
+N_IST = 9
+
+
+@njit(cache=True)
+def step_maps(omega2, cdamp, h, Phi, G0, G1):
+    """Exact first-order-hold step maps of q'' + c q' + w^2 q = u(t), for every mode.
+
+    Parameters
+    ----------
+    omega2, cdamp : ndarray, shape (R,)
+        w_r^2 [rad^2/s^2] and c_r = 2 zeta_r w_r [1/s] (underdamped: c^2 < 4 w^2).
+    h : float
+        Step [s].
+    Phi : ndarray, shape (R, 2, 2)
+    G0, G1 : ndarray, shape (R, 2)
+        Filled so that ``[q, q'](h) = Phi [q, q'](0) + G0 u(0) + G1 u(h)`` for u linear in t.
+    """
+    R = omega2.size
+    for r in range(R):
+        w2 = omega2[r]
+        c = cdamp[r]
+        if math.sqrt(w2) * h <= SERIES_LIMIT:
+            # exp of [[0, 1], [-w2, -c]] h by its series; with v_n = (A h)^n e2 / n!:
+            # Phi e2 = sum v_n, Phi e1 = e1 - w2 h sum v_{n-1} / n,
+            # Gamma_const = h sum v_n / (n+1), Gamma_ramp = h^2 sum v_n / ((n+1)(n+2))
+            v0, v1 = 0.0, 1.0
+            p01, p11 = 0.0, 0.0
+            p00, p10 = 1.0, 0.0
+            gc0, gc1 = 0.0, 0.0
+            gr0, gr1 = 0.0, 0.0
+            for n in range(N_SERIES):
+                p01 += v0
+                p11 += v1
+                gc0 += v0 / (n + 1)
+                gc1 += v1 / (n + 1)
+                gr0 += v0 / ((n + 1) * (n + 2))
+                gr1 += v1 / ((n + 1) * (n + 2))
+                p00 -= w2 * h * v0 / (n + 1)
+                p10 -= w2 * h * v1 / (n + 1)
+                # v_{n+1} = A h v_n / (n + 1)
+                a = h * v1 / (n + 1)
+                b = h * (-w2 * v0 - c * v1) / (n + 1)
+                v0, v1 = a, b
+            gc0 *= h
+            gc1 *= h
+            gr0 *= h * h
+            gr1 *= h * h
+        else:
+            sig = 0.5 * c
+            wd = math.sqrt(w2 - sig * sig)
+            e = math.exp(-sig * h)
+            co = math.cos(wd * h)
+            si = math.sin(wd * h)
+            p00 = e * (co + sig / wd * si)
+            p01 = e * si / wd
+            p10 = -e * w2 * si / wd
+            p11 = e * (co - sig / wd * si)
+            # constant unit force: particular solution q = 1/w2
+            gc0 = (1.0 - p00) / w2
+            gc1 = -p10 / w2
+            # unit ramp u = t: particular solution q = t/w2 - c/w2^2, q' = 1/w2
+            gr0 = (h - p01) / w2 - c * (1.0 - p00) / (w2 * w2)
+            gr1 = (1.0 - p11) / w2 + c * p10 / (w2 * w2)
+        Phi[r, 0, 0] = p00
+        Phi[r, 0, 1] = p01
+        Phi[r, 1, 0] = p10
+        Phi[r, 1, 1] = p11
+        G1[r, 0] = gr0 / h
+        G1[r, 1] = gr1 / h
+        G0[r, 0] = gc0 - gr0 / h
+        G0[r, 1] = gc1 - gr1 / h
+
+
+@njit(cache=True)
+def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot):
+    """Propagators of step h into cache slot ``slot``, with G1 in contact coordinates."""
+    step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
+    R = omega2.size
+    K = cres.shape[0]
+    for k in range(K):
+        for j in range(K):
+            G1c[slot, k, j] = cres[k, j]
+    for r in range(R):
+        gr = G1[slot, r, 0] / M
+        for k in range(K):
+            a = phi[r, k] * gr
+            for j in range(K):
+                G1c[slot, k, j] += a * phi[r, j]
+    hslot[slot] = h
+
+
+@njit(cache=True)
+def solve_small(A, b, n):
+    """Solve A[:n, :n] x = b[:n] in place (x in b; A is overwritten): Gaussian elimination
+    with partial pivoting, no allocation (the Newton systems are at most K + 1 square)."""
+    for c in range(n):
+        p = c
+        big = abs(A[c, c])
+        for i in range(c + 1, n):
+            if abs(A[i, c]) > big:
+                big = abs(A[i, c])
+                p = i
+        if p != c:
+            for j in range(c, n):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            b[c], b[p] = b[p], b[c]
+        piv = A[c, c]
+        for i in range(c + 1, n):
+            f = A[i, c] / piv
+            if f != 0.0:
+                for j in range(c + 1, n):
+                    A[i, j] -= f * A[c, j]
+                b[i] -= f * b[c]
+    for c in range(n - 1, -1, -1):
+        acc = b[c]
+        for j in range(c + 1, n):
+            acc -= A[c, j] * b[j]
+        b[c] = acc / A[c, c]
+
+
+@njit(cache=True)
+def modal_force(y, u, off, phi, M):
+    """u_r = sum_k phi_rk F_k / M: the modal force per unit modal mass [m/s^2]."""
+    iF, R, K = off[6], off[8], off[9]
+    for r in range(R):
+        acc = 0.0
+        for k in range(K):
+            acc += phi[r, k] * y[iF + k]
+        u[r] = acc / M
+
+
+@njit(cache=True)
+def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
+    """Block accelerations and the six energy powers of a consistent state.
+
+    ``d[0]`` = z'' [m/s^2], ``d[1]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
+    time derivatives of the energy integrals [W], exactly as in :func:`kernels.residual`.
+    """
+    idq, ivz, ix, iF, R, K = off[1], off[3], off[4], off[6], off[8], off[9]
+    m = fp[kn.FP_MASS]
+    M = fp[kn.FP_MMODAL]
+    fsum = 0.0
+    for k in range(K):
+        fsum += y[iF + k]
+    vz = y[ivz]
+    d[0] = fp[kn.FP_GRAV] - fp[kn.FP_R1] * vz / m - fsum / m
+    x, vx = kn.tangential_kinematics(t, y, off, fp)
+    if ix >= 0:
+        texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
+        mu, _ = feldmann_mu(vx + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                            fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        fric = mu * fsum
+        d[1] = (texc - fric - fp[kn.FP_R2] * vx) / m
+        d[2] = texc * vx
+        d[3] = fric * vx
+        d[4] = fp[kn.FP_R2] * vx * vx
+    else:
+        d[1] = 0.0
+        d[2] = 0.0
+        d[3] = 0.0
+        d[4] = 0.0
+    d[5] = fp[kn.FP_R1] * vz * vz
+    p = 0.0
+    for r in range(R):
+        p += cdamp[r] * y[idq + r] * y[idq + r]
+    d[6] = M * p
+    rough = 0.0
+    for k in range(K):
+        _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
+        rough += y[iF + k] * dh * vx
+    d[7] = rough
+
+
+@njit(cache=True)
+def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, off, fp, cdamp, phi,
+                  stiff, spos, prof, reg, ws, jac, ist):
+    """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
+
+    ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
+
+    Unknowns: the forces of the closed contacts and, for a force-driven block, the tangential
+    velocity at t0 + h; Newton until the update is below ``NEWTON_TOL`` tolerance weights
+    ``wts``. Returns False when Newton does not converge (the caller takes a smaller step).
+
+    ``ws`` is scratch of length >= 2 R + 6 K + 2; ``jac`` of shape >= (K + 1, K + 1).
+    """
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
+                                               off[6], off[7], off[8], off[9])
+    m = fp[kn.FP_MASS]
+    M = fp[kn.FP_MMODAL]
+    r1 = fp[kn.FP_R1]
+    r2 = fp[kn.FP_R2]
+    t1 = t0 + h
+    sq = ws[0:R]
+    sdq = ws[R:2 * R]
+    wfree = ws[2 * R:2 * R + K]
+    hk = ws[2 * R + K:2 * R + 2 * K]
+    dhk = ws[2 * R + 2 * K:2 * R + 3 * K]
+    F = ws[2 * R + 3 * K:2 * R + 4 * K]
+    rhs = ws[2 * R + 4 * K:2 * R + 5 * K + 1]
+    idx = ws[2 * R + 5 * K + 1:2 * R + 6 * K + 2]
+    # free modal response and plate displacement at the contacts
+    for k in range(K):
+        wfree[k] = 0.0
+    for r in range(R):
+        a = (Phi[slot, r, 0, 0] * y0[iq + r] + Phi[slot, r, 0, 1] * y0[idq + r]
+             + G0[slot, r, 0] * u0[r])
+        sq[r] = a
+        sdq[r] = (Phi[slot, r, 1, 0] * y0[iq + r] + Phi[slot, r, 1, 1] * y0[idq + r]
+                  + G0[slot, r, 1] * u0[r])
+        for k in range(K):
+            wfree[k] += phi[r, k] * a
+    # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
+    z0 = y0[iz]
+    vz0 = y0[ivz]
+    cz = 1.0 + h * r1 / (2.0 * m)
+    # trapezoidal rule for vz with z''(t1) = g - r1 vz1 / m - S1 / m
+    av = vz0 + 0.5 * h * d0[0] + 0.5 * h * fp[kn.FP_GRAV]
+    zc = z0 + 0.5 * h * vz0 + 0.5 * h * av / cz
+    beta = h * h / (4.0 * m * cz)
+    force_driven = ix >= 0
+    x0 = 0.0
+    v0 = 0.0
+    if force_driven:
+        x0 = y0[ix]
+        v0 = y0[ivx]
+    # closed contacts
+    nc = 0
+    for k in range(K):
+        F[k] = 0.0
+        if reg[kn.REG_CLOSED + k] == 1:
+            idx[nc] = k
+            F[k] = y0[iF + k]
+            nc += 1
+    nu = nc + (1 if force_driven else 0)
+    v1 = v0 + h * d0[1] if force_driven else 0.0
+    s_l = reg[kn.REG_S]
+    b_l = reg[kn.REG_B]
+    texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if force_driven else 0.0
+    ok = False
+    mu = 0.0
+    for _it in range(25):
+        ist[I_NEWTON] += 1
+        S1 = 0.0
+        for a in range(nc):
+            S1 += F[int(idx[a])]
+        if force_driven:
+            x1 = x0 + 0.5 * h * (v0 + v1)
+        else:
+            x1, v1 = kn.prescribed_motion(t1, fp)
+        for a in range(nc):
+            k = int(idx[a])
+            hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+            hk[k] = hh
+            dhk[k] = dh
+            acc = 0.0
+            for c in range(nc):
+                j = int(idx[c])
+                acc += G1c[slot, k, j] * F[j]
+                jac[a, c] = G1c[slot, k, j] + beta
+            jac[a, a] += 1.0 / stiff[k]
+            rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
+            if force_driven:
+                jac[a, nc] = -dh * 0.5 * h
+        if force_driven:
+            mu, dmu = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
+                                  fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+            rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[1]
+                        - 0.5 * (texc1 - mu * S1 - r2 * v1))
+            for c in range(nc):
+                jac[nc, c] = 0.5 * mu
+            jac[nc, nc] = m / h + 0.5 * (dmu * S1 + r2)
+        if nu == 0:
+            ok = True
+            break
+        solve_small(jac, rhs, nu)
+        worst = 0.0
+        for a in range(nc):
+            k = int(idx[a])
+            F[k] += rhs[a]
+            e = abs(rhs[a]) / wts[iF + k]
+            if e > worst:
+                worst = e
+        if force_driven:
+            v1 += rhs[nc]
+            e = abs(rhs[nc]) / wts[ivx]
+            if e > worst:
+                worst = e
+        if not worst <= NEWTON_TOL:
+            continue
+        ok = True
+        break
+    if not ok:
+        return False
+    # assemble the new state
+    S1 = 0.0
+    for k in range(K):
+        S1 += F[k]
+        y1[iF + k] = F[k]
+    for r in range(R):
+        acc = 0.0
+        for k in range(K):
+            acc += phi[r, k] * F[k]
+        u1[r] = acc / M
+        y1[iq + r] = sq[r] + G1[slot, r, 0] * u1[r]
+        y1[idq + r] = sdq[r] + G1[slot, r, 1] * u1[r]
+    vz1 = (av - 0.5 * h * S1 / m) / cz
+    y1[ivz] = vz1
+    y1[iz] = zc - beta * S1
+    if force_driven:
+        y1[ix] = x0 + 0.5 * h * (v0 + v1)
+        y1[ivx] = v1
+    derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
+    for i in range(6):
+        y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[2 + i] + d1[2 + i])
+    return True
+
+
+@njit(cache=True)
+def _err_norm(ya, yb, y0, atol, rtol):
+    """IDA's weighted RMS norm of the step-doubling estimate (ya - yb) / 3."""
+    n = ya.size
+    acc = 0.0
+    for i in range(n):
+        w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
+        e = (ya[i] - yb[i]) / (3.0 * w)
+        acc += e * e
+    val = math.sqrt(acc / n)
+    if not math.isfinite(val):
+        return 1e300
+    return val
+
+
+@njit(cache=True)
+def _is_multiple(rel, h):
+    """Whether ``rel`` is (to 1e-7 of h) a whole multiple of h."""
+    f = rel / h
+    return abs(f - round(f)) <= 1e-7
+
+
+@njit(cache=True)
+def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
+                      spos, prof, reg, rf, work, track_latch):
+    """Output row k and the latch's running extremum, as solve_ida does at grid points."""
+    kn.outputs(t, y, outs[k], args_off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+               prof, reg, rf, work)
+    if track_latch:
+        v = y[args_off[5]]
+        if reg[kn.REG_S] < 0:
+            if v > rf[0]:
+                rf[0] = v
+        elif v < rf[0]:
+            rf[0] = v
+
+
+@njit(cache=True)
+def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
+             atol, rtol, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof,
+             reg, rf, work, ws, jac, track_latch):
+    """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
+
+    Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
+    are the state and time just past the root, ``fired[i] = 1`` for the roots that crossed)
+    or a negative failure code. The state ``y`` must be consistent with the regime on entry.
+
+    Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
+    half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
+    ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`) and modal forces
+    (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at the step start,
+    half step, end, and of the latest trial.
+    """
+    y, ya, ym, yb, yt, ybest, wts = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6]
+    d, da, dm, db, dt_, dbest = D[0], D[1], D[2], D[3], D[4], D[5]
+    u, ua, um, ub, ut, ubest = U[0], U[1], U[2], U[3], U[4], U[5]
+    g0, gm, gb, gt = G[0], G[1], G[2], G[3]
+    n = grid.size
+    M = fp[kn.FP_MMODAL]
+    n_ev = g0.size
+    t = tt[0]
+    derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
+    modal_force(y, u, off, phi, M)
+    # outputs at grid points the event landed on (after the switch, as IDA does)
+    k = ist[I_K]
+    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
+        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                          cres, spos, prof, reg, rf, work, track_latch)
+        k += 1
+    ist[I_K] = k
+    if k >= n:
+        return ADV_DONE
+    kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+    for i in range(n_ev):
+        armed[i] = 1 if g0[i] > 0.0 else 0
+    nstate = y.size
+    while True:
+        k = ist[I_K]
+        if k >= n:
+            return ADV_DONE
+        if k >= k_stop:
+            return ADV_CHUNK
+        lev = ist[I_LEV]
+        if lev >= NLEV - 1:
+            tt[0] = t
+            return ADV_MIN_STEP
+        hl = h_max / 2.0 ** lev
+        base = grid[k - 1]
+        rel = t - base
+        span = grid[k] - base
+        nxt = math.floor(rel / hl + 1e-7) + 1.0
+        target = nxt * hl
+        if target - rel < 0.01 * hl:
+            target += hl
+        last = target >= span * (1.0 - 1e-9)
+        if last:
+            target = span
+        h = target - rel
+        if abs(h - hl) <= 1e-7 * hl:
+            s_full = lev
+            s_half = lev + 1
+            if hslot[s_full] <= 0.0:
+                _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+                ist[I_MAPS] += 1
+            if hslot[s_half] <= 0.0:
+                _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
+                           hslot)
+                ist[I_MAPS] += 1
+            h = hslot[s_full]
+        else:
+            s_full = SLOT_FLY
+            s_half = SLOT_FLY2
+            _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+            ist[I_MAPS] += 2
+        hh = 0.5 * h
+        for i in range(nstate):
+            wts[i] = rtol * abs(y[i]) + atol[i]
+        # the full step (for the error estimate) and the two half steps (kept)
+        model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, stiff, spos, prof, reg, ws, jac, ist)
+        ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
+        ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
+        ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
+        ist[I_STEP_EVALS] += 3
+        if not ok:
+            ist[I_NEWTON_FAIL] += 1
+            ist[I_REJECT] += 1
+            ist[I_LEV] = lev + 1
+            continue
+        err = _err_norm(ya, yb, y, atol, rtol)
+        if err > 1.0:
+            ist[I_REJECT] += 1
+            fac = SAFETY * err ** (-1.0 / 3.0)
+            drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
+            ist[I_LEV] = lev + max(1, drop)
+            if err >= 1e300:
+                tt[0] = t
+                return ADV_NONFINITE
+            continue
+        ist[I_STEPS] += 1
+        t_new = base + target if not last else grid[k]
+        # events: margins at the half step and at the end
+        t_mid = t + hh
+        kn.events(t_mid, ym, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
+        kn.events(t_new, yb, gb, off, fp, phi, cres, spos, prof, reg, rf, work)
+        first_half = False
+        any_cross = False
+        for i in range(n_ev):
+            fired[i] = 0
+            if armed[i] == 1 and (gm[i] <= 0.0 or gb[i] <= 0.0):
+                any_cross = True
+                if gm[i] <= 0.0:
+                    first_half = True
+        if any_cross:
+            # the half step holding the earliest crossings, re-taken with variable length
+            if first_half:
+                tb = t
+                yb0, db0, ub0, gb0, ge = y, d, u, g0, gm
+            else:
+                tb = t_mid
+                yb0, db0, ub0, gb0, ge = ym, dm, um, gm, gb
+            L = hh if first_half else h - hh
+            for i in range(nstate):
+                wts[i] = rtol * abs(yb0[i]) + atol[i]
+            theta_best = 1.0
+            have_best = False
+            for i in range(n_ev):
+                if armed[i] == 0 or ge[i] > 0.0:
+                    continue
+                if not (gb0[i] > 0.0):
+                    continue
+                # is root i before the best so far?
+                if have_best:
+                    if gt[i] > 0.0:  # still open at the earliest root so far: later
+                        continue
+                    hi = theta_best
+                    ghi = gt[i]
+                else:
+                    hi = 1.0
+                    ghi = ge[i]
+                lo = 0.0
+                glo = gb0[i]
+                side = 0
+                for _it in range(200):
+                    if (hi - lo) * L <= ROOT_TOL:
+                        break
+                    th = (lo * ghi - hi * glo) / (ghi - glo)
+                    w_ = hi - lo
+                    if not (lo + 1e-3 * w_ < th < hi - 1e-3 * w_):
+                        th = 0.5 * (lo + hi)
+                    hs = th * L
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
+                               hslot)
+                    ist[I_MAPS] += 1
+                    ist[I_ROOT_EVALS] += 1
+                    ist[I_STEP_EVALS] += 1
+                    if not implicit_step(tb, hs, yb0, db0, ub0, yt, dt_, ut, SLOT_ROOT, *model):
+                        tt[0] = tb
+                        return ADV_NEWTON
+                    kn.events(tb + hs, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
+                    g = gt[i]
+                    if g > 0.0:
+                        lo, glo = th, g
+                        if side == 1:
+                            ghi *= 0.5
+                        side = 1
+                    else:
+                        hi, ghi = th, g
+                        if side == -1:
+                            glo *= 0.5
+                        side = -1
+                # the state at hi (re-taken so that every margin is evaluated there)
+                hs = hi * L
+                if hi == 1.0:
+                    if first_half:
+                        for j in range(nstate):
+                            ybest[j] = ym[j]
+                        for j in range(dbest.size):
+                            dbest[j] = dm[j]
+                    else:
+                        for j in range(nstate):
+                            ybest[j] = yb[j]
+                        for j in range(dbest.size):
+                            dbest[j] = db[j]
+                else:
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
+                               hslot)
+                    ist[I_MAPS] += 1
+                    ist[I_STEP_EVALS] += 1
+                    if not implicit_step(tb, hs, yb0, db0, ub0, ybest, dbest, ubest, SLOT_ROOT,
+                                         *model):
+                        tt[0] = tb
+                        return ADV_NEWTON
+                theta_best = hi
+                have_best = True
+                kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg,
+                          rf, work)
+            te = tb + theta_best * L
+            if theta_best == 1.0 and not first_half:
+                te = t_new
+            for i in range(n_ev):
+                if armed[i] == 1 and gt[i] <= 0.0:
+                    fired[i] = 1
+            for j in range(nstate):
+                y[j] = ybest[j]
+            tt[0] = te
+            # an event exactly on the output time: the row is written after the switch
+            return ADV_EVENT
+        # accept
+        for j in range(nstate):
+            y[j] = yb[j]
+        for j in range(d.size):
+            d[j] = db[j]
+        for j in range(u.size):
+            u[j] = ub[j]
+        for i in range(n_ev):
+            g0[i] = gb[i]
+            if gb[i] > 0.0:
+                armed[i] = 1
+        t = t_new
+        tt[0] = t
+        if last:
+            _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
+                              spos, prof, reg, rf, work, track_latch)
+            ist[I_K] = k + 1
+            if track_latch:
+                # the latch margin depends on the extremum just updated
+                kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+                for i in range(n_ev):
+                    if g0[i] > 0.0:
+                        armed[i] = 1
+        # step size: up one level when the error is small and the time is on that level
+        if err * 8.0 <= SAFETY ** 3 and ist[I_LEV] > 0:
+            up = h_max / 2.0 ** (ist[I_LEV] - 1)
+            if _is_multiple(t - grid[ist[I_K] - 1], up) or last:
+                ist[I_LEV] -= 1
+
+
+def _check_scene(system: System) -> None:
+    scene = system.scene
+    if system.coulomb:
+        raise SceneError("solver.method = 'adaptive-modal' supports friction.law = 'feldmann' "
+                         "only (the set-valued law needs 'ida' or 'moreau'), got 'coulomb'")
+    if system.n_modes and np.any(system.cdamp**2 >= 4 * system.omega2):
+        raise SceneError(f"solver.method = 'adaptive-modal' needs underdamped plate modes: "
+                         f"plate.loss_factor must be < 2 (with the damping factor), got "
+                         f"{scene.plate.loss_factor}")
+
+
+def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> RawSolution:
+    """Integrate with the adaptive exact-modal scheme (see the module docstring).
+
+    Parameters
+    ----------
+    system : System
+        From :func:`roughvib.model.system.assemble`.
+    progress : bool, optional
+        Progress bar on stderr (default: scene.output.progress).
+
+    Returns
+    -------
+    RawSolution
+        Grid outputs (the states at the output times, which are step boundaries), event log,
+        statistics; ``status`` is ``"success"`` or the failure cause.
+    """
+    from tqdm import tqdm
+
+    _check_scene(system)
+    scene = system.scene
+    out_cfg = scene.output
+    scfg = scene.solver
+    if progress is None:
+        progress = out_cfg.progress
+    K = system.n_contacts
+    R = system.n_modes
+    lay = system.layout
+    n = int(round(out_cfg.duration / out_cfg.step)) + 1
+    grid = np.arange(n) * out_cfg.step
+    outs = np.full((n, kn.N_OUT_FIXED + 2 * K), np.nan)
+    # largest step: the output step, halved until it is within solver.max_step
+    h_max = out_cfg.step
+    if scfg.max_step > 0:
+        while h_max > scfg.max_step * (1 + 1e-12):
+            h_max *= 0.5
+
+    reg, rf = system.new_regime_arrays()
+    y0, closed = system.static_equilibrium()
+    regime = initial_regime(closed, system.fp, lay.tangential, False)
+    regime.pack(reg, rf)
+    y, _ = system.consistent(0.0, y0, reg, rf)
+    y_initial = y.copy()
+    args = system.kernel_args(reg, rf)
+    (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
+    kn.outputs(0.0, y, outs[0], *args)
+
+    nst = lay.size
+    n_ev = K + 3
+    Phi = np.zeros((N_SLOTS, R, 2, 2))
+    G0 = np.zeros((N_SLOTS, R, 2))
+    G1 = np.zeros((N_SLOTS, R, 2))
+    G1c = np.zeros((N_SLOTS, K, K))
+    hslot = np.zeros(N_SLOTS)
+    Y = np.zeros((7, nst))
+    Y[0] = y
+    y = Y[0]  # the current state, updated in place by _advance
+    D = np.zeros((6, 8))
+    U = np.zeros((6, R))
+    G = np.zeros((4, n_ev))
+    armed = np.zeros(n_ev, dtype=np.int64)
+    fired = np.zeros(n_ev, dtype=np.int64)
+    ws = np.zeros(2 * R + 6 * K + 2)
+    jac = np.zeros((K + 1, K + 1))
+    atol = _atol_vector(system)
+    ist = np.zeros(N_IST, dtype=np.int64)
+    ist[I_K] = 1
+    ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
+    tt = np.zeros(1)
+    track_latch = bool(lay.tangential)
+
+    book = EventBook(system, regime, reg, rf)
+    status, message = "success", "reached the end of the output grid"
+    bar = tqdm(total=float(out_cfg.duration), unit="s", unit_scale=False,
+               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
+               leave=False,
+               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+    chunk = max(1, n // 200)
+    wall0 = time.perf_counter()
+    cpu0 = time.process_time()
+    try:
+        while True:
+            k_stop = min(n, int(ist[I_K]) + chunk)
+            code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
+                            G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
+                            phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac, track_latch)
+            regime.v_ext = float(rf[0])
+            bar.n = float(grid[min(int(ist[I_K]), n) - 1])
+            bar.refresh()
+            if code == ADV_DONE:
+                break
+            if code == ADV_CHUNK:
+                continue
+            te = float(tt[0])
+            if code == ADV_EVENT:
+                y_new, _ = book.apply(te, y, set(np.flatnonzero(fired).tolist()))
+                y[:] = y_new
+                continue
+            where = f"t = {te:.6g} s (regime {regime.describe()})"
+            if code == ADV_MIN_STEP:
+                raise SolverFailure("step_underflow", f"adaptive-modal: step size underflow "
+                                    f"at {where}: the error test keeps failing below "
+                                    f"{h_max / 2**(NLEV - 1):.3g} s. Hint: loosen solver.rtol "
+                                    f"or check the scene for a discontinuity no event sees",
+                                    te)
+            if code == ADV_NEWTON:
+                raise SolverFailure("newton_failure", f"adaptive-modal: Newton failed while "
+                                    f"locating an event at {where}", te)
+            raise SolverFailure("nonfinite", f"adaptive-modal: the state became non-finite at "
+                                f"{where}", te)
+    except SolverFailure as exc:
+        status, message = exc.status, str(exc)
+    finally:
+        bar.close()
+
+    stats = dict(book.stats)
+    stats.update({
+        "steps": int(ist[I_STEPS]), "rejected_steps": int(ist[I_REJECT]),
+        "step_evaluations": int(ist[I_STEP_EVALS]), "root_evaluations": int(ist[I_ROOT_EVALS]),
+        "propagator_evaluations": int(ist[I_MAPS]), "nonlinear_iterations": int(ist[I_NEWTON]),
+        "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
+        "residual_evaluations": None, "jacobian_evaluations": None,
+        "restarts": int(book.stats.get("restarts", 0)),
+        "wall_time": time.perf_counter() - wall0, "cpu_time": time.process_time() - cpu0,
+        "events_total": len(book.events), "largest_step": h_max,
+    })
+    k_done = int(ist[I_K])
+    return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
+                       message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
+                       t_final=float(grid[k_done - 1]) if status == "success" else float(tt[0]),
+                       extra={"rows_filled": k_done})
