@@ -73,6 +73,7 @@ SCIPY = ("BDF", "Radau", "LSODA", "DOP853")
 FIXED = ("exact-modal", "newmark", "paper")
 LADDERS = {
     "ida": [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9],
+    "adaptive-modal": [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9],
     "exact-modal": [1e-5, 5e-6, 2.5e-6, 1.25e-6],
     "newmark": [1e-5, 5e-6, 2.5e-6, 1.25e-6],
     "paper": [1e-5, 5e-6, 2.5e-6],
@@ -483,7 +484,8 @@ def main() -> None:
     p.add_argument("--budget", type=float, default=120.0, help="wall seconds per run")
     p.add_argument("--error", default="1e-3,1e-4",
                    help="matched error levels, comma-separated (relative rms, plate acc.)")
-    p.add_argument("--methods", default="ida,exact-modal,newmark,paper,LSODA,DOP853,BDF,Radau")
+    p.add_argument("--methods", default="ida,adaptive-modal,exact-modal,newmark,paper,LSODA,"
+                                        "DOP853,BDF,Radau")
     p.add_argument("--check-method", default="DOP853", choices=SCIPY)
     p.add_argument("--check-rtol", type=float, default=1e-9)
     a = p.parse_args()
@@ -498,6 +500,7 @@ def main() -> None:
     # JIT warm-up of every roughvib path used below
     short = {"output.duration": 2e-4}
     _roughvib(scene, short)
+    _roughvib(scene, {**short, "solver.method": "adaptive-modal"})
     for m in FIXED:
         if m in methods:
             _roughvib(scene, {**short, "solver.method": m, "solver.step": 5e-6})
@@ -572,8 +575,10 @@ def main() -> None:
                     rows.append({"setting": v, "wall": None, "error": None,
                                  "note": f"> budget (predicted {predicted:.0f} s)"})
                     break
-            if method == "ida":
-                res = _roughvib(scene, {"solver.rtol": v, "solver.atol_acceleration": v * 1e-2})
+            if method in ("ida", "adaptive-modal"):
+                # the same tolerance pairing for both tolerance-driven roughvib solvers
+                res = _roughvib(scene, {"solver.method": method, "solver.rtol": v,
+                                        "solver.atol_acceleration": v * 1e-2})
             elif method in FIXED:
                 res = _roughvib(scene, {"solver.method": method, "solver.step": v})
             else:
