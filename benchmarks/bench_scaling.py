@@ -1,8 +1,9 @@
-"""Benchmark: IDA cost against the number of plate modes and contacts, and peak memory.
+"""Benchmark: solver cost against the number of plate modes and contacts, and peak memory.
 
 Run on demand, not by the tests:
 
     python benchmarks/bench_scaling.py [--duration 0.02] [--memory-duration 0.36]
+        [--method ida|adaptive-modal]
 
 Each case runs in its own subprocess (clean peak-memory numbers, no shared numba state) on the
 ``paper`` scene: plate.max_frequency chosen for about 100, 200, 400, 800 and 1600 modes (the
@@ -49,14 +50,16 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=0.02)
     p.add_argument("--memory-duration", type=float, default=0.36)
+    p.add_argument("--method", default="ida", choices=("ida", "adaptive-modal"))
     a = p.parse_args()
+    print(f"solver.method = {a.method}")
     rows = []
     print(f"{'case':>16} {'modes':>6} {'K':>3} {'wall [s]':>9} {'steps':>7} {'us/step':>8} "
           f"{'RSS MB':>7}")
     cases = [("modes~" + str(n), {"plate.max_frequency": f}) for n, f in MODE_FREQS.items()]
     cases += [(f"contacts={k}", {"contact.points": k}) for k in (1, 10, 40)]
     for name, over in cases:
-        over = {**over, "output.duration": a.duration}
+        over = {**over, "output.duration": a.duration, "solver.method": a.method}
         if over.get("contact.points") == 40:
             over["contact.min_separation"] = 0.0
         r = _case(over)
@@ -68,11 +71,11 @@ def main() -> None:
     by = {r["case"]: r for r in rows}
     ratio = by["modes~800"]["solver_wall"] / by["modes~400"]["solver_wall"]
     print(f"t(800 modes) / t(400 modes) = {ratio:.2f} (target <= 2.2)")
-    mem = _case({"output.duration": a.memory_duration})
+    mem = _case({"output.duration": a.memory_duration, "solver.method": a.method})
     print(f"paper {a.memory_duration} s: peak RSS {mem['peak_rss_mb']:.0f} MB (target < 1024), "
           f"wall {mem['wall']:.1f} s")
-    print(json.dumps({"benchmark": "scaling", "rows": rows, "ratio_800_400": ratio,
-                      "paper_run": mem, "machine": platform.platform()}))
+    print(json.dumps({"benchmark": "scaling", "method": a.method, "rows": rows,
+                      "ratio_800_400": ratio, "paper_run": mem, "machine": platform.platform()}))
 
 
 if __name__ == "__main__":
