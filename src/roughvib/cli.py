@@ -239,7 +239,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, _parse_sets(args.set))
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    allowed = ("ida", "exact-modal", "newmark", "paper", "moreau")
+    allowed = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
     for m in methods:
         if m not in allowed:
             raise InputError(f"--methods must be a comma list of {', '.join(allowed)}, got {m!r}")
@@ -361,9 +361,11 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=cmd_plot)
 
     c = sub.add_parser(
-        "compare", formatter_class=fmt, help="work-precision study: IDA vs fixed-step schemes",
-        description="Run a reference (IDA, rtol 1e-10) and then IDA over a ladder of rtol and "
-                    "each fixed-step scheme over a ladder of steps while the time budget "
+        "compare", formatter_class=fmt,
+        help="work-precision study: IDA and adaptive-modal vs fixed-step schemes",
+        description="Run a reference (IDA, rtol 1e-10) and then IDA and adaptive-modal over a "
+                    "ladder of rtol and each fixed-step scheme over a ladder of steps while "
+                    "the time budget "
                     "lasts; measure band-level, velocity, event-time and energy errors against "
                     "the reference; write work_precision.csv/.md/.png into --out.",
         epilog="examples:\n  roughvib compare paper --out runs/wp --budget 900\n"
@@ -377,9 +379,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--reference-rtol", type=float, default=1e-10,
                    help="rtol of the IDA reference (modal atol = 1e-2 x rtol m/s^2; "
                         "default 1e-10)")
-    c.add_argument("--methods", default="ida,exact-modal,newmark,paper",
-                   help="comma list (default: ida,exact-modal,newmark,paper)")
-    c.add_argument("--rtols", help="comma list of IDA rtols (default 1e-3 ... 1e-9)")
+    c.add_argument("--methods", default="ida,adaptive-modal,exact-modal,newmark,paper",
+                   help="comma list (default: ida,adaptive-modal,exact-modal,newmark,paper)")
+    c.add_argument("--rtols", help="comma list of rtols of the tolerance-driven solvers "
+                                   "(default 1e-3 ... 1e-9)")
     c.add_argument("--steps", help="comma list of fixed steps in s (default 1e-4 ... 1e-7)")
     c.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")

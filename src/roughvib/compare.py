@@ -1,5 +1,6 @@
-"""Work-precision study: IDA over a ladder of tolerances and the fixed-step schemes over a ladder
-of steps, measured against a reference run on the same scene.
+"""Work-precision study: the tolerance-driven solvers (IDA, adaptive-modal) over a ladder of
+tolerances and the fixed-step schemes over a ladder of steps, measured against a reference run
+on the same scene.
 
 For each run: wall and CPU time, steps and residual evaluations, and errors against the
 reference over the same whole-period window: (a) third-octave band level error of block and
@@ -10,8 +11,8 @@ cheap to expensive, round-robin over the methods, while the time budget lasts; a
 fails is a row with its status. Writes ``work_precision.csv``, ``work_precision.md`` and
 ``work_precision.png`` and reports where each method's error/time line crosses IDA's.
 
-IDA's plate-mode tolerance follows its rtol on the ladder (``atol_acceleration`` = rtol x
-1e-2 m/s^2), so that one knob traces the whole trade.
+The plate-mode tolerance of the tolerance-driven solvers follows their rtol on the ladder
+(``atol_acceleration`` = rtol x 1e-2 m/s^2), so that one knob traces the whole trade.
 """
 
 from __future__ import annotations
@@ -36,10 +37,12 @@ from roughvib.api import simulate
 from roughvib.results import Result, load_result
 from roughvib.scene import Scene
 
-__all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "crossings", "errors_against", "run_study"]
+__all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS", "crossings",
+           "errors_against", "run_study"]
 
 DEFAULT_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 DEFAULT_STEPS = (1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 1e-6, 5e-7, 2e-7, 1e-7)
+TOLERANCE_METHODS = ("ida", "adaptive-modal")  # driven by rtol, the others by their step
 FIXED_METHODS = ("exact-modal", "newmark", "paper")  # moreau: coulomb scenes only
 METRICS = ("block_band_db_100_20k", "block_band_db_20k_50k", "plate_band_db_100_20k",
            "plate_band_db_20k_50k", "velocity_rel_rms", "event_dt_max", "events_unmatched",
@@ -54,8 +57,8 @@ class _Run:
 
 
 def _overrides(method: str, value: float, out_step: float) -> dict:
-    if method == "ida":
-        return {"solver.method": "ida", "solver.rtol": value,
+    if method in TOLERANCE_METHODS:
+        return {"solver.method": method, "solver.rtol": value,
                 "solver.atol_acceleration": value * 1e-2}
     step_out = out_step if value <= out_step else value
     return {"solver.method": method, "solver.step": value, "output.step": step_out}
@@ -154,7 +157,8 @@ def _plot(table: pd.DataFrame, path: Path, title: str) -> None:
 
 
 def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
-              reference: str | Path | None = None, methods=("ida",) + FIXED_METHODS,
+              reference: str | Path | None = None,
+              methods=TOLERANCE_METHODS + FIXED_METHODS,
               rtols=DEFAULT_RTOLS, steps=DEFAULT_STEPS, reference_rtol: float = 1e-10,
               progress: bool = True) -> pd.DataFrame:
     """Run the work-precision study and write its table, markdown and figure.
@@ -192,12 +196,9 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
         ref.save(out / "reference")
     if not ref.ok:
         raise RuntimeError(f"reference run failed: {ref.summary.get('message')}")
-    ladders = {m: list(rtols if m == "ida" else steps) for m in methods}
-    for m in ladders:
-        if m == "ida":
-            ladders[m] = sorted(ladders[m], reverse=True)   # loose first: cheap first
-        else:
-            ladders[m] = sorted(ladders[m], reverse=True)   # long steps first
+    # loose tolerances and long steps first: cheap first
+    ladders = {m: sorted(rtols if m in TOLERANCE_METHODS else steps, reverse=True)
+               for m in methods}
     queue: list[_Run] = []
     while any(ladders.values()):
         for m in methods:
@@ -206,7 +207,8 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
                 queue.append(_Run(m, v, _overrides(m, v, base.output.step)))
     # warm-up: compile (or load) every method's numba kernels before anything is timed
     for m in methods:
-        tiny = {**_overrides(m, rtols[0] if m == "ida" else base.output.step, base.output.step),
+        tiny = {**_overrides(m, rtols[0] if m in TOLERANCE_METHODS else base.output.step,
+                             base.output.step),
                 "output.duration": 20 * base.output.step}
         try:
             simulate(base.with_overrides(tiny))
@@ -219,8 +221,9 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
     bar = tqdm(total=len(queue), desc="work-precision runs", disable=not progress, unit="run")
     for run in queue:
         row = {"method": run.method, "setting": run.setting,
-               "setting_name": "rtol" if run.method == "ida" else "step [s]"}
-        predicted = last_cost.get(run.method, 0.0) * (3.0 if run.method == "ida" else 2.5)
+               "setting_name": "rtol" if run.method in TOLERANCE_METHODS else "step [s]"}
+        predicted = last_cost.get(run.method, 0.0) * (
+            3.0 if run.method in TOLERANCE_METHODS else 2.5)
         if spent + predicted > budget:
             row.update(status="skipped", message=f"predicted {predicted:.0f} s exceeds the "
                                                  f"remaining budget")

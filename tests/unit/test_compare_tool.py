@@ -13,13 +13,14 @@ def test_compare_writes_csv_table_and_figure(tmp_path, capsys):
     out = tmp_path / "wp"
     code = main(["compare", "paper", "--out", str(out), "--budget", "60", "--no-progress",
                  "--rtols", "1e-4,1e-6", "--steps", "1e-4,1e-5,2.5e-6",
-                 "--methods", "ida,exact-modal,newmark", *TINY])
+                 "--methods", "ida,adaptive-modal,exact-modal,newmark", *TINY])
     assert code == 0
     table = pd.read_csv(out / "work_precision.csv")
-    assert set(table["method"]) == {"ida", "exact-modal", "newmark"}
-    assert len(table) == 2 + 3 + 3
+    assert set(table["method"]) == {"ida", "adaptive-modal", "exact-modal", "newmark"}
+    assert len(table) == 2 + 2 + 3 + 3
+    assert set(table[table["method"] == "adaptive-modal"]["setting_name"]) == {"rtol"}
     ok = table[table["status"] == "success"]
-    assert len(ok) >= 6
+    assert len(ok) >= 8
     # errors shrink along each ladder (finest vs coarsest run of each method)
     for m, g in ok.groupby("method"):
         g = g.sort_values("setting", ascending=False)  # coarsest setting first
