@@ -418,8 +418,8 @@ VARIANTS = (("ladder", "error", False), ("front", "error", True),
             ("front*", "error_vs_scipy", True))
 
 
-def ratios_at(table: dict[str, list[dict]], error: float) -> dict:
-    """Wall time of every method at one matched error, and its ratio to IDA's.
+def ratios_at(table: dict[str, list[dict]], error: float, against: str = "ida") -> dict:
+    """Wall time of every method at one matched error, and its ratio to ``against``'s.
 
     Parameters
     ----------
@@ -455,15 +455,17 @@ def ratios_at(table: dict[str, list[dict]], error: float) -> dict:
                 t = min(below)
                 bounds.add(f"{name}:{method}")
             walls[name][method] = t if math.isfinite(t) else None
-        t_ida = walls[name].get("ida")
+        t_base = walls[name].get(against)
         for method, t in walls[name].items():
-            ratios[name][method] = t / t_ida if t is not None and t_ida else None
-    return {"walls": walls, "ratios": ratios, "upper_bounds": sorted(bounds)}
+            ratios[name][method] = t / t_base if t is not None and t_base else None
+    return {"walls": walls, "ratios": ratios, "upper_bounds": sorted(bounds),
+            "against": against}
 
 
 def _print_ratios(table: dict[str, list[dict]], error: float, res: dict) -> None:
     print(f"\nwall time [s] at relative rms error {error:g} of the plate acceleration, ratio "
-          f"to IDA (ladder/front: vs the IDA reference; front*: vs the tight scipy run; "
+          f"to {res['against']} (ladder/front: vs the IDA reference; front*: vs the tight "
+          f"scipy run; "
           f"'<=': every run on the front is more accurate, the cheapest run meeting the "
           f"error bounds the time; '-': error not reached within the ladder/budget)")
     print(f"{'method':>12}" + "".join(f"{name:>20}" for name, _, _ in VARIANTS))
@@ -619,9 +621,12 @@ def main() -> None:
 
     # ---- ratios at the matched errors ----------------------------------------------------
     at_error = {}
+    bases = [m for m in ("ida", "adaptive-modal") if m in table]
     for err in errors:
-        at_error[f"{err:g}"] = ratios_at(table, err)
-        _print_ratios(table, err, at_error[f"{err:g}"])
+        for base in bases:
+            res = ratios_at(table, err, base)
+            at_error[f"{err:g}" + ("" if base == "ida" else f" vs {base}")] = res
+            _print_ratios(table, err, res)
     print(f"\ntotal benchmark time {time.perf_counter() - T0:.0f} s")
     print(json.dumps({"benchmark": "peers_events", "scene": a.scene, "duration": a.duration,
                       "errors": errors, "budget": a.budget,

@@ -20,6 +20,7 @@ from roughvib.api import simulate
 from roughvib.model.system import GRAVITY
 
 RTOL = 1e-6
+EVENT_DRIVEN = ["ida", "adaptive-modal"]
 
 
 def _run(name="paper", **over):
@@ -56,9 +57,10 @@ def _mean_force_over_periods(r, mass, periods):
 
 # ---- stiffness, damping, modes --------------------------------------------------------------
 
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("stiffness", [1e8, 1e10])
-def test_very_stiff_contact(stiffness):
-    r = _run(**{"contact.stiffness": stiffness, "output.duration": 0.005,
+def test_very_stiff_contact(stiffness, method):
+    r = _run(**{"solver.method": method, "contact.stiffness": stiffness, "output.duration": 0.005,
                 "plate.max_frequency": 3000.0})
     ds = _invariants(r, max_events=2000)
     # statics: the initial contact forces carry the block exactly
@@ -108,11 +110,13 @@ def test_many_modes_to_100_khz():
 
 # ---- velocity ------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("velocity", [0.3, 1.0])
-def test_high_sliding_velocity(velocity):
+def test_high_sliding_velocity(velocity, method):
     """Constant sliding at 0.3 and 1 m/s (prescribed): lift-offs and touch-downs alternate per
     contact, and the run is stable under a tighter tolerance."""
-    over = {"excitation.kind": "prescribed", "excitation.velocity": velocity,
+    over = {"solver.method": method, "excitation.kind": "prescribed",
+            "excitation.velocity": velocity,
             "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
             "output.duration": 0.004, "plate.max_frequency": 5000.0}
     r = _run(**over)
@@ -139,14 +143,15 @@ def _bounce(amplitude, **extra):
     return _run(**over)
 
 
-def test_lift_off_chatter_is_resolved_event_by_event():
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_lift_off_chatter_is_resolved_event_by_event(method):
     """A sinusoid whose kinematic acceleration A w^2 is 80 g: the block flies over the crests;
     every lift-off is followed by a touch-down and the energy audit closes. With impacts the
     audit residual converges only like sqrt(rtol) (measured 7e-5, 2e-5, 8e-6, 2.3e-6 at rtol
     1e-6 ... 1e-9; docs/robustness.md), so the bound is 0.1 sqrt(rtol) and it must shrink."""
-    r = _bounce(10e-6)
+    r = _bounce(10e-6, **{"solver.method": method})
     _invariants(r, max_events=500, energy_factor=0.1 / math.sqrt(RTOL))
-    tight = _bounce(10e-6, **{"solver.rtol": 1e-9})
+    tight = _bounce(10e-6, **{"solver.method": method, "solver.rtol": 1e-9})
     assert (abs(tight.summary["energy_audit"]["relative_residual"])
             < abs(r.summary["energy_audit"]["relative_residual"]) / 5)
     n_lift = int((r.events["kind"] == "lift_off").sum())
@@ -154,21 +159,24 @@ def test_lift_off_chatter_is_resolved_event_by_event():
     assert abs(n_lift - int((r.events["kind"] == "touch_down").sum())) <= 1
 
 
-def test_grazing_contact_either_holds_or_names_the_storm():
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_grazing_contact_either_holds_or_names_the_storm(method):
     """Roughness acceleration A w^2 = g exactly: the contact force grazes zero at every crest.
     The run must stay right (no negative force, audit closed) or stop as an event storm."""
     w = 2 * math.pi * 0.1 / 0.5e-3
     # base-excited oscillator below its contact resonance wn^2 = s / m: block acceleration
     # amplitude A w^2 / (1 - w^2 / wn^2) reaches g at this A
-    r = _bounce(GRAVITY * (1 - w**2 * 0.221 / 3.1e6) / w**2)
+    r = _bounce(GRAVITY * (1 - w**2 * 0.221 / 3.1e6) / w**2, **{"solver.method": method})
     if r.ok:
         _invariants(r, max_events=500, energy_factor=0.1 / math.sqrt(RTOL))
     else:
         assert r.status == "event_storm" and "Hint" in r.summary["message"]
 
 
-def test_event_storm_stops_with_time_regime_and_hint():
-    r = _bounce(10e-6, **{"solver.max_events": 2, "solver.event_window": 0.1})
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_event_storm_stops_with_time_regime_and_hint(method):
+    r = _bounce(10e-6, **{"solver.method": method, "solver.max_events": 2,
+                          "solver.event_window": 0.1})
     assert r.status == "event_storm"
     msg = r.summary["message"]
     assert "more than 2 events within 0.1 s at t = " in msg
