@@ -15,9 +15,9 @@ unlike BDF2 it has no error at all in the modes' own dynamics, only in the force
 What this module adds to the fixed-step scheme, to make it a reference-grade solver:
 
 * **Error control** by step doubling: every step of length h is also taken as two steps of
-  h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps (kept), in
-  IDA's weighted RMS norm with the same tolerance vector (``solver.rtol``, ``solver.atol``,
-  ``solver.atol_acceleration``: :func:`roughvib.solvers.ida._atol_vector`). Step sizes are
+  h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps (kept),
+  weighted by IDA's tolerances (``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration``:
+  :func:`roughvib.solvers.ida._atol_vector`) in the max norm (see :func:`_err_norm`). Step sizes are
   dyadic fractions of the output step, so the propagators of each size are computed once and
   cached, and every output time is a step boundary (no interpolation of the modes).
 * **Events as in IDA**: the regime is fixed within a step (no active set, no max()); the
@@ -206,14 +206,20 @@ def solve_small(A, b, n):
 
 
 @njit(cache=True)
-def modal_force(y, u, off, phi, M):
-    """u_r = sum_k phi_rk F_k / M: the modal force per unit modal mass [m/s^2]."""
-    iF, R, K = off[6], off[8], off[9]
+def modal_force(F, u, phiT, M):
+    """u_r = sum_k phi_rk F_k / M: the modal force per unit modal mass [m/s^2].
+
+    ``phiT`` is the mode-shape matrix transposed, shape (K, R), C-contiguous: the sum runs as
+    K contiguous axpys over the modes, which vectorise (a reduction over k does not).
+    """
+    R = u.size
     for r in range(R):
-        acc = 0.0
-        for k in range(K):
-            acc += phi[r, k] * y[iF + k]
-        u[r] = acc / M
+        u[r] = 0.0
+    for k in range(F.size):
+        f = F[k] / M
+        if f != 0.0:
+            for r in range(R):
+                u[r] += phiT[k, r] * f
 
 
 @njit(cache=True)
@@ -260,7 +266,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
 
 @njit(cache=True)
 def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, off, fp, cdamp, phi,
-                  stiff, spos, prof, reg, ws, jac, ist):
+                  phiT, stiff, spos, prof, reg, ws, jac, ist):
     """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
 
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
@@ -384,11 +390,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     for k in range(K):
         S1 += F[k]
         y1[iF + k] = F[k]
+    modal_force(F, u1, phiT, M)
     for r in range(R):
-        acc = 0.0
-        for k in range(K):
-            acc += phi[r, k] * F[k]
-        u1[r] = acc / M
         y1[iq + r] = sq[r] + G1[slot, r, 0] * u1[r]
         y1[idq + r] = sdq[r] + G1[slot, r, 1] * u1[r]
     vz1 = (av - 0.5 * h * S1 / m) / cz
@@ -405,17 +408,23 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
 
 @njit(cache=True)
 def _err_norm(ya, yb, y0, atol, rtol):
-    """IDA's weighted RMS norm of the step-doubling estimate (ya - yb) / 3."""
+    """Largest component of the step-doubling estimate (ya - yb) / 3 in tolerance weights.
+
+    The weights are IDA's (``rtol |y| + atol_i``), the norm is the max, not IDA's RMS: with
+    ~800 modal states the RMS let the few block and contact states carry errors far above
+    their tolerance near impacts (energy audit 7e-5 at rtol 1e-6 at 1 m/s sliding), and the
+    max norm was also the cheaper one at equal plate-acceleration error (docs/theory.md).
+    """
     n = ya.size
-    acc = 0.0
+    worst = 0.0
     for i in range(n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
-        e = (ya[i] - yb[i]) / (3.0 * w)
-        acc += e * e
-    val = math.sqrt(acc / n)
-    if not math.isfinite(val):
+        e = abs(ya[i] - yb[i]) / (3.0 * w)
+        if not e <= worst:  # also catches NaN
+            worst = e
+    if not math.isfinite(worst):
         return 1e300
-    return val
+    return worst
 
 
 @njit(cache=True)
@@ -442,8 +451,8 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 
 @njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
-             atol, rtol, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof,
-             reg, rf, work, ws, jac, track_latch):
+             atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
+             prof, reg, rf, work, ws, jac, track_latch):
     """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
@@ -465,7 +474,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     n_ev = g0.size
     t = tt[0]
     derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
-    modal_force(y, u, off, phi, M)
+    modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
     # outputs at grid points the event landed on (after the switch, as IDA does)
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
@@ -522,7 +531,8 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
         for i in range(nstate):
             wts[i] = rtol * abs(y[i]) + atol[i]
         # the full step (for the error estimate) and the two half steps (kept)
-        model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, stiff, spos, prof, reg, ws, jac, ist)
+        model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, ws,
+                 jac, ist)
         ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
         ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
         ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
@@ -755,6 +765,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     fired = np.zeros(n_ev, dtype=np.int64)
     ws = np.zeros(2 * R + 6 * K + 2)
     jac = np.zeros((K + 1, K + 1))
+    phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
     ist[I_K] = 1
@@ -776,7 +787,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             k_stop = min(n, int(ist[I_K]) + chunk)
             code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
                             G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
-                            phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac, track_latch)
+                            phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
+                            track_latch)
             regime.v_ext = float(rf[0])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()
