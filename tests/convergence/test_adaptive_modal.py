@@ -8,18 +8,12 @@ error ~ h^2 ~ rtol^(2/3)).
 
 import numpy as np
 import pytest
+from smooth_scene import SMOOTH
 
 import roughvib
 from roughvib.analysis.compare import relative_rms_error
 from roughvib.api import simulate
 
-# one contact on a sinusoid, prescribed sliding, modal plate, no lift-off: smooth and linear
-SMOOTH = {"contact.points": 1, "roughness.kind": "sinusoid", "roughness.amplitude": 0.05e-6,
-          "roughness.wavelength": 1e-3, "excitation.kind": "prescribed",
-          "excitation.velocity": 0.2, "excitation.amplitude": 0.0,
-          "excitation.target_rms_velocity": "none", "plate.max_frequency": 3e3,
-          "plate.loss_factor": 0.1, "output.duration": 0.02, "output.step": 2e-4,
-          "output.progress": False}
 TIGHT_IDA = {"solver.rtol": 1e-11, "solver.atol": 1e-18, "solver.atol_acceleration": 1e-12}
 
 

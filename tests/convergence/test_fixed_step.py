@@ -2,18 +2,11 @@
 
 import numpy as np
 import pytest
+from smooth_scene import SMOOTH
 
 import roughvib
 from roughvib.api import simulate
 from roughvib.solvers.fixed_step import modal_propagators
-
-# one contact on a sinusoid, prescribed sliding, modal plate, no lift-off: smooth and linear
-SMOOTH = {"contact.points": 1, "roughness.kind": "sinusoid", "roughness.amplitude": 0.05e-6,
-          "roughness.wavelength": 1e-3, "excitation.kind": "prescribed",
-          "excitation.velocity": 0.2, "excitation.amplitude": 0.0,
-          "excitation.target_rms_velocity": "none", "plate.max_frequency": 3e3,
-          "plate.loss_factor": 0.1, "output.duration": 0.02, "output.step": 2e-4,
-          "output.progress": False}
 
 
 @pytest.fixture(scope="module", params=[True, False], ids=["cres", "no-cres"])

@@ -8,8 +8,9 @@ from scipy.linalg import expm
 
 import roughvib
 from roughvib.api import simulate
+from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.scene import SceneError
-from roughvib.solvers.adaptive_modal import SERIES_LIMIT, solve_small, step_maps
+from roughvib.solvers.adaptive_modal import SERIES_LIMIT, step_maps
 
 
 def _expm_maps(w, zeta, h):
@@ -75,15 +76,20 @@ def test_step_maps_reproduce_free_decay_and_static_deflection():
     assert Phi[0, 0, 0] == pytest.approx(q, rel=1e-12)
 
 
-def test_solve_small_matches_numpy():
+def test_newton_solve_on_a_leading_block_matches_numpy():
+    """The Newton step factors the leading nu x nu block of a (K+1)-square buffer in place."""
     rng = np.random.default_rng(4)
     for n in (1, 2, 5, 11, 41):
         A = rng.standard_normal((n + 2, n + 2))
         A[:n, :n] += np.diag(np.full(n, 0.1))
         b = rng.standard_normal(n + 2)
+        tail = b[n:].copy()
         ref = np.linalg.solve(A[:n, :n], b[:n])
-        solve_small(A, b, n)
+        piv = np.zeros(n + 2, dtype=np.int64)
+        lu_factor(A[:n, :n], piv[:n])
+        lu_solve(A[:n, :n], piv[:n], b[:n])
         np.testing.assert_allclose(b[:n], ref, rtol=1e-10)
+        assert np.array_equal(b[n:], tail)
 
 
 def test_kernels_without_jit_match_compiled(run_without_jit):
@@ -112,3 +118,11 @@ def test_coulomb_law_is_refused_with_a_one_line_error():
             "output.duration": 1e-3, "output.progress": False}
     with pytest.raises(SceneError, match="friction.law"):
         simulate(roughvib.load_scene("paper", over))
+
+
+
+def test_checkpoint_interval_is_refused_in_one_line():
+    over = {"solver.method": "adaptive-modal", "output.checkpoint_interval": 1e-3}
+    with pytest.raises(SceneError, match=r"checkpoint_interval needs solver.method = 'ida'.*"
+                                         r"got 'adaptive-modal'"):
+        roughvib.load_scene("paper", over)

@@ -53,7 +53,7 @@ def krylov_workspace(n_states: int, n_modes: int, n_contacts: int) -> tuple[np.n
 
 
 @njit(cache=True)
-def _lu_factor(A, piv):
+def lu_factor(A, piv):
     """LU factorisation with partial pivoting of A in place (row swaps recorded in piv)."""
     n = piv.size
     for c in range(n):
@@ -79,8 +79,8 @@ def _lu_factor(A, piv):
 
 
 @njit(cache=True)
-def _lu_solve(A, piv, b):
-    """Solve with the factors of :func:`_lu_factor` (b is overwritten by the solution)."""
+def lu_solve(A, piv, b):
+    """Solve with the factors of :func:`lu_factor` (b is overwritten by the solution)."""
     n = piv.size
     for c in range(n):
         p = piv[c]
@@ -220,7 +220,7 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
                 for j in range(K):
                     A[k, j] = 0.0
                 A[k, k] = 1.0 / stiff[k]
-        _lu_factor(A, piv)
+        lu_factor(A, piv)
         for i in range(y.size):
             ycache[i] = y[i]
         cache[1] = t
@@ -240,7 +240,7 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
             b[k] = rv[iF + k] + zz0 - acc + dh * xx0
         else:
             b[k] = rv[iF + k]
-    _lu_solve(A, piv, b)
+    lu_solve(A, piv, b)
     S = 0.0
     for k in range(K):
         zv[iF + k] = b[k]

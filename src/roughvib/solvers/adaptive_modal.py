@@ -47,11 +47,12 @@ from numba import njit
 
 from roughvib.friction import feldmann_mu
 from roughvib.model import kernels as kn
+from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
 from roughvib.solvers.events import EventBook, SolverFailure
-from roughvib.solvers.ida import RawSolution, _atol_vector
+from roughvib.solvers.ida import RawSolution, _atol_vector, output_grid
 from roughvib.surface.interp import profile_eval
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
@@ -177,35 +178,6 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot):
 
 
 @njit(cache=True)
-def solve_small(A, b, n):
-    """Solve A[:n, :n] x = b[:n] in place (x in b; A is overwritten): Gaussian elimination
-    with partial pivoting, no allocation (the Newton systems are at most K + 1 square)."""
-    for c in range(n):
-        p = c
-        big = abs(A[c, c])
-        for i in range(c + 1, n):
-            if abs(A[i, c]) > big:
-                big = abs(A[i, c])
-                p = i
-        if p != c:
-            for j in range(c, n):
-                A[c, j], A[p, j] = A[p, j], A[c, j]
-            b[c], b[p] = b[p], b[c]
-        piv = A[c, c]
-        for i in range(c + 1, n):
-            f = A[i, c] / piv
-            if f != 0.0:
-                for j in range(c + 1, n):
-                    A[i, j] -= f * A[c, j]
-                b[i] -= f * b[c]
-    for c in range(n - 1, -1, -1):
-        acc = b[c]
-        for j in range(c + 1, n):
-            acc -= A[c, j] * b[j]
-        b[c] = acc / A[c, c]
-
-
-@njit(cache=True)
 def modal_force(F, u, phiT, M):
     """u_r = sum_k phi_rk F_k / M: the modal force per unit modal mass [m/s^2].
 
@@ -266,7 +238,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
 
 @njit(cache=True)
 def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, off, fp, cdamp, phi,
-                  phiT, stiff, spos, prof, reg, ws, jac, ist):
+                  phiT, stiff, spos, prof, reg, ws, jac, ipiv, ist):
     """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
 
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
@@ -275,7 +247,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     velocity at t0 + h; Newton until the update is below ``NEWTON_TOL`` tolerance weights
     ``wts``. Returns False when Newton does not converge (the caller takes a smaller step).
 
-    ``ws`` is scratch of length >= 2 R + 6 K + 2; ``jac`` of shape >= (K + 1, K + 1).
+    ``ws`` is scratch of length >= 2 R + 6 K + 2; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
+    (int64) of length >= K + 1.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
                                                off[6], off[7], off[8], off[9])
@@ -366,7 +339,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         if nu == 0:
             ok = True
             break
-        solve_small(jac, rhs, nu)
+        piv = ipiv[:nu]
+        lu_factor(jac[:nu, :nu], piv)
+        lu_solve(jac[:nu, :nu], piv, rhs[:nu])
         worst = 0.0
         for a in range(nc):
             k = int(idx[a])
@@ -452,7 +427,7 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 @njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
              atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, track_latch):
+             prof, reg, rf, work, ws, jac, ipiv, track_latch):
     """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
@@ -532,7 +507,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             wts[i] = rtol * abs(y[i]) + atol[i]
         # the full step (for the error estimate) and the two half steps (kept)
         model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, ws,
-                 jac, ist)
+                 jac, ipiv, ist)
         ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
         ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
         ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
@@ -729,9 +704,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     K = system.n_contacts
     R = system.n_modes
     lay = system.layout
-    n = int(round(out_cfg.duration / out_cfg.step)) + 1
-    grid = np.arange(n) * out_cfg.step
-    outs = np.full((n, kn.N_OUT_FIXED + 2 * K), np.nan)
+    grid, outs = output_grid(system)
+    n = grid.size
     # largest step: the output step, halved until it is within solver.max_step
     h_max = out_cfg.step
     if scfg.max_step > 0:
@@ -765,6 +739,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     fired = np.zeros(n_ev, dtype=np.int64)
     ws = np.zeros(2 * R + 6 * K + 2)
     jac = np.zeros((K + 1, K + 1))
+    ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
@@ -788,7 +763,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
                             G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
                             phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            track_latch)
+                            ipiv, track_latch)
             regime.v_ext = float(rf[0])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()

@@ -248,6 +248,21 @@ def _krylov_options(system: System, args: tuple) -> dict:
                 jactimes=sun.ida.IDAJacTimes(None, jv))
 
 
+def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
+    """The uniform output grid of a run and its output rows, NaN until written.
+
+    Returns
+    -------
+    grid : ndarray, shape (n,)
+        0, output.step, ..., output.duration [s].
+    outs : ndarray, shape (n, N_OUT_FIXED + 2 K)
+    """
+    out_cfg = system.scene.output
+    n = int(round(out_cfg.duration / out_cfg.step)) + 1
+    return np.arange(n) * out_cfg.step, np.full((n, kn.N_OUT_FIXED + 2 * system.n_contacts),
+                                                  np.nan)
+
+
 def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
     """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
     if scene_to_toml(system.scene) != cp.scene_toml:
@@ -296,10 +311,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
         progress = out_cfg.progress
     K = system.n_contacts
     lay = system.layout
-    n = int(round(out_cfg.duration / out_cfg.step)) + 1
-    grid = np.arange(n) * out_cfg.step
-    n_out = kn.N_OUT_FIXED + 2 * K
-    outs = np.full((n, n_out), np.nan)
+    grid, outs = output_grid(system)
+    n, n_out = outs.shape
 
     reg, rf = system.new_regime_arrays()
     if resume is None:
