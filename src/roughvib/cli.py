@@ -81,9 +81,13 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     ev = summary.get("events_by_kind", {})
     lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
                                         or "none"))
-    lines.append(f"solver           {s.get('steps')} steps, {s.get('residual_evaluations')} "
-                 f"residuals, {s.get('jacobian_evaluations')} Jacobians, "
-                 f"{s.get('restarts', 0)} restarts, {s.get('wall_time', 0):.1f} s wall")
+    # each solver reports the counters it has (fixed-step schemes have no residual counts)
+    counters = [("steps", "steps"), ("rejected_steps", "rejected"),
+                ("residual_evaluations", "residuals"), ("jacobian_evaluations", "Jacobians"),
+                ("root_evaluations", "root-search steps"), ("restarts", "restarts")]
+    parts = [f"{s[key]} {label}" for key, label in counters if s.get(key) is not None]
+    lines.append(f"solver           {s.get('method', '')}: " + ", ".join(parts)
+                 + f", {s.get('wall_time', 0):.1f} s wall")
     if a:
         lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
                      f"(relative {a.get('relative_residual', 0):.2e})")

@@ -690,9 +690,8 @@ class Scene:
             raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
         if self.output.checkpoint_interval > 0 and self.solver.method != "ida":
-            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' (the "
-                             f"fixed-step schemes are not checkpointed), got "
-                             f"{self.solver.method!r}")
+            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' (only "
+                             f"IDA runs are checkpointed), got {self.solver.method!r}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:
