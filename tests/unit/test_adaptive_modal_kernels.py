@@ -126,3 +126,17 @@ def test_checkpoint_interval_is_refused_in_one_line():
     with pytest.raises(SceneError, match=r"checkpoint_interval needs solver.method = 'ida'.*"
                                          r"got 'adaptive-modal'"):
         roughvib.load_scene("paper", over)
+
+
+def test_error_norm_is_the_weighted_max_and_rejects_any_nan():
+    from roughvib.solvers.adaptive_modal import _err_norm
+
+    y0 = np.array([1.0, -2.0, 0.0])
+    atol = np.array([1e-6, 1e-6, 1e-3])
+    yb = y0.copy()
+    ya = yb + np.array([3e-6, 0.0, 3e-3])  # estimates 1e-6 and 1e-3 against weights 2e-6, 1e-3
+    assert _err_norm(ya, yb, y0, atol, 1e-6) == pytest.approx(max(1e-6 / 2e-6, 1e-3 / 1e-3))
+    for pos in range(3):  # a NaN wins wherever it sits, even before finite components
+        bad = ya.copy()
+        bad[pos] = np.nan
+        assert _err_norm(bad, yb, y0, atol, 1e-6) >= 1e300

@@ -247,7 +247,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     velocity at t0 + h; Newton until the update is below ``NEWTON_TOL`` tolerance weights
     ``wts``. Returns False when Newton does not converge (the caller takes a smaller step).
 
-    ``ws`` is scratch of length >= 2 R + 6 K + 2; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
+    ``ws`` is scratch of length >= 2 R + 4 K + 2; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
     (int64) of length >= K + 1.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
@@ -260,11 +260,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     sq = ws[0:R]
     sdq = ws[R:2 * R]
     wfree = ws[2 * R:2 * R + K]
-    hk = ws[2 * R + K:2 * R + 2 * K]
-    dhk = ws[2 * R + 2 * K:2 * R + 3 * K]
-    F = ws[2 * R + 3 * K:2 * R + 4 * K]
-    rhs = ws[2 * R + 4 * K:2 * R + 5 * K + 1]
-    idx = ws[2 * R + 5 * K + 1:2 * R + 6 * K + 2]
+    F = ws[2 * R + K:2 * R + 2 * K]
+    rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
+    idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
@@ -317,8 +315,6 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         for a in range(nc):
             k = int(idx[a])
             hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
-            hk[k] = hh
-            dhk[k] = dh
             acc = 0.0
             for c in range(nc):
                 j = int(idx[c])
@@ -395,10 +391,10 @@ def _err_norm(ya, yb, y0, atol, rtol):
     for i in range(n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
         e = abs(ya[i] - yb[i]) / (3.0 * w)
-        if not e <= worst:  # also catches NaN
+        if not e < 1e300:  # NaN or inf anywhere: the step is rejected as non-finite
+            return 1e300
+        if e > worst:
             worst = e
-    if not math.isfinite(worst):
-        return 1e300
     return worst
 
 
@@ -737,7 +733,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     G = np.zeros((4, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
-    ws = np.zeros(2 * R + 6 * K + 2)
+    ws = np.zeros(2 * R + 4 * K + 2)
     jac = np.zeros((K + 1, K + 1))
     ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
