@@ -128,15 +128,20 @@ def test_checkpoint_interval_is_refused_in_one_line():
         roughvib.load_scene("paper", over)
 
 
-def test_error_norm_is_the_weighted_max_and_rejects_any_nan():
+def test_error_norm_is_rms_over_the_modes_and_max_over_the_rest():
     from roughvib.solvers.adaptive_modal import _err_norm
 
-    y0 = np.array([1.0, -2.0, 0.0])
-    atol = np.array([1e-6, 1e-6, 1e-3])
+    # two modal states (errors 3 and 1 weights), then two block states (0.5 and 2 weights)
+    y0 = np.array([1.0, 1.0, 1.0, 1.0])
+    atol = np.full(4, 1e-6)
+    w = 1e-6 * 1.0 + 1e-6
     yb = y0.copy()
-    ya = yb + np.array([3e-6, 0.0, 3e-3])  # estimates 1e-6 and 1e-3 against weights 2e-6, 1e-3
-    assert _err_norm(ya, yb, y0, atol, 1e-6) == pytest.approx(max(1e-6 / 2e-6, 1e-3 / 1e-3))
-    for pos in range(3):  # a NaN wins wherever it sits, even before finite components
+    ya = yb + 3 * w * np.array([3.0, 1.0, 0.5, 2.0])
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 2) == pytest.approx(np.sqrt((9 + 1) / 2))
+    ya[0] = yb[0]  # modal rms now 1/sqrt(2): the block state's 2 dominates
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 2) == pytest.approx(2.0)
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 0) == pytest.approx(2.0)  # rigid plate: max
+    for pos in range(4):  # a NaN wins wherever it sits, even before finite components
         bad = ya.copy()
         bad[pos] = np.nan
-        assert _err_norm(bad, yb, y0, atol, 1e-6) >= 1e300
+        assert _err_norm(bad, yb, y0, atol, 1e-6, 2) >= 1e300
