@@ -40,7 +40,6 @@ Limits: the Feldmann law or prescribed motion (the set-valued Coulomb law needs 
 from __future__ import annotations
 
 import math
-import sys
 import time
 
 import numpy as np
@@ -53,7 +52,7 @@ from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
 from roughvib.solvers.events import EventBook, SolverFailure
-from roughvib.solvers.ida import RawSolution, _atol_vector, output_grid
+from roughvib.solvers.ida import RawSolution, _atol_vector, output_grid, progress_bar
 from roughvib.surface.interp import profile_eval
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
@@ -704,14 +703,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
         Grid outputs (the states at the output times, which are step boundaries), event log,
         statistics; ``status`` is ``"success"`` or the failure cause.
     """
-    from tqdm import tqdm
-
     _check_scene(system)
     scene = system.scene
     out_cfg = scene.output
     scfg = scene.solver
-    if progress is None:
-        progress = out_cfg.progress
     K = system.n_contacts
     R = system.n_modes
     lay = system.layout
@@ -761,10 +756,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
 
     book = EventBook(system, regime, reg, rf)
     status, message = "success", "reached the end of the output grid"
-    bar = tqdm(total=float(out_cfg.duration), unit="s", unit_scale=False,
-               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
-               leave=False,
-               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+    bar = progress_bar(system, progress)
     chunk = max(1, n // 200)
     wall0 = time.perf_counter()
     cpu0 = time.process_time()

@@ -263,6 +263,22 @@ def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
                                                   np.nan)
 
 
+def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
+    """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
+
+    ``progress`` None means the scene's ``output.progress``.
+    """
+    from tqdm import tqdm
+
+    scene = system.scene
+    if progress is None:
+        progress = scene.output.progress
+    return tqdm(total=float(scene.output.duration), initial=initial, unit="s",
+                unit_scale=False, disable=not progress, file=sys.stderr,
+                desc=f"roughvib {scene.name}", leave=False,
+                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+
+
 def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
     """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
     if scene_to_toml(system.scene) != cp.scene_toml:
@@ -302,13 +318,9 @@ def solve_ida(system: System, *, progress: bool | None = None,
         Grid outputs, event log, statistics; ``status`` is ``"success"`` or the failure cause
         (then the outputs end where the integration stopped).
     """
-    from tqdm import tqdm
-
     scene = system.scene
     out_cfg = scene.output
     scfg = scene.solver
-    if progress is None:
-        progress = out_cfg.progress
     K = system.n_contacts
     lay = system.layout
     grid, outs = output_grid(system)
@@ -409,10 +421,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
 
     if resume is None:
         kn.outputs(0.0, y, outs[0], *args)
-    bar = tqdm(total=float(out_cfg.duration), initial=t_start, unit="s", unit_scale=False,
-               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
-               leave=False,
-               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+    bar = progress_bar(system, progress, initial=t_start)
     bar_next = k_start
     bar_stride = max(1, n // 200)
     vx_i = lay.index("block.vx")
