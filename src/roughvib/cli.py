@@ -239,14 +239,14 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from roughvib.compare import DEFAULT_RTOLS, DEFAULT_STEPS, crossings, run_study
-    from roughvib.scene import load_scene
+    from roughvib.scene import SOLVER_METHODS, load_scene
 
     scene = load_scene(args.scene, _parse_sets(args.set))
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    allowed = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
     for m in methods:
-        if m not in allowed:
-            raise InputError(f"--methods must be a comma list of {', '.join(allowed)}, got {m!r}")
+        if m not in SOLVER_METHODS:
+            raise InputError(f"--methods must be a comma list of {', '.join(SOLVER_METHODS)}, "
+                             f"got {m!r}")
     rtols = tuple(float(v) for v in args.rtols.split(",")) if args.rtols else DEFAULT_RTOLS
     steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else DEFAULT_STEPS
     table = run_study(scene, args.out, budget=args.budget, reference=args.reference,

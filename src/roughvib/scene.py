@@ -29,6 +29,7 @@ __all__ = [
     "Roughness",
     "Scene",
     "SceneError",
+    "SOLVER_METHODS",
     "Solver",
     "builtin_scenes",
     "load_scene",
@@ -537,6 +538,10 @@ class Excitation:
         return 2.0 * math.pi * self.frequency
 
 
+#: every value of ``solver.method`` (validated here, offered by ``roughvib compare``)
+SOLVER_METHODS = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
+
+
 @dataclass(frozen=True)
 class Solver:
     """Time integration.
@@ -595,9 +600,7 @@ class Solver:
 
     def __post_init__(self) -> None:
         p = "solver"
-        _set(self, "method", _choice(f"{p}.method", self.method,
-                                     ("ida", "adaptive-modal", "exact-modal", "newmark",
-                                      "paper", "moreau")))
+        _set(self, "method", _choice(f"{p}.method", self.method, SOLVER_METHODS))
         _set(self, "step", _positive(f"{p}.step", self.step, "s"))
         _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
         _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))

@@ -611,17 +611,10 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                         side = -1
                 # the state at hi (re-taken so that every margin is evaluated there)
                 hs = hi * L
-                if hi == 1.0:
-                    if first_half:
-                        for j in range(nstate):
-                            ybest[j] = ym[j]
-                        for j in range(dbest.size):
-                            dbest[j] = dm[j]
-                    else:
-                        for j in range(nstate):
-                            ybest[j] = yb[j]
-                        for j in range(dbest.size):
-                            dbest[j] = db[j]
+                if hi == 1.0:  # the half step's own end (derivatives are recomputed on entry)
+                    src = ym if first_half else yb
+                    for j in range(nstate):
+                        ybest[j] = src[j]
                 else:
                     _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
                                hslot)
@@ -683,8 +676,8 @@ def _check_scene(system: System) -> None:
                          "only (the set-valued law needs 'ida' or 'moreau'), got 'coulomb'")
     if system.n_modes and np.any(system.cdamp**2 >= 4 * system.omega2):
         raise SceneError(f"solver.method = 'adaptive-modal' needs underdamped plate modes: "
-                         f"plate.loss_factor must be < 2 (with the damping factor), got "
-                         f"{scene.plate.loss_factor}")
+                         f"plate.loss_factor must be < 2 (damping ratio loss_factor / 2 < 1), "
+                         f"got {scene.plate.loss_factor}")
 
 
 def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> RawSolution:
