@@ -10,7 +10,7 @@ SRC = Path(roughvib.__file__).parent
 # stage of each module; a module may import from its own stage and the ones above it
 STAGES = {
     "scene": 0, "scenes": 0,
-    "surface": 1, "plate": 1, "friction": 1,
+    "physics": 1,
     "model": 2,
     "solvers": 3,
     "results": 4,
