@@ -224,7 +224,7 @@ def cmd_events(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from roughvib.plots import FIGURES, save_figure
+    from roughvib.views.figures import FIGURES, save_figure
 
     if args.figure not in FIGURES:
         raise InputError(f"--figure must be one of {', '.join(sorted(FIGURES))}, got "
@@ -265,7 +265,7 @@ def cmd_surface(args: argparse.Namespace) -> int:
     import json
 
     from roughvib.scene import load_scene
-    from roughvib.surface_report import write_surface_report
+    from roughvib.views.surface_report import write_surface_report
 
     scene = load_scene(args.scene, _parse_sets(args.set))
     out = Path(args.out) if args.out else Path("runs") / f"{scene.name}-surface"
@@ -410,7 +410,8 @@ def build_parser() -> argparse.ArgumentParser:
     su.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
     su.set_defaults(func=cmd_surface)
 
-    from roughvib import report, sweep
+    from roughvib import sweep
+    from roughvib.views import report
 
     report.add_parsers(sub)
     sweep.add_parsers(sub)

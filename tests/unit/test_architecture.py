@@ -16,7 +16,7 @@ STAGES = {
     "results": 4,
     "analysis": 5,
     "api": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
-    "plots": 7, "report": 7, "surface_report": 7, "compare": 7, "cli": 7, "sweep": 7,
+    "views": 7, "compare": 7, "cli": 7, "sweep": 7,
     "__init__": 7,
 }
 

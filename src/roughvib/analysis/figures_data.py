@@ -1,7 +1,7 @@
 """Data behind the paper's figures: windows, friction loops, spectra, contact resonance.
 
-This module owns the reductions that the figures (:mod:`roughvib.plots`) and the run report
-(:mod:`roughvib.report`) draw, so that they can be tested and reused without matplotlib:
+This module owns the reductions that the figures (:mod:`roughvib.views.figures`) and the run report
+(:mod:`roughvib.views.report`) draw, so that they can be tested and reused without matplotlib:
 
 * the analysis window of a run (whole excitation periods after the run-in);
 * friction loops against velocity (paper Figs. 3 and 8) and against tangential displacement

@@ -3,7 +3,7 @@
 ``write_report(DIR)`` reads a result directory written by ``roughvib run`` and writes
 ``DIR/report.html``: the scene, the summary tables (levels, calibration, model, contact
 resonance, third-octave band levels), the solver statistics, the energy audit, the per-cycle
-event phase table and every figure of :data:`roughvib.plots.FIGURES`, embedded as base64 PNG
+event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as base64 PNG
 data URIs. The page needs no server, no network and no script; it opens from disk in any
 browser.
 
@@ -107,7 +107,7 @@ def _frame_table(df, formats: dict | None = None) -> str:
 
 
 def _png_data_uri(fig, dpi: int) -> str:
-    from roughvib.plots import _plt
+    from roughvib.views.figures import _plt
 
     buf = io.BytesIO()
     fig.tight_layout()
@@ -253,7 +253,7 @@ def _phase_section(result) -> str:
 
 
 def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, list[str]]:
-    from roughvib.plots import FIGURES, plot_spectra
+    from roughvib.views.figures import FIGURES, plot_spectra
 
     parts, drawn = [], []
     for name, draw in FIGURES.items():
