@@ -9,15 +9,17 @@ SRC = Path(roughvib.__file__).parent
 
 # stage of each module; a module may import from its own stage and the ones above it
 STAGES = {
-    "scene": 0, "scenes": 0,
+    "scene": 0, "scenes": 0, "_version": 0,
     "physics": 1,
     "model": 2,
     "solvers": 3,
     "results": 4,
     "analysis": 5,
-    "api": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
-    "views": 7, "compare": 7, "cli": 7, "sweep": 7,
-    "__init__": 7,
+    "simulation": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
+    "views": 7,
+    "studies": 8,
+    "api": 9, "cli": 9,
+    "__init__": 9,
 }
 
 

@@ -25,10 +25,11 @@ import xarray as xr
 import roughvib
 from roughvib.analysis import figures_data as fd
 from roughvib.analysis.spectra import band_levels
+from roughvib.cli.report import add_parsers
 from roughvib.results import EVENT_COLUMNS, Result
 from roughvib.scene import Scene, scene_to_toml
 from roughvib.views.figures import FIGURES, save_figure
-from roughvib.views.report import add_parsers, build_report, write_report
+from roughvib.views.report import build_report, write_report
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 REQUIRED_FIGURES = {"velocity", "friction-velocity", "friction-displacement", "acceleration",

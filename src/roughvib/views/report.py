@@ -3,21 +3,19 @@
 ``write_report(DIR)`` reads a result directory written by ``roughvib run`` and writes
 ``DIR/report.html``: the scene, the summary tables (levels, calibration, model, contact
 resonance, third-octave band levels), the solver statistics, the energy audit, the per-cycle
-event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as base64 PNG
-data URIs. The page needs no server, no network and no script; it opens from disk in any
-browser.
+event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as
+base64 PNG data URIs. The page needs no server, no network and no script; it opens from disk in
+any browser.
 
-The CLI handler :func:`cmd_report` and :func:`add_parsers` provide ``roughvib report DIR``.
+``roughvib report DIR`` (:mod:`roughvib.cli.report`) calls :func:`write_report`.
 """
 
 from __future__ import annotations
 
-import argparse
 import base64
 import html
 import io
 import math
-import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -25,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["add_parsers", "build_report", "cmd_report", "write_report"]
+__all__ = ["build_report", "write_report"]
 
 _CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
@@ -309,7 +307,7 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     str
         A complete HTML5 document.
     """
-    from roughvib import __version__
+    from roughvib._version import __version__
 
     s = result.summary
     scene_name = s.get("scene", "?")
@@ -395,84 +393,3 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
     return path
-
-
-# --------------------------------------------------------------------------------------------
-# CLI
-# --------------------------------------------------------------------------------------------
-
-def cmd_report(args: argparse.Namespace) -> int:
-    """``roughvib report DIR``: write DIR/report.html and print its path.
-
-    Returns
-    -------
-    int
-        0 on success (also for the report of a failed run, with a note on stderr), 2 if DIR
-        is not a readable result directory or an option is out of range.
-    """
-    noise = getattr(args, "noise_floor", None)
-    dpi = getattr(args, "dpi", 90)
-    if noise is not None and not (noise >= 0 and math.isfinite(noise)):
-        print(f"roughvib: error: --noise-floor must be >= 0 m/s^2, got {noise}", file=sys.stderr)
-        return 2
-    if not 20 <= dpi <= 600:
-        print(f"roughvib: error: --dpi must be in [20, 600], got {dpi}", file=sys.stderr)
-        return 2
-    try:
-        path = write_report(args.dir, out=getattr(args, "out", None), dpi=dpi,
-                            noise_rms=noise)
-    except (FileNotFoundError, ValueError) as exc:
-        print(f"roughvib: error: {exc}", file=sys.stderr)
-        return 2
-    summary_status = _status_of(args.dir)
-    if summary_status != "success":
-        print(f"note: {args.dir} holds a failed run ({summary_status}); the report shows its "
-              f"status, statistics and last events only", file=sys.stderr)
-    print(path)
-    return 0
-
-
-def _status_of(result_dir) -> str:
-    import json
-
-    try:
-        return json.loads((Path(result_dir) / "summary.json").read_text()).get("status", "?")
-    except (OSError, ValueError):
-        return "?"
-
-
-def add_parsers(subparsers) -> argparse.ArgumentParser:
-    """Add the ``report`` subcommand to the CLI's subparsers.
-
-    Parameters
-    ----------
-    subparsers
-        The object returned by ``ArgumentParser.add_subparsers``.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The ``report`` parser (its handler, :func:`cmd_report`, set as ``func``).
-    """
-    p = subparsers.add_parser(
-        "report", formatter_class=argparse.RawDescriptionHelpFormatter,
-        help="write a self-contained HTML report of a run",
-        description="Write DIR/report.html: the scene, summary tables (levels, contact "
-                    "resonance, third-octave band levels in dB re 1e-6 m/s^2), solver "
-                    "statistics, energy audit, the per-cycle event phase table and every "
-                    "figure (velocity, friction-velocity, friction-displacement, acceleration, "
-                    "spectra, wavenumber, events) as embedded PNGs. The file opens in a browser "
-                    "without a server.",
-        epilog="examples:\n"
-               "  roughvib run --out runs/paper && roughvib report runs/paper\n"
-               "  roughvib report runs/paper --noise-floor 1e-3   # block accelerometer floor\n"
-               "  roughvib report runs/paper --out /tmp/paper.html --dpi 120\n")
-    p.add_argument("dir", help="result directory written by 'roughvib run'")
-    p.add_argument("--out", metavar="HTML", help="output file (default: DIR/report.html)")
-    p.add_argument("--noise-floor", type=float, metavar="RMS",
-                   help="add white noise of this rms [m/s^2] to the block acceleration in the "
-                        "spectra figure (the paper's simulated measuring-chain floor; "
-                        "physics.md suggests 1e-3)")
-    p.add_argument("--dpi", type=int, default=90, help="resolution of the figures (default 90)")
-    p.set_defaults(func=cmd_report)
-    return p
