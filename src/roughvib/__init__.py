@@ -10,11 +10,14 @@ Public API (see docs/quickstart.md)::
     result.events                   # pandas.DataFrame event log
 """
 
+from roughvib import _compat
 from roughvib._version import __version__ as __version__
 from roughvib.scene import Scene, SceneError, builtin_scenes, load_scene
 
 __all__ = ["Result", "Scene", "SceneError", "builtin_scenes", "load_result", "load_scene",
            "resume", "simulate"]
+
+_compat.install()  # old import paths (roughvib.plots, roughvib.sweep, ...) for one release
 
 
 def __getattr__(name):
