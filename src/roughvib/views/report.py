@@ -12,36 +12,15 @@ any browser.
 
 from __future__ import annotations
 
-import base64
-import html
-import io
-import math
 import time
-from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["build_report", "write_report"]
+from roughvib.views.html import esc, figure, figure_data_uri, frame_table, kv_table, num, page
 
-_CSS = """
-body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
-       max-width: 1100px; padding: 0 1em; color: #222; line-height: 1.4; }
-h1 { font-size: 1.5em; margin-bottom: 0.2em; }
-h2 { font-size: 1.15em; border-bottom: 1px solid #ccc; margin-top: 2em; }
-table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.85em; }
-th, td { border: 1px solid #ddd; padding: 2px 8px; text-align: right; }
-th { background: #f3f3f3; }
-td.key, th.key { text-align: left; }
-pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.8em; }
-figure { margin: 1.5em 0; }
-figure img { max-width: 100%; border: 1px solid #eee; }
-figcaption { font-size: 0.85em; color: #555; }
-.status-success { color: #17692b; } .status-failed { color: #a11; }
-.note { font-size: 0.85em; color: #555; }
-nav a { margin-right: 1em; }
-"""
+__all__ = ["build_report", "write_report"]
 
 #: figure name -> caption
 _CAPTIONS = {
@@ -63,55 +42,6 @@ _CAPTIONS = {
     "events": "Regimes: tangential velocity, total normal force, lift-off of each contact "
               "and the block's stick phases.",
 }
-
-
-# --------------------------------------------------------------------------------------------
-# HTML helpers
-# --------------------------------------------------------------------------------------------
-
-def _esc(x) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def _num(x, fmt: str = ".6g") -> str:
-    if x is None:
-        return "n/a"
-    if isinstance(x, bool):
-        return str(x)
-    if isinstance(x, int | np.integer):
-        return str(int(x))
-    if isinstance(x, float | np.floating):
-        return "n/a" if not math.isfinite(float(x)) else format(float(x), fmt)
-    return _esc(x)
-
-
-def _kv_table(rows: Iterable[tuple[str, object, str]]) -> str:
-    """Two-column table of (quantity, value, unit)."""
-    body = "".join(f"<tr><td class='key'>{_esc(k)}</td><td>{_num(v)}</td>"
-                   f"<td class='key'>{_esc(u)}</td></tr>" for k, v, u in rows)
-    return ("<table><tr><th class='key'>quantity</th><th>value</th><th class='key'>unit</th>"
-            f"</tr>{body}</table>")
-
-
-def _frame_table(df, formats: dict | None = None) -> str:
-    formats = formats or {}
-    head = "".join(f"<th>{_esc(c)}</th>" for c in df.columns)
-    rows = []
-    for _, row in df.iterrows():
-        cells = "".join(f"<td>{formats[c](row[c]) if c in formats else _num(row[c])}</td>"
-                        for c in df.columns)
-        rows.append(f"<tr>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
-
-
-def _png_data_uri(fig, dpi: int) -> str:
-    from roughvib.views.figures import _plt
-
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=dpi)
-    _plt().close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 # --------------------------------------------------------------------------------------------
@@ -141,7 +71,7 @@ def _levels_section(summary: dict) -> str:
         ("normal force min", m.get("normal_force_min"), "N"),
         ("closed contacts, mean", m.get("active_contacts_mean"), "-"),
     ]
-    return _kv_table(rows)
+    return kv_table(rows)
 
 
 def _model_section(summary: dict) -> str:
@@ -154,7 +84,7 @@ def _model_section(summary: dict) -> str:
             ("profile rms", prof.get("rms"), "m"),
             ("profile rms slope", prof.get("rms_slope"), "-"),
             ("profile rms curvature", prof.get("rms_curvature"), "1/m")]
-    return _kv_table(rows)
+    return kv_table(rows)
 
 
 _SOLVER_UNITS = {"rtol": "-", "atol": "m", "wall_time": "s", "preprocessing_time": "s"}
@@ -167,7 +97,7 @@ def _solver_section(summary: dict) -> str:
     ev = summary.get("events_by_kind", {})
     ev_rows = [(f"events: {k}", v, "-") for k, v in sorted(ev.items())
                if f"events_{k}" not in s]
-    return _kv_table(rows + ev_rows)
+    return kv_table(rows + ev_rows)
 
 
 def _energy_section(summary: dict) -> str:
@@ -176,7 +106,7 @@ def _energy_section(summary: dict) -> str:
         return "<p class='note'>no energy audit in this result</p>"
     rows = [(k, v, "-" if k == "relative_residual" else ("s" if k == "t_end" else "J"))
             for k, v in a.items()]
-    return (_kv_table(rows) + "<p class='note'>residual = inputs (excitation and roughness "
+    return (kv_table(rows) + "<p class='note'>residual = inputs (excitation and roughness "
             "work) − dissipation − change of stored energy; of the order of the integration "
             "tolerance.</p>")
 
@@ -187,7 +117,7 @@ def _resonance_and_bands(result) -> tuple[str, str]:
 
     sp = fd.acceleration_spectra(result)
     cr = fd.contact_resonance(result, spectra=sp)
-    res = _kv_table([
+    res = kv_table([
         ("spring-mass estimate sqrt(s_closed/m)/2π", cr.spring_mass, "Hz"),
         ("peak of block/contact-base transmissibility", cr.transmissibility_peak, "Hz"),
         ("transmissibility at that peak", cr.transmissibility_max, "-"),
@@ -200,12 +130,12 @@ def _resonance_and_bands(result) -> tuple[str, str]:
                        "block [dB re 1e-6 m/s²]": sp.band_db["block"][ok],
                        "plate [dB re 1e-6 m/s²]": sp.band_db["plate"][ok],
                        "plate − block [dB]": (sp.band_db["plate"] - sp.band_db["block"])[ok]})
-    fmt = {c: (lambda v: _num(v, ".1f")) for c in df.columns[1:]}
-    fmt["band centre [Hz]"] = lambda v: _num(float(v), "g")
+    fmt = {c: (lambda v: num(v, ".1f")) for c in df.columns[1:]}
+    fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
     bands = (f"<p class='note'>Hann-tapered whole-window band levels over "
              f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands with fewer than 4 FFT bins "
              f"omitted). Total: block {sp.total_db['block']:.1f} dB, plate "
-             f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + _frame_table(df, fmt))
+             f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + frame_table(df, fmt))
     return res, bands
 
 
@@ -223,7 +153,7 @@ def _stick_slip_section(result) -> str:
         rows += [(f"{label}, rms in stick", d["stick_rms"], unit),
                  (f"{label}, rms in slip", d["slip_rms"], unit),
                  (f"{label}, stick − slip", d["stick_minus_slip_db"], "dB")]
-    return (_kv_table(rows) + "<p class='note'>samples of the analysis window split by the "
+    return (kv_table(rows) + "<p class='note'>samples of the analysis window split by the "
             "logged stick phases; the roughness input rate is the excitation itself, the "
             "accelerations include the ring-down of the slip response.</p>")
 
@@ -246,12 +176,12 @@ def _phase_section(result) -> str:
     out.columns = ["cycle", "start [s]", "end [s]", "stick fraction [-]", "stick phases",
                    "mean stick duration [s]", "lift-offs (all contacts)",
                    "open time (sum over contacts) [s]", "guard activations"]
-    return _frame_table(out) + ("<p class='note'>per excitation cycle from the event log "
+    return frame_table(out) + ("<p class='note'>per excitation cycle from the event log "
                                 "(roughvib events DIR shows the same table).</p>")
 
 
 def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, list[str]]:
-    from roughvib.views.figures import FIGURES, plot_spectra
+    from roughvib.views.figures import FIGURES, _plt, plot_spectra
 
     parts, drawn = [], []
     for name, draw in FIGURES.items():
@@ -260,22 +190,25 @@ def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, li
                 fig = plot_spectra(result, noise_rms=noise_rms)[0].figure
             else:
                 fig = draw(result)
-            uri = _png_data_uri(fig, dpi)
+            try:
+                fig.tight_layout()
+                uri = figure_data_uri(fig, dpi=dpi)
+            finally:
+                _plt().close(fig)
         except Exception as exc:  # one broken figure must not cost the whole report
-            parts.append(f"<figure id='fig-{_esc(name)}'><p class='status-failed'>figure "
-                         f"{_esc(name)} could not be drawn: {_esc(type(exc).__name__)}: "
-                         f"{_esc(exc)}</p></figure>")
+            parts.append(f"<figure id='fig-{esc(name)}'><p class='status-failed'>figure "
+                         f"{esc(name)} could not be drawn: {esc(type(exc).__name__)}: "
+                         f"{esc(exc)}</p></figure>")
             continue
         drawn.append(name)
-        parts.append(f"<figure id='fig-{_esc(name)}'><img src='{uri}' alt='figure {_esc(name)}'>"
-                     f"<figcaption><b>{_esc(name)}</b>: {_esc(_CAPTIONS.get(name, ''))}"
-                     f"</figcaption></figure>")
+        parts.append(figure(uri, alt=f"figure {name}", id=f"fig-{name}",
+                            caption_html=f"<b>{esc(name)}</b>: {esc(_CAPTIONS.get(name, ''))}"))
     return "".join(parts), drawn
 
 
 def _failed(exc: Exception) -> str:
     return (f"<p class='status-failed'>this section could not be made: "
-            f"{_esc(type(exc).__name__)}: {_esc(exc)}</p>")
+            f"{esc(type(exc).__name__)}: {esc(exc)}</p>")
 
 
 def _safe(fn, *args) -> str:
@@ -338,24 +271,17 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
             cols = [c for c in ("time", "kind", "contact", "tangential_velocity",
                                 "normal_force") if c in last[0]]
             sections.append(("last-events", "Last events before the failure",
-                             _frame_table(pd.DataFrame(last)[cols])))
+                             frame_table(pd.DataFrame(last)[cols])))
     sections.append(("scene", "Scene (resolved, repeatable)",
-                     f"<pre>{_esc(result.scene_toml or '(no scene.toml)')}</pre>"))
-    nav = "".join(f"<a href='#{i}'>{_esc(h)}</a>" for i, h, _ in sections)
-    body = "".join(f"<section id='{i}'><h2>{_esc(h)}</h2>{c}</section>"
-                   for i, h, c in sections)
+                     f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
     created = result.dataset.attrs.get("created", "") if ok else ""
     status_cls = "status-success" if ok else "status-failed"
-    return (
-        "<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n"
-        "<meta name='viewport' content='width=device-width, initial-scale=1'>\n"
-        f"<title>{_esc(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
-        f"<h1>{_esc(title)}</h1>\n"
-        f"<p>status: <b class='{status_cls}'>{_esc(status)}</b>: {_esc(s.get('message', ''))}"
-        f"<br>run created {_esc(created)}; report by roughvib {_esc(__version__)} on "
-        f"{_esc(time.strftime('%Y-%m-%d %H:%M:%S'))}<br>model after J. Feldmann, "
-        f"J. Vib. Acoust. 134 (2012) 041002. Vertical quantities positive down.</p>\n"
-        f"<nav>{nav}</nav>\n{body}\n</body>\n</html>\n")
+    header = (
+        f"<p>status: <b class='{status_cls}'>{esc(status)}</b>: {esc(s.get('message', ''))}"
+        f"<br>run created {esc(created)}; report by roughvib {esc(__version__)} on "
+        f"{esc(time.strftime('%Y-%m-%d %H:%M:%S'))}<br>model after J. Feldmann, "
+        f"J. Vib. Acoust. 134 (2012) 041002. Vertical quantities positive down.</p>")
+    return page(title, sections, header_html=header)
 
 
 def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: int = 90,

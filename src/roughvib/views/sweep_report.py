@@ -1,5 +1,5 @@
 """The sweep report's files: one figure per study (levels against the swept quantity with the
-fitted slopes), ``report.md`` and ``report.html``.
+fitted slopes), ``report.md`` and ``report.html`` (built with :mod:`roughvib.views.html`).
 
 Everything here takes plain tables, dicts and file names computed by
 :mod:`roughvib.studies.sweep.report` and never imports the studies. A report is a title, an
@@ -14,6 +14,8 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from roughvib.views.html import esc, figure, page, slug, table
 
 __all__ = ["render_html", "render_markdown", "study_figure"]
 
@@ -95,22 +97,6 @@ def _md_table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def _html_table(header: list[str], rows: list[list[str]]) -> str:
-    import html
-
-    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
-                   for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
-
-def _esc(text: str) -> str:
-    import html
-
-    return html.escape(str(text))
-
-
 def render_markdown(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -> str:
     """The report as Markdown (see the module docstring for ``blocks``)."""
     md = [f"# {title}", "", intro, ""]
@@ -127,20 +113,23 @@ def render_markdown(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -
 
 
 def render_html(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -> str:
-    """The report as one HTML document (see the module docstring for ``blocks``)."""
-    body = [f"<h1>{_esc(title)}</h1>", f"<p>{_esc(intro)}</p>"]
+    """The report as one HTML page of :func:`roughvib.views.html.page` (see the module
+    docstring for ``blocks``): each ``h2`` block opens a section."""
+    header = [f"<p>{esc(intro)}</p>"]
+    sections: list[tuple[str, str, list[str]]] = []
     for kind, payload in blocks:
         if kind == "h2":
-            body.append(f"<h2>{_esc(payload)}</h2>")
-        elif kind == "p":
-            body.append(f"<p>{_esc(payload)}</p>")
+            ident = slug(payload)
+            while ident in {i for i, _, _ in sections}:
+                ident += "-"
+            sections.append((ident, payload, []))
+            continue
+        if kind == "p":
+            part = f"<p>{esc(payload)}</p>"
         elif kind == "img":
-            body.append(f'<p><img src="{_esc(payload)}" alt="{_esc(payload)}" '
-                        f'style="max-width:100%"></p>')
+            part = figure(payload, alt=payload)
         else:
-            body.append(_html_table(*payload))
-    return ("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
-            f"<title>{_esc(title)}</title><style>body{{font-family:sans-serif;max-width:1100px;"
-            "margin:2em auto}table{border-collapse:collapse;font-size:0.85em}"
-            "td,th{border:1px solid #ccc;padding:2px 6px}</style></head><body>\n"
-            + "\n".join(body) + "\n</body></html>\n")
+            part = table(*payload)
+        (sections[-1][2] if sections else header).append(part)
+    return page(title, [(i, h, "".join(c)) for i, h, c in sections],
+                header_html="".join(header))
