@@ -1,8 +1,9 @@
-"""The one entry point: ``simulate(scene) -> Result``.
+"""Running a scene: ``simulate(scene) -> Result`` and ``resume(directory) -> Result``.
 
-Runs the pipeline scene -> preprocessing/assembly -> solver -> Result and adds what every run
-reports: the energy audit, rms values over whole excitation periods, the stick fraction and
-the solver statistics.
+Orchestrates the pipeline scene -> preprocessing/assembly -> solver -> Result and adds what every
+run reports: the energy audit, rms values over whole excitation periods, the stick fraction and
+the solver statistics. The studies (compare, sweep) call :func:`simulate`; users reach it as
+``roughvib.simulate`` or through :mod:`roughvib.api`.
 """
 
 from __future__ import annotations
