@@ -32,14 +32,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
                   f"error {c['error']:.3g}")
     return EXIT_OK
 
-def add_parsers(sub) -> None:
-    """Add the ``compare`` command.
 
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        From ``ArgumentParser.add_subparsers``.
-    """
+def add_parsers(sub) -> None:
+    """Add the ``compare`` command to ``sub``, the subparsers of ``build_parser``."""
     fmt = argparse.RawDescriptionHelpFormatter
     c = sub.add_parser(
         "compare", formatter_class=fmt,

@@ -97,14 +97,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     print(out)
     return EXIT_OK
 
-def add_parsers(sub) -> None:
-    """Add the ``events`` and ``plot`` commands.
 
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        From ``ArgumentParser.add_subparsers``.
-    """
+def add_parsers(sub) -> None:
+    """Add the ``events`` and ``plot`` commands to ``sub``, the subparsers of ``build_parser``."""
     fmt = argparse.RawDescriptionHelpFormatter
     e = sub.add_parser(
         "events", formatter_class=fmt, help="phase table and event log of a run",

@@ -115,14 +115,9 @@ def cmd_scenes(args: argparse.Namespace) -> int:
         print(f"{name:<{width}}  {scenes[name]}")
     return EXIT_OK
 
-def add_parsers(sub) -> None:
-    """Add the ``run`` and ``scenes`` commands.
 
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        From ``ArgumentParser.add_subparsers``.
-    """
+def add_parsers(sub) -> None:
+    """Add the ``run`` and ``scenes`` commands to ``sub``, the subparsers of ``build_parser``."""
     fmt = argparse.RawDescriptionHelpFormatter
     r = sub.add_parser(
         "run", formatter_class=fmt, help="run a scene and write its results",

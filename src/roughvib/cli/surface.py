@@ -37,14 +37,9 @@ def cmd_surface(args: argparse.Namespace) -> int:
         print(f"  {paths[name]}")
     return EXIT_OK
 
-def add_parsers(sub) -> None:
-    """Add the ``surface`` command.
 
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        From ``ArgumentParser.add_subparsers``.
-    """
+def add_parsers(sub) -> None:
+    """Add the ``surface`` command to ``sub``, the subparsers of ``build_parser``."""
     fmt = argparse.RawDescriptionHelpFormatter
     su = sub.add_parser(
         "surface", formatter_class=fmt,
