@@ -12,6 +12,7 @@ import math
 import os
 import time
 import tomllib
+from dataclasses import replace
 from datetime import UTC, datetime
 
 import numpy as np
@@ -23,8 +24,10 @@ from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import System, assemble
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
 from roughvib.scene import (
+    FIXED_STEP_METHODS,
     Scene,
     SceneError,
+    Solver,
     replace_section,
     scene_from_dict,
     scene_to_toml,
@@ -32,7 +35,8 @@ from roughvib.scene import (
 from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
 from roughvib.solvers.ida import RawSolution, solve_ida
 
-__all__ = ["energy_audit", "resume", "simulate"]
+__all__ = ["checkpoint_scene", "energy_audit", "resume", "simulate", "verification_scene",
+           "verify_result"]
 
 
 def energy_audit(system: System, raw: RawSolution) -> dict:
@@ -162,7 +166,7 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
 
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
-             checkpoint_dir: str | os.PathLike | None = None,
+             checkpoint_dir: str | os.PathLike | None = None, verify: bool = False,
              _resume_from: Checkpoint | None = None) -> Result:
     """Run a scene and return its :class:`~roughvib.results.Result`.
 
@@ -177,6 +181,11 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     checkpoint_dir : path, optional
         With ``output.checkpoint_interval > 0``: write ``checkpoint.pkl`` there (replaced
         atomically at each checkpoint); continue a stopped run with :func:`resume`.
+    verify : bool
+        After a successful run, solve the scene a second, independent way
+        (:func:`verification_scene`) and write the deviations and a verdict against the
+        accuracy contract into ``summary["accuracy"]`` (:func:`verify_result`). Costs a second
+        run, usually the slower solver's.
 
     Returns
     -------
@@ -195,14 +204,15 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     system = assemble(scene, force_amplitude=force_amplitude)
     _check_travel(system, _estimate_travel(scene))
     t_pre = time.perf_counter() - t0
-    if scene.solver.method == "ida":
+    solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
+    if solver.method == "ida":
         raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
                         resume=_resume_from)
-    elif scene.solver.method == "adaptive-modal":
+    elif solver.method == "adaptive-modal":
         from roughvib.solvers.adaptive_modal import solve_adaptive_modal
 
         raw = solve_adaptive_modal(system, progress=progress)
-    elif scene.solver.method == "paper":
+    elif solver.method == "paper":
         from roughvib.solvers.paper_scheme import solve_paper_scheme
 
         raw = solve_paper_scheme(system, progress=progress)
@@ -223,6 +233,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         if exc.target_rms_velocity is not None:
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+    comments.update(_solver_comments(scene.solver, solver))
     scene_toml = scene_to_toml(resolved, comments=comments)
 
     by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
@@ -231,8 +242,10 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "status": raw.status,
         "message": raw.message,
         "scene": scene.name,
-        "solver": {"method": scene.solver.method, "rtol": scene.solver.rtol,
-                   "atol": scene.solver.atol, **raw.stats,
+        "solver": {"method": solver.method, "accuracy": solver.accuracy,
+                   "rtol": solver.rtol, "atol": solver.atol,
+                   "atol_acceleration": solver.atol_acceleration, "step": solver.step,
+                   "from_preset": list(scene.solver.from_preset()), **raw.stats,
                    "preprocessing_time": t_pre},
         "force_amplitude": system.force_amplitude,
         "calibration": system.calibration,
@@ -257,7 +270,112 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
-    return Result(ds, events, summary, scene_toml, extra={"system": system})
+    result = Result(ds, events, summary, scene_toml, extra={"system": system})
+    if verify and result.ok:
+        verify_result(result, scene, progress=progress)
+    return result
+
+
+def _solver_comments(given: Solver, solver: Solver) -> dict[str, str]:
+    """scene.toml comments saying what ``auto`` and the accuracy preset resolved to."""
+    out = {}
+    if given.method == "auto":
+        out["solver.method"] = f"ran {solver.method}"
+    keys = given.from_preset()
+    if solver.method in FIXED_STEP_METHODS:
+        keys = tuple(k for k in keys if k == "step")
+    else:
+        keys = tuple(k for k in keys if k != "step")
+    if keys:
+        units = {"atol": " m", "atol_acceleration": " m/s^2", "step": " s"}
+        out["solver.accuracy"] = (f"{solver.method}: " + ", ".join(
+            f"{k} {getattr(solver, k):g}{units.get(k, '')}" for k in keys))
+    return out
+
+
+def verification_scene(scene: Scene) -> tuple[Scene, str]:
+    """The second, independent solve that checks a run of ``scene`` (``verify=True``).
+
+    The other event-driven solver at its ``reference`` preset: IDA checks adaptive-modal and
+    adaptive-modal checks IDA. Where adaptive-modal cannot run (the Coulomb law, overdamped
+    modes), IDA checks IDA at 100x tighter rtol, atol and atol_acceleration. The fixed-step
+    schemes are checked by the ``auto`` method at ``reference``.
+
+    Returns
+    -------
+    Scene
+        The scene of the second solve (no checkpoints, explicit method and tolerances).
+    str
+        How it solves, for the report (e.g. ``"ida at accuracy 'reference'"``).
+    """
+    run = scene.resolved_solver()
+    base = replace_section(scene, "output", checkpoint_interval=0.0)
+    base = replace_section(base, "solver", method="auto", accuracy="reference", rtol=None,
+                           atol=None, atol_acceleration=None, step=None)
+    auto = base.resolved_solver().method  # adaptive-modal where it can run, else ida
+    if run.method == "adaptive-modal":
+        other, how = replace(base.solver, method="ida").resolved(), "ida at accuracy 'reference'"
+    elif run.method == "ida" and auto == "ida":  # the only event-driven solver of this scene
+        other = replace(run, rtol=max(run.rtol / 100, 1e-14), atol=run.atol / 100,
+                        atol_acceleration=run.atol_acceleration / 100)
+        how = "ida at 100x tighter tolerances"
+    else:
+        other = base.resolved_solver()
+        how = f"{other.method} at accuracy 'reference'"
+    return replace(base, solver=other), how
+
+
+def _tol_text(s: Solver) -> str:
+    if s.method in FIXED_STEP_METHODS:
+        return f"step {s.step:g} s"
+    return f"rtol {s.rtol:g}, atol {s.atol:g} m, atol_acceleration {s.atol_acceleration:g} m/s^2"
+
+
+def verify_result(result: Result, scene: Scene, *, progress: bool | None = None) -> dict:
+    """Solve ``scene`` a second, independent way and judge ``result`` by the accuracy contract.
+
+    The second solve is :func:`verification_scene`'s, with the run's force amplitude (no
+    second calibration). Writes the measurement (:func:`roughvib.analysis.accuracy.
+    measure_accuracy`) into ``result.summary["accuracy"]`` and returns it; the second solve's
+    method, tolerances, wall time and status are in its ``verification`` entry. A failed
+    second solve gives the verdict ``"unverified"``.
+
+    Parameters
+    ----------
+    result : Result
+        A successful run of ``scene``.
+    scene : Scene
+        The scene of that run.
+    progress : bool, optional
+        Progress bar for the second solve (default: the scene's ``output.progress``).
+
+    Returns
+    -------
+    dict
+        The ``accuracy`` section.
+    """
+    from roughvib.analysis.accuracy import measure_accuracy
+
+    vscene, label = verification_scene(scene)
+    system = result.extra.get("system")
+    t0 = time.perf_counter()
+    ref = simulate(vscene, progress=progress,
+                   force_amplitude=result.summary.get("force_amplitude")
+                   if system is None or system.tangential else None)
+    info = {"method": ref.summary["solver"]["method"], "how": label,
+            "settings": _tol_text(vscene.solver), "status": ref.status,
+            "wall_time": time.perf_counter() - t0}
+    if ref.ok:
+        acc = measure_accuracy(result, ref, period=scene.period,
+                               transient=scene.output.transient, reference_label=label)
+    else:
+        acc = {"reference": label, "verdict": "unverified",
+               "failures": [f"the verification run failed ({ref.status}): "
+                            f"{ref.summary.get('message')}"]}
+    acc["verification"] = info
+    result.summary["accuracy"] = acc
+    result.extra["verification"] = ref
+    return acc
 
 
 def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:
@@ -286,9 +404,24 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
         scene it carries.
     """
     cp = read_checkpoint(directory)
+    return simulate(_scene_of_checkpoint(cp, directory), progress=progress,
+                    checkpoint_dir=directory, _resume_from=cp)
+
+
+def checkpoint_scene(directory: str | os.PathLike) -> Scene:
+    """The scene of the checkpointed run in ``directory`` (what :func:`resume` continues).
+
+    Raises
+    ------
+    SceneError
+        No checkpoint, or one whose scene cannot be read.
+    """
+    return _scene_of_checkpoint(read_checkpoint(directory), directory)
+
+
+def _scene_of_checkpoint(cp: Checkpoint, directory) -> Scene:
     try:
         data = tomllib.loads(cp.scene_toml)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
-    scene = scene_from_dict(data, base_dir=cp.base_dir)
-    return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)
+    return scene_from_dict(data, base_dir=cp.base_dir)

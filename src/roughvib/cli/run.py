@@ -55,12 +55,18 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     if a:
         lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
                      f"(relative {a.get('relative_residual', 0):.2e})")
+    acc = summary.get("accuracy")
+    if acc:
+        from roughvib.analysis.accuracy import verdict_line
+
+        lines.append(f"accuracy         {verdict_line(acc)}")
     print("\n".join(lines))
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.api import resume, simulate
     from roughvib.scene import load_scene
+    from roughvib.simulation import checkpoint_scene, verification_scene, verify_result
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
     if args.resume:
@@ -68,6 +74,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
                              "--set or --out with it")
         out_dir = Path(args.resume)
+        scene = checkpoint_scene(out_dir) if args.verify else None
         runner = lambda: resume(out_dir, progress=False if args.no_progress else None)  # noqa: E731
     else:
         scene = load_scene(args.scene or "paper", parse_sets(args.set))
@@ -93,6 +100,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     result.save(out_dir)
     if result.ok:
         (out_dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+    if args.verify and result.ok:
+        # the run is saved first: an interrupted or failed second solve loses nothing
+        _, how = verification_scene(scene)
+        print(f"verifying: solving the scene again with {how}", file=sys.stderr)
+        try:
+            verify_result(result, scene, progress=False if args.no_progress else None)
+        except KeyboardInterrupt:
+            print(f"roughvib: verification interrupted; the run itself is saved in {out_dir}",
+                  file=sys.stderr)
+            raise
+        result.save(out_dir)
     if not args.quiet:
         _print_summary(result.summary, out_dir)
     if not result.ok:
@@ -129,7 +147,8 @@ def add_parsers(sub) -> None:
                "  roughvib run my_scene.toml --set block.mass=0.543 "
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
-               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n")
+               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
+               "  roughvib run --verify                # and check it by a second solver\n")
     r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
@@ -139,6 +158,11 @@ def add_parsers(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
+    r.add_argument("--verify", action="store_true",
+                   help="after the run, solve the scene a second, independent way (the other "
+                        "event-driven solver at accuracy 'reference') and write the deviations "
+                        "and a verdict against the accuracy contract into summary.json "
+                        "('accuracy') and the report; costs a second run")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="do not print the summary")
     r.set_defaults(func=cmd_run)

@@ -10,7 +10,7 @@ derivatives after a regime switch, and the stored energy for the energy audit.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -235,7 +235,12 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
     scene : Scene
     force_amplitude : float, optional
         Use this T0 [N] instead of the scene's value or calibration.
+
+    The system's ``scene`` carries the resolved solver section (:meth:`Scene.resolved_solver`:
+    a concrete method, tolerances and step from the accuracy preset unless given), which is
+    what the solvers read.
     """
+    scene = replace(scene, solver=scene.resolved_solver())
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
     K = scene.contact.points
     tangential = exc.kind == "force"
