@@ -889,8 +889,10 @@ def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scen
             sec["force_amplitude"] = None
         # "none" clears an optional value (TOML has no null)
         for k, v in list(sec.items()):
-            if v == "none" and k in ("force_amplitude", "target_rms_velocity", "summit_density",
-                                     "summit_radius", "summit_std", "stribeck_velocity"):
+            if v == "none" and (k in ("force_amplitude", "target_rms_velocity",
+                                      "summit_density", "summit_radius", "summit_std",
+                                      "stribeck_velocity")
+                                or (cls is Solver and k in _TOLERANCE_KEYS)):
                 sec[k] = None
         try:
             kwargs[key] = cls(**sec)

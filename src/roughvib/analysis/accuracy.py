@@ -26,12 +26,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from roughvib.analysis.compare import common_grid, match_events, relative_rms_error
+from roughvib.analysis.compare import band_levels, common_grid, match_events, relative_rms_error
 from roughvib.analysis.levels import whole_period_window
-from roughvib.analysis.spectra import band_powers, third_octave_bands
 
-__all__ = ["CONTRACT", "Contract", "analysis_window", "band_deviations", "measure_accuracy",
-           "verdict_line"]
+__all__ = ["CONTRACT", "Contract", "analysis_window", "band_deviations", "contract_ratio",
+           "measure_accuracy", "verdict_line"]
 
 #: the two signals whose band levels the contract covers: name in the report -> variable
 SIGNALS = {"block": "block_vertical_acceleration", "plate": "plate_vertical_acceleration"}
@@ -106,14 +105,9 @@ def band_deviations(x: np.ndarray, x_ref: np.ndarray, fs: float, *,
         ``worst_deviation_db`` (signed; ``±inf`` when a checked band is empty in one of the
         records), NaN when no band is checked.
     """
-    fc, lo, hi = third_octave_bands(contract.f_min, contract.f_max)
-    keep = hi <= fs / 2 * (1 + 1e-12)
-    fc, lo, hi = fc[keep], lo[keep], hi[keep]
-    p = band_powers(np.asarray(x, float), fs, lo, hi, window="hann")
-    pr = band_powers(np.asarray(x_ref, float), fs, lo, hi, window="hann")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        level = 10.0 * np.log10(p / _REF_ACC**2)
-        level_ref = 10.0 * np.log10(pr / _REF_ACC**2)
+    fc, level, level_ref = band_levels(x, x_ref, fs, fmin=contract.f_min, fmax=contract.f_max,
+                                       window="hann", ref_value=_REF_ACC)
+    with np.errstate(invalid="ignore"):
         dev = level - level_ref
     finite_ref = np.isfinite(level_ref)
     checked = np.zeros(fc.size, bool)
@@ -219,6 +213,27 @@ def measure_accuracy(result, reference, *, period: float, transient: float,
         "verdict": "fail" if fails else "pass",
         "failures": fails,
     }
+
+
+def contract_ratio(acc: dict) -> float:
+    """The largest ratio of a measured deviation to its contract limit (<= 1: within the
+    contract), from :func:`measure_accuracy`'s dict; inf for a lost band or an event without
+    a partner, NaN if nothing was measured."""
+    c = acc["contract"]
+    ratios = []
+    for b in acc["bands"].values():
+        d = b["deviation_db"]
+        if isinstance(d, str):
+            return math.inf
+        if d is not None:
+            ratios.append(abs(d) / c["band_db"])
+    if acc["events"]["unmatched"]:
+        return math.inf
+    ratios.append(acc["events"]["max_dt"] / c["event_dt"])
+    if acc["velocity_rel_rms"] is not None:
+        ratios.append(acc["velocity_rel_rms"] / c["velocity_rel_rms"])
+    ratios.append(acc["energy_rel_residual"] / c["energy_rel_residual"])
+    return max(ratios) if ratios else math.nan
 
 
 def _hz(f: float) -> str:
