@@ -553,18 +553,27 @@ ACCURACY_LEVELS = ("reference", "standard", "draft")
 
 #: tolerances of each accuracy preset per method: what ``solver.accuracy`` stands for when
 #: ``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration`` and ``solver.step`` are not
-#: given. The measured cost and error of every entry are in docs/accuracy.md; ``reference``
-#: meets the accuracy contract on the built-in scenes for every method that can.
+#: given. ``atol_acceleration_relative`` scales the plate modes' tolerance with the run's own
+#: acceleration level, measured by a short pilot solve (docs/accuracy.md);
+#: ``atol_acceleration`` is the absolute value used when no level can be measured. The
+#: measured cost and error of every entry are in docs/accuracy.md; ``reference`` meets the
+#: accuracy contract on the built-in scenes for every method that can.
 ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
     "adaptive-modal": {
-        "reference": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8},
-        "standard": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-7},
-        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6},
+        "reference": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8,
+                      "atol_acceleration_relative": 1e-6},
+        "standard": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-7,
+                     "atol_acceleration_relative": 1e-5},
+        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
+                  "atol_acceleration_relative": 1e-4},
     },
     "ida": {
-        "reference": {"rtol": 1e-8, "atol": 1e-12, "atol_acceleration": 1e-10},
-        "standard": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8},
-        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6},
+        "reference": {"rtol": 1e-7, "atol": 1e-12, "atol_acceleration": 1e-11,
+                      "atol_acceleration_relative": 1e-9},
+        "standard": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8,
+                     "atol_acceleration_relative": 1e-6},
+        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
+                  "atol_acceleration_relative": 1e-4},
     },
     "exact-modal": {"reference": {"step": 2.5e-6}, "standard": {"step": 1e-5},
                     "draft": {"step": 2e-5}},
@@ -574,7 +583,7 @@ ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
     "paper": {"reference": {"step": 1e-5}, "standard": {"step": 1e-5}, "draft": {"step": 1e-5}},
     "moreau": {"reference": {"step": 1e-6}, "standard": {"step": 1e-5}, "draft": {"step": 2e-5}},
 }
-_TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "step")
+_TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "atol_acceleration_relative", "step")
 
 
 @dataclass(frozen=True)
@@ -611,7 +620,16 @@ class Solver:
     atol_acceleration : float or None
         Absolute tolerance of the plate modes expressed as an acceleration [m/s^2]: mode r
         gets atol_q = a / w_r^2 and atol_dq = a / w_r, so high modes stay error-controlled
-        down to this acceleration (what spectra to 50 kHz need); ``None``: from the preset.
+        down to this acceleration (what spectra to 50 kHz need); ``None``: from the preset,
+        scaled with the run's acceleration level (``atol_acceleration_relative``).
+    atol_acceleration_relative : float or None
+        Plate-mode tolerance relative to the run's vertical acceleration level [-]: unless
+        ``atol_acceleration`` is given, a pilot solve (the first 0.02 s, or a quarter of a
+        shorter run, at draft tolerances) measures the larger rms vertical acceleration of
+        block and plate, L, and the run uses ``atol_acceleration`` = this x max(L, 1e-6
+        m/s^2). Quiet scenes get a tight tolerance, loud ones a loose one, so that the bands
+        the accuracy contract checks (within 80 dB of the strongest) are resolved alike.
+        ``None``: from the preset.
     max_order : int
         Highest BDF order (1..5). Default 2: orders >= 3 are not A-stable and were measured
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
@@ -640,6 +658,7 @@ class Solver:
     rtol: float | None = None
     atol: float | None = None
     atol_acceleration: float | None = None
+    atol_acceleration_relative: float | None = None
     max_order: int = 2
     max_step: float = 0.0
     linear_solver: str = "sparse"
@@ -659,6 +678,10 @@ class Solver:
         if self.atol_acceleration is not None:
             _set(self, "atol_acceleration",
                  _positive(f"{p}.atol_acceleration", self.atol_acceleration, "m/s^2"))
+        if self.atol_acceleration_relative is not None:
+            _set(self, "atol_acceleration_relative",
+                 _range(f"{p}.atol_acceleration_relative", self.atol_acceleration_relative,
+                        0.0, 1.0, "", lo_open=True))
         _set(self, "max_order", _integer(f"{p}.max_order", self.max_order, 1, 5))
         _set(self, "max_step", _nonneg(f"{p}.max_step", self.max_step, "s"))
         _set(self, "linear_solver", _choice(f"{p}.linear_solver", self.linear_solver,
@@ -682,6 +705,10 @@ class Solver:
             explicit values where given, else those of ``ACCURACY_PRESETS[method][accuracy]``,
             else those of the IDA preset of the same accuracy (tolerances) or 1e-5 s (step), so
             that every key holds a number whatever the method uses.
+            ``atol_acceleration_relative`` is None for the fixed-step methods. Where
+            ``atol_acceleration`` was not given, the run replaces it by
+            ``atol_acceleration_relative`` times the level a pilot solve measures
+            (:func:`roughvib.simulation.simulate`).
         """
         m = self.method if self.method != "auto" else method
         if m not in SOLVER_METHODS:
@@ -690,11 +717,14 @@ class Solver:
                   **ACCURACY_PRESETS[m][self.accuracy]}
         values = {k: getattr(self, k) if getattr(self, k) is not None else preset[k]
                   for k in _TOLERANCE_KEYS}
+        if m in FIXED_STEP_METHODS:
+            values["atol_acceleration_relative"] = None
         return replace(self, method=m, **values)
 
     def from_preset(self) -> tuple[str, ...]:
-        """Names of the tolerance keys (rtol, atol, atol_acceleration, step) not given
-        explicitly, i.e. taken from the accuracy preset."""
+        """Names of the tolerance keys (rtol, atol, atol_acceleration,
+        atol_acceleration_relative, step) not given explicitly, i.e. taken from the accuracy
+        preset."""
         return tuple(k for k in _TOLERANCE_KEYS if getattr(self, k) is None)
 
 

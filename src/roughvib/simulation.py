@@ -204,22 +204,12 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     system = assemble(scene, force_amplitude=force_amplitude)
     _check_travel(system, _estimate_travel(scene))
     t_pre = time.perf_counter() - t0
+    pilot = None
+    if (scene.solver.atol_acceleration is None and _resume_from is None
+            and system.scene.solver.atol_acceleration_relative is not None):
+        system, pilot = _scale_atol_acceleration(system)
     solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
-    if solver.method == "ida":
-        raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
-                        resume=_resume_from)
-    elif solver.method == "adaptive-modal":
-        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
-
-        raw = solve_adaptive_modal(system, progress=progress)
-    elif solver.method == "paper":
-        from roughvib.solvers.paper_scheme import solve_paper_scheme
-
-        raw = solve_paper_scheme(system, progress=progress)
-    else:
-        from roughvib.solvers.fixed_step import solve_fixed_step
-
-        raw = solve_fixed_step(system, progress=progress)
+    raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=_resume_from)
     ds = _build_dataset(system, raw)
     events = events_frame(raw.events)
     audit = energy_audit(system, raw)
@@ -245,7 +235,9 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "solver": {"method": solver.method, "accuracy": solver.accuracy,
                    "rtol": solver.rtol, "atol": solver.atol,
                    "atol_acceleration": solver.atol_acceleration, "step": solver.step,
-                   "from_preset": list(scene.solver.from_preset()), **raw.stats,
+                   "atol_acceleration_relative": solver.atol_acceleration_relative,
+                   "from_preset": list(scene.solver.from_preset()),
+                   **({"pilot": pilot} if pilot else {}), **raw.stats,
                    "preprocessing_time": t_pre},
         "force_amplitude": system.force_amplitude,
         "calibration": system.calibration,
@@ -276,6 +268,72 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     return result
 
 
+#: longest pilot solve that measures the acceleration level for a scaled atol_acceleration [s]
+PILOT_DURATION = 0.02
+#: level floor of the scaled atol_acceleration [m/s^2] (0 dB re 1e-6 m/s^2)
+PILOT_LEVEL_FLOOR = 1e-6
+
+
+def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
+    """The system with ``atol_acceleration`` = relative x the level a pilot solve measures.
+
+    The pilot solves the first ``PILOT_DURATION`` (at most a quarter of the run) with
+    adaptive-modal (IDA where it cannot run) at the draft tolerances, and takes the larger
+    rms vertical acceleration of block and plate. A failed pilot leaves the preset's absolute
+    ``atol_acceleration``. Returns the system and what the pilot did (for the summary).
+    """
+    scene = system.scene
+    s = scene.solver
+    out = scene.output
+    n = max(10, int(round(min(PILOT_DURATION, out.duration / 4) / out.step)))
+    pscene = replace(scene, output=replace(out, duration=n * out.step, progress=False,
+                                           checkpoint_interval=0.0),
+                     solver=replace(s, method="auto", accuracy="draft", rtol=None, atol=None,
+                                    atol_acceleration=None, atol_acceleration_relative=None,
+                                    step=None))
+    pscene = replace(pscene, solver=pscene.resolved_solver())
+    method = pscene.solver.method
+    t0 = time.perf_counter()
+    info = {"method": method, "duration": n * out.step}
+    try:
+        raw = _solve(replace(system, scene=pscene), progress=False)
+    except Exception as exc:  # noqa: BLE001 - the run goes on with the absolute preset value
+        raw = None
+        info["message"] = f"{type(exc).__name__}: {exc}"
+    info["wall_time"] = time.perf_counter() - t0
+    if raw is None or raw.status != "success":
+        info.update(level=None, atol_acceleration=s.atol_acceleration,
+                    note="pilot failed: the preset's absolute atol_acceleration is used")
+        return system, info
+    rows = raw.extra.get("rows_filled", raw.time.size)
+    cols = [kn.OUT_NAMES.index(v) for v in ("block_vertical_acceleration",
+                                            "plate_vertical_acceleration")]
+    acc = raw.outputs[:rows, cols]
+    level = float(np.max(np.sqrt(np.mean(acc * acc, axis=0))))
+    atol = s.atol_acceleration_relative * max(level, PILOT_LEVEL_FLOOR)
+    info.update(level=level, atol_acceleration=atol)
+    return replace(system, scene=replace(scene, solver=replace(s, atol_acceleration=atol))), info
+
+
+def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> RawSolution:
+    """Run the system's solver (``system.scene.solver.method``)."""
+    method = system.scene.solver.method
+    if method == "ida":
+        return solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                         resume=resume)
+    if method == "adaptive-modal":
+        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
+
+        return solve_adaptive_modal(system, progress=progress)
+    if method == "paper":
+        from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+        return solve_paper_scheme(system, progress=progress)
+    from roughvib.solvers.fixed_step import solve_fixed_step
+
+    return solve_fixed_step(system, progress=progress)
+
+
 def _solver_comments(given: Solver, solver: Solver) -> dict[str, str]:
     """scene.toml comments saying what ``auto`` and the accuracy preset resolved to."""
     out = {}
@@ -285,11 +343,16 @@ def _solver_comments(given: Solver, solver: Solver) -> dict[str, str]:
     if solver.method in FIXED_STEP_METHODS:
         keys = tuple(k for k in keys if k == "step")
     else:
-        keys = tuple(k for k in keys if k != "step")
-    if keys:
-        units = {"atol": " m", "atol_acceleration": " m/s^2", "step": " s"}
-        out["solver.accuracy"] = (f"{solver.method}: " + ", ".join(
-            f"{k} {getattr(solver, k):g}{units.get(k, '')}" for k in keys))
+        keys = tuple(k for k in keys if k not in ("step", "atol_acceleration_relative"))
+    units = {"atol": " m", "atol_acceleration": " m/s^2", "step": " s"}
+    parts = []
+    for k in keys:
+        parts.append(f"{k} {getattr(solver, k):g}{units.get(k, '')}")
+        if k == "atol_acceleration" and solver.atol_acceleration_relative is not None:
+            parts[-1] += (f" (= {solver.atol_acceleration_relative:g} x the pilot's "
+                          f"acceleration level)")
+    if parts:
+        out["solver.accuracy"] = f"{solver.method}: " + ", ".join(parts)
     return out
 
 
