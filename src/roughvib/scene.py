@@ -432,12 +432,22 @@ class Friction:
         ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-|v| / v_s) with
         this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
     switching_hysteresis : float
-        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-], so normal-force
-        ripple does not chatter the stick/slip boundary. Each time it holds the block in
-        stick is counted.
+        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-]. 0 (default):
+        the exact law, break-away when |friction| reaches mu_stick F_N. A value > 0 is an
+        opt-in guard that changes the law everywhere: each time it holds the block in stick
+        is logged (``hysteresis_hold``) and counted.
     dwell_time : float
-        ``coulomb``: minimum time in stick before break-away is allowed [s]; each time it
-        holds the block is counted.
+        ``coulomb``: minimum time in stick before break-away is allowed [s]. 0 (default): off.
+        Like the hysteresis an opt-in guard; each hold is logged (``dwell_hold``) and counted.
+    chatter_switches : int
+        ``coulomb``: chatter guard. A stick phase that begins when more than this many
+        stick/slip switches lie within the last ``chatter_window`` is held for
+        ``chatter_window`` (logged as ``chatter_guard``, counted as ``guard_chatter``;
+        break-away attempts during the hold as ``dwell_hold``). It acts only on such
+        chatter, never on ordinary stick-slip; 0 turns it off (then the event-storm guard
+        ``solver.max_events`` is the only limit).
+    chatter_window : float
+        ``coulomb``: window of the chatter guard and the length of its hold [s].
     """
 
     law: str = "feldmann"
@@ -449,8 +459,10 @@ class Friction:
     latch_velocity: float = 1e-4
     stick_velocity: float = 5e-4
     stribeck_velocity: float | None = None
-    switching_hysteresis: float = 0.01
-    dwell_time: float = 1e-5
+    switching_hysteresis: float = 0.0
+    dwell_time: float = 0.0
+    chatter_switches: int = 20
+    chatter_window: float = 1e-3
 
     def __post_init__(self) -> None:
         p = "friction"
@@ -460,6 +472,10 @@ class Friction:
         _set(self, "switching_hysteresis",
              _range(f"{p}.switching_hysteresis", self.switching_hysteresis, 0.0, 1.0, ""))
         _set(self, "dwell_time", _nonneg(f"{p}.dwell_time", self.dwell_time, "s"))
+        _set(self, "chatter_switches",
+             _integer(f"{p}.chatter_switches", self.chatter_switches, 0))
+        _set(self, "chatter_window",
+             _positive(f"{p}.chatter_window", self.chatter_window, "s"))
         _set(self, "mu_slip", _nonneg(f"{p}.mu_slip", self.mu_slip, ""))
         _set(self, "mu_stick", _nonneg(f"{p}.mu_stick", self.mu_stick, ""))
         _set(self, "a1", _nonneg(f"{p}.a1", self.a1, "s/m"))

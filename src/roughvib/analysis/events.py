@@ -2,8 +2,10 @@
 
 Works on the event table of a :class:`roughvib.results.Result` (or a saved ``events.csv``):
 stick phases run from a ``stick`` event to the next ``slip`` event, lift-offs of contact k from
-``lift_off`` to the next ``touch_down`` of k. A run that starts inside a phase (the block
-starts in stick; a contact starts open) is recognised from the first event of the pair.
+``lift_off`` to the next ``touch_down`` of k. The solvers log the friction phase a run starts in
+as a ``stick`` or ``slip`` event at its start, so a stick phase from t = 0 has its own start
+event and counts as a phase. A log without that event (a contact that starts open, a log
+written before it was added) is recognised from the first event of the pair.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import pandas as pd
 
 __all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "stick_intervals"]
 
-GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "event_storm")
+GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "chatter_guard", "event_storm")
 
 
 def _intervals(times_kinds: list[tuple[float, str]], start: str, end: str, t0: float,
@@ -24,8 +26,9 @@ def _intervals(times_kinds: list[tuple[float, str]], start: str, end: str, t0: f
     out = []
     t_open = None
     real = True
-    first = next((k for _, k in times_kinds if k in (start, end)), None)
-    if first == end:  # the run started inside the phase
+    first = next(((t, k) for t, k in times_kinds if k in (start, end)), None)
+    if first is not None and first[1] == end and first[0] > t0:
+        # the run started inside the phase (an end event at t0 says it started outside)
         t_open, real = t0, False
     for t, k in times_kinds:
         if k == start and t_open is None:
@@ -79,7 +82,7 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
         ``stick_phases`` (stick events in the cycle), ``mean_stick_duration`` [s] (of those
         phases, whole length), ``lift_offs_k`` (lift-off events of contact k) and
         ``lift_off_time_k`` [s] (time open within the cycle) for each contact k,
-        ``guard_activations`` (hysteresis and dwell holds, storms).
+        ``guard_activations`` (hysteresis and dwell holds, chatter guards, storms).
     """
     if not math.isfinite(period) or period <= 0:
         edges = np.array([0.0, t_end])

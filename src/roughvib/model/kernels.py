@@ -465,7 +465,8 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     ``ev[K+1]`` latch margin eps - s (v - v_ext), ``ev[K+2]`` phase margin (slip:
     v^2 - v_st^2, stick: v_st^2 - v^2). Coulomb law, stick: ``ev[K]`` break-away margin
     mu_stick F_N (1 + eps_h) - |lambda|, ``ev[K+1]`` the same without hysteresis (counts the
-    hysteresis holds), ``ev[K+2]`` dwell timer t_dwell_end - t; slip b: ``ev[K]`` = b v.
+    hysteresis holds; constant 1 when eps_h = 0), ``ev[K+2]`` dwell timer t_dwell_end - t;
+    slip b: ``ev[K]`` = b v.
     All are watched for downward crossings only; prescribed motion disables the last three
     (constant 1).
     """
@@ -486,7 +487,8 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
                 fsum += y[iF + k]
             lam = abs(y[iL])
             ev[K] = fp[FP_MU_STICK] * fsum * (1.0 + fp[FP_HYST]) - lam
-            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam
+            # the bare threshold counts the holds of a hysteresis; without one it is ev[K]
+            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam if fp[FP_HYST] > 0.0 else 1.0
             ev[K + 2] = rf[1] - t
         else:
             ev[K] = b * vx

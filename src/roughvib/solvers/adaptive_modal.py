@@ -748,6 +748,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     track_latch = bool(lay.tangential)
 
     book = EventBook(system, regime, reg, rf)
+    book.log_initial_phase(0.0, y)
     status, message = "success", "reached the end of the output grid"
     bar = progress_bar(system, progress)
     chunk = max(1, n // 200)

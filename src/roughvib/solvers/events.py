@@ -18,7 +18,7 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import Regime, switch
 from roughvib.model.system import System
 
-__all__ = ["EventBook", "EventRecord", "SolverFailure"]
+__all__ = ["EventBook", "EventRecord", "SolverFailure", "initial_phase_events"]
 
 
 class SolverFailure(RuntimeError):
@@ -39,7 +39,8 @@ class EventRecord:
     time : float [s]
     kind : str
         ``lift_off``, ``touch_down``, ``stick``, ``slip``, ``friction_branch``,
-        ``latch_flip`` or ``event_storm``.
+        ``latch_flip``, the guards' ``hysteresis_hold``, ``dwell_hold``, ``chatter_guard``,
+        or ``event_storm``. The phase a run starts in is logged at its start time.
     contact : int
         Contact index for contact events, -1 for block-level events.
     regime_before, regime_after : str
@@ -74,6 +75,40 @@ class EventRecord:
     friction_after: float
 
 
+def initial_phase_events(system: System, t: float, y: np.ndarray, reg: np.ndarray,
+                         rf: np.ndarray, stick: bool, regime_text: str = ""
+                         ) -> list[EventRecord]:
+    """The friction phase a run starts in, as a ``stick`` or ``slip`` event at ``t``.
+
+    With it the log reads as a complete phase sequence: every phase, the first included,
+    starts with an event. Empty without tangential dynamics (prescribed motion).
+
+    Parameters
+    ----------
+    system : System
+    t : float
+        Start time [s].
+    y : ndarray, shape (n_states,)
+        Consistent initial state.
+    reg, rf : ndarray
+        The kernels' view of the initial regime.
+    stick : bool
+        The run starts in stick (else in slip).
+    regime_text : str
+        :meth:`Regime.describe` of the initial regime (``regime_after``).
+    """
+    if not system.tangential:
+        return []
+    K = system.n_contacts
+    out = np.empty(kn.N_OUT_FIXED + 2 * K)
+    kn.outputs(t, y, out, *system.kernel_args(reg, rf))
+    fric = float(out[kn.OUT_NAMES.index("friction_force")])
+    return [EventRecord(t, "stick" if stick else "slip", -1, "", regime_text, float("nan"),
+                        float("nan"), float(out[kn.OUT_NAMES.index("block_tangential_velocity")]),
+                        float(out[kn.OUT_NAMES.index("normal_force")]), float("nan"), fric,
+                        fric)]
+
+
 @dataclass
 class EventBook:
     """The regime of a run and the log of its switches.
@@ -95,6 +130,13 @@ class EventBook:
     events: list[EventRecord] = field(default_factory=list)
     recent: collections.deque = field(default_factory=collections.deque)
     stats: collections.Counter = field(default_factory=collections.Counter)
+
+    def log_initial_phase(self, t: float, y: np.ndarray) -> None:
+        """Log the friction phase the run starts in (see :func:`initial_phase_events`)."""
+        for rec in initial_phase_events(self.system, t, y, self.reg, self.rf,
+                                        self.regime.stick, self.regime.describe()):
+            self.events.append(rec)
+            self.stats[f"events_{rec.kind}"] += 1
 
     def apply(self, te: float, ye: np.ndarray, fired: set[int]
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -118,10 +160,12 @@ class EventBook:
         kn.events(te, ye, evbuf, *ev_args)
         kn.outputs(te, ye, outbuf, *args)
         fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+        fr = system.scene.friction
         kinds = []
         for idx in sorted(fired):
             for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
-                             lay.slice("contact.force"), system.scene.friction.dwell_time):
+                             lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
+                             fr.chatter_window):
                 kinds.append((tr.kind, tr.contact, idx))
                 if tr.guard:
                     self.stats[f"guard_{tr.guard}"] += 1
@@ -155,6 +199,10 @@ class EventBook:
                 f"regime {after}). Hint: raise solver.max_events or "
                 f"solver.event_window if the events are physical, or check for "
                 f"grazing contact (roughness much smaller than the static "
-                f"compression changes).", te)
+                f"compression changes)"
+                + ("; for stick/slip chatter of the Coulomb law, lower "
+                   "friction.chatter_switches" if any(kd in ("stick", "slip")
+                                                      for kd, _, _ in kinds) else "")
+                + ".", te)
         self.stats["restarts"] += 1
         return y, yp

@@ -31,6 +31,7 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
+from roughvib.solvers.events import initial_phase_events
 from roughvib.solvers.ida import EventRecord, RawSolution
 from roughvib.surface.interp import profile_eval
 
@@ -481,7 +482,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     elif code == 2:
         status = "active_set_failure"
         message = f"contact active set did not converge at t = {n_done * h:.6g} s"
-    events = event_records(n_ev, ev_t, ev_kind, ev_contact)
+    events = (initial_phase_events(system, 0.0, y, reg, rf, start_stick)
+              + event_records(n_ev, ev_t, ev_kind, ev_contact))
     # final state vector in the IDA layout (for the energy audit)
     yf = np.zeros(lay.size)
     yf[lay.slice("plate.q")] = q
@@ -499,7 +501,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     rows = (n_done // out_every) + 1 if code else n_out
     stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
              "jacobian_evaluations": None, "restarts": 0, "wall_time": wall,
-             "cpu_time": time.process_time() - cpu0, "events_total": n_ev,
+             "cpu_time": time.process_time() - cpu0, "events_total": len(events),
              "events_truncated": n_ev >= cap}
     return RawSolution(time=np.arange(n_out) * scene.output.step, outputs=out, events=events,
                        stats=stats, status=status, message=message, y_initial=y,

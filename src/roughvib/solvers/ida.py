@@ -457,6 +457,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
             base_dir=str(Path(scene.base_dir).resolve())))
 
     book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
+    if resume is None:
+        book.log_initial_phase(0.0, y)
     k = k_start
     r = None
     try:

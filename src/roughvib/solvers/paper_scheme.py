@@ -34,6 +34,7 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
+from roughvib.solvers.events import initial_phase_events
 from roughvib.solvers.fixed_step import event_records, log_step_events, step_grid
 from roughvib.solvers.ida import RawSolution
 from roughvib.surface.interp import profile_eval
@@ -245,12 +246,13 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
         status = "newton_failure"
         message = (f"Newton-Raphson did not converge at t = {n_done * h:.6g} s (solver.step "
                    f"{h} s); hint: reduce solver.step")
-    events = event_records(n_ev, ev_t, ev_kind, ev_contact)
+    events = (initial_phase_events(system, 0.0, y, reg, rf, True)  # starts in stick, as IDA
+              + event_records(n_ev, ev_t, ev_kind, ev_contact))
     yf = np.full(lay.size, np.nan)  # no modal states: the energy audit is not available
     rows = (n_done // out_every) + 1 if code else n_out
     stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
              "jacobian_evaluations": None, "restarts": 0, "wall_time": wall,
-             "events_total": n_ev, "note": "energy audit not available for the convolution "
+             "events_total": len(events), "note": "energy audit not available for the convolution "
                                            "scheme"}
     return RawSolution(time=np.arange(n_out) * scene.output.step, outputs=out, events=events,
                        stats=stats, status=status, message=message, y_initial=y,
