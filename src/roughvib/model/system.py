@@ -84,9 +84,14 @@ class System:
 
     # ---- algebra ---------------------------------------------------------------------
     def static_compliance_matrix(self) -> np.ndarray:
-        """G = Phi^T diag(1/(M w^2)) Phi + C_res: static plate compliance at the contacts [m/N]."""
+        """G = Phi^T diag(1/(M w^2)) Phi + C_res: static plate compliance at the contacts [m/N].
+
+        With no mode kept (a modal plate whose first mode lies above ``plate.max_frequency``)
+        G is C_res alone: the whole static compliance, or zero without residual compliance
+        and for a rigid plate.
+        """
         if self.n_modes == 0:
-            return np.zeros((self.n_contacts, self.n_contacts))
+            return self.cres.copy()
         inv = 1.0 / (self.fp[kn.FP_MMODAL] * self.omega2)
         return (self.phi * inv[:, None]).T @ self.phi + self.cres
 
