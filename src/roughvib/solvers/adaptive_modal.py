@@ -65,7 +65,9 @@ N_SLOTS = NLEV + 3
 SERIES_LIMIT = 1.0   # omega h below which the propagators come from the power series
 N_SERIES = 22        # terms: 1 / 22! < 1e-21
 ROOT_TOL = 1e-13     # s, width of the bracket that locates an event
-NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights
+NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights ...
+NEWTON_ULPS = 8.0    # ... or within this many round-offs of its equation's terms
+EPS = 2.220446049250313e-16  # double-precision unit round-off (numpy.finfo(float).eps)
 SAFETY = 0.9
 
 # codes of _advance
@@ -244,10 +246,14 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
 
     Unknowns: the forces of the closed contacts and, for a force-driven block, the tangential
-    velocity at t0 + h; Newton until the update is below ``NEWTON_TOL`` tolerance weights
-    ``wts``. Returns False when Newton does not converge (the caller takes a smaller step).
+    velocity at t0 + h; Newton until every update is below ``NEWTON_TOL`` tolerance weights
+    ``wts`` or, for tolerances near round-off, below ``NEWTON_ULPS`` times the round-off of its
+    equation (unit round-off times the sum of the magnitudes of the equation's terms, divided
+    by the diagonal of the Newton matrix): an update at that level is noise, which no further
+    iteration removes. Returns False when Newton does not converge (the caller takes a smaller
+    step).
 
-    ``ws`` is scratch of length >= 2 R + 4 K + 2; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
+    ``ws`` is scratch of length >= 2 R + 5 K + 3; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
     (int64) of length >= K + 1.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
@@ -263,6 +269,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     F = ws[2 * R + K:2 * R + 2 * K]
     rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
     idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
+    noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
@@ -322,6 +329,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
                 jac[a, c] = G1c[slot, k, j] + beta
             jac[a, a] += 1.0 / stiff[k]
             rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
+            noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
+                                            + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
             if force_driven:
                 jac[a, nc] = -dh * 0.5 * h
         if force_driven:
@@ -332,6 +341,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
             for c in range(nc):
                 jac[nc, c] = 0.5 * mu
             jac[nc, nc] = m / h + 0.5 * (dmu * S1 + r2)
+            noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[1])
+                                             + 0.5 * (abs(texc1) + abs(mu * S1) + abs(r2 * v1))
+                                             ) / abs(jac[nc, nc])
         if nu == 0:
             ok = True
             break
@@ -342,12 +354,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         for a in range(nc):
             k = int(idx[a])
             F[k] += rhs[a]
-            e = abs(rhs[a]) / wts[iF + k]
+            e = abs(rhs[a]) / max(wts[iF + k], noise[a] / NEWTON_TOL)
             if e > worst:
                 worst = e
         if force_driven:
             v1 += rhs[nc]
-            e = abs(rhs[nc]) / wts[ivx]
+            e = abs(rhs[nc]) / max(wts[ivx], noise[nc] / NEWTON_TOL)
             if e > worst:
                 worst = e
         if not worst <= NEWTON_TOL:
@@ -736,7 +748,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     G = np.zeros((4, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
-    ws = np.zeros(2 * R + 4 * K + 2)
+    ws = np.zeros(2 * R + 5 * K + 3)
     jac = np.zeros((K + 1, K + 1))
     ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
