@@ -51,8 +51,14 @@ from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError
-from roughvib.solvers.events import EventBook, SolverFailure
-from roughvib.solvers.ida import RawSolution, _atol_vector, output_grid, progress_bar
+from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
+from roughvib.solvers.ida import (
+    RawSolution,
+    _atol_vector,
+    check_tolerances,
+    output_grid,
+    progress_bar,
+)
 from roughvib.surface.interp import profile_eval
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
@@ -77,6 +83,7 @@ ADV_DONE = 2
 ADV_MIN_STEP = -1
 ADV_NEWTON = -2
 ADV_NONFINITE = -3
+ADV_STALL = -4
 
 # integer loop state / statistics (int64 array `ist`)
 I_K = 0          # next output index
@@ -88,7 +95,8 @@ I_ROOT_EVALS = 5  # trial steps of the root searches
 I_MAPS = 6       # propagator computations
 I_NEWTON = 7     # Newton iterations
 I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
-N_IST = 9
+I_IVL = 9        # step attempts since the last output time (stall guard)
+N_IST = 10
 
 
 @njit(cache=True)
@@ -448,12 +456,13 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 @njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
              atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, ipiv, track_latch):
+             prof, reg, rf, work, ws, jac, ipiv, track_latch, max_steps):
     """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
     are the state and time just past the root, ``fired[i] = 1`` for the roots that crossed)
-    or a negative failure code. The state ``y`` must be consistent with the regime on entry.
+    or a negative failure code: ``ADV_STALL`` after more than ``max_steps`` step attempts
+    within one output interval. The state ``y`` must be consistent with the regime on entry.
 
     Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
     half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
@@ -477,6 +486,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
         _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
                           cres, spos, prof, reg, rf, work, track_latch)
         k += 1
+        ist[I_IVL] = 0
     ist[I_K] = k
     if k >= n:
         return ADV_DONE
@@ -494,6 +504,10 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
         if lev >= NLEV - 1:
             tt[0] = t
             return ADV_MIN_STEP
+        ist[I_IVL] += 1
+        if ist[I_IVL] > max_steps:
+            tt[0] = t
+            return ADV_STALL
         hl = h_max / 2.0 ** lev
         base = grid[k - 1]
         rel = t - base
@@ -668,6 +682,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
                               spos, prof, reg, rf, work, track_latch)
             ist[I_K] = k + 1
+            ist[I_IVL] = 0
             if track_latch:
                 # the latch margin depends on the extremum just updated
                 kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
@@ -729,6 +744,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     regime.pack(reg, rf)
     y, _ = system.consistent(0.0, y0, reg, rf)
     y_initial = y.copy()
+    check_tolerances(system, y_initial)
     args = system.kernel_args(reg, rf)
     (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
     kn.outputs(0.0, y, outs[0], *args)
@@ -758,6 +774,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
+    budget = step_budget(out_cfg.step)
 
     book = EventBook(system, regime, reg, rf)
     status, message = "success", "reached the end of the output grid"
@@ -771,7 +788,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
                             G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
                             phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            ipiv, track_latch)
+                            ipiv, track_latch, budget)
             regime.v_ext = float(rf[0])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()
@@ -794,6 +811,9 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             if code == ADV_NEWTON:
                 raise SolverFailure("newton_failure", f"adaptive-modal: Newton failed while "
                                     f"locating an event at {where}", te)
+            if code == ADV_STALL:
+                raise stall_failure("adaptive-modal", te, f"more than {budget} step attempts",
+                                    regime.describe())
             raise SolverFailure("nonfinite", f"adaptive-modal: the state became non-finite at "
                                 f"{where}", te)
     except SolverFailure as exc:

@@ -41,7 +41,13 @@ from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
-from roughvib.solvers.events import EventBook, EventRecord, SolverFailure
+from roughvib.solvers.events import (
+    EventBook,
+    EventRecord,
+    SolverFailure,
+    stall_failure,
+    step_budget,
+)
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -55,6 +61,14 @@ REFIRE_DT = 1e-12  # s
 # It is capped at the same fraction of the output step: after a free flight (an exact parabola)
 # BDF's last step is huge, and restarting a touch-down with it failed the error test 10 times.
 RESTART_STEP_FRACTION = 0.01
+# Stall guard on the Jacobians of one step() call: at most step_budget / this many. A healthy
+# interval needs a few (restarts add ~10 each); the stalls of issue 17 refactorised at every
+# step, at ~5 ms per factorisation.
+JACOBIANS_PER_STEP_BUDGET = 40
+
+
+class _JacobianBudget(Exception):
+    """Raised inside the Jacobian callback to abort a stalled IDASolve call."""
 
 
 @dataclass
@@ -183,6 +197,72 @@ def _atol_vector(system: System) -> np.ndarray:
         missing = [n for n in lay.names if np.isnan(atol[lay.slice(n)]).any()]
         raise AssertionError(f"no absolute tolerance for states {missing}")
     return atol
+
+
+#: solver.atol must be at least this many unit round-offs of the contact compression's terms
+#: (docs/robustness.md): near a lift-off or touch-down a contact force is known only to
+#: s_k eps L. Measured on the one-contact lift-off scene of issue 17 (rtol 1e-10, 0.02 s, 8
+#: events): IDA stalled in its error test at a touch-down with atol = 10 eps L and at the
+#: first lift-off with 2.3 eps L, and ran through at 100 eps L (adaptive-modal ran at 1e-5 eps L).
+ATOL_FLOOR_ULPS = 100.0
+
+
+def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, float]]:
+    """Round-off floors of the absolute tolerances at state ``y`` (the static equilibrium).
+
+    Returns ``{field: (floor, scale)}`` for ``atol`` [m] and, with plate modes,
+    ``atol_acceleration`` [m/s^2]; ``scale`` is the magnitude whose round-off sets the floor.
+
+    * ``atol``: the contact compression z - w_k + h is a difference of terms as large as
+      L = |z| + max |w_k| + max |h| [m] (block position, plate displacement at the contacts,
+      roughness height), so it is known to eps L, and a closing contact's force only to
+      s_k eps L, while its tolerance weight tends to atol s_k. The floor is
+      ``ATOL_FLOOR_ULPS`` eps L.
+    * ``atol_acceleration``: each mode balances w_r^2 q_r against its modal force per unit
+      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to eps max |u_r|.
+      Below that floor both event-driven solvers slow down (1.6x at the floor, 4x at 4x the
+      floor, 100x and more for block.mass >= 1e9 kg) and finally stall.
+    """
+    eps = float(np.finfo(float).eps)
+    lay = system.layout
+    F = np.asarray(y[lay.slice("contact.force")], dtype=float)
+    w = system.cres @ F
+    if system.n_modes:
+        w = w + system.phi.T @ np.asarray(y[lay.slice("plate.q")], dtype=float)
+    L = (abs(float(y[lay.index("block.z")])) + float(np.max(np.abs(w), initial=0.0))
+         + float(np.max(np.abs(system.profile.z), initial=0.0)))
+    floors = {"atol": (ATOL_FLOOR_ULPS * eps * L, L)}
+    if system.n_modes:
+        u = float(np.max(np.abs(system.phi @ F))) / system.fp[kn.FP_MMODAL]
+        floors["atol_acceleration"] = (eps * u, u)
+    return floors
+
+
+def check_tolerances(system: System, y: np.ndarray) -> None:
+    """Refuse absolute tolerances below their round-off floors (:func:`tolerance_floors`).
+
+    Raises
+    ------
+    SceneError
+        One line naming each field below its floor, the rule, the unit and the value.
+    """
+    scfg = system.scene.solver
+    floors = tolerance_floors(system, y)
+    bad = []
+    floor, L = floors["atol"]
+    if scfg.atol < floor:
+        bad.append(f"solver.atol must be >= {floor:.2g} m for this scene ({ATOL_FLOOR_ULPS:g} "
+                   f"round-offs of the contact compression, whose terms reach {L:.3g} m), "
+                   f"got {scfg.atol:g} m")
+    if "atol_acceleration" in floors:
+        floor, u = floors["atol_acceleration"]
+        if scfg.atol_acceleration < floor:
+            bad.append(f"solver.atol_acceleration must be >= {floor:.2g} m/s^2 for this scene "
+                       f"(the round-off of the plate modes' force balance, whose modal forces "
+                       f"per modal mass reach {u:.3g} m/s^2 under block.mass = "
+                       f"{system.scene.block.mass:g} kg), got {scfg.atol_acceleration:g} m/s^2")
+    if bad:
+        raise SceneError("; ".join(bad))
 
 
 def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -343,6 +423,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
         outs[:k_start] = resume.outputs
         y, yp = system.consistent(t_start, np.array(resume.y, dtype=float), reg, rf)
         y_initial = np.array(resume.y_initial, dtype=float)
+    check_tolerances(system, y_initial)
     cp_interval = scene.output.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
@@ -362,7 +443,14 @@ def solve_ida(system: System, *, progress: bool | None = None,
         residual(t, yy, yyp, res, off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
                  prof, reg, rf, work)
 
+    budget = step_budget(out_cfg.step)
+    jac_budget = budget // JACOBIANS_PER_STEP_BUDGET
+    jac_count = [0]  # Jacobians within the current step() call
+
     def jacfn(t, yy, yyp, res, cj, jj):
+        jac_count[0] += 1
+        if jac_count[0] > jac_budget:  # aborts this IDASolve call (stall guard)
+            raise _JacobianBudget
         jacobian_values(t, yy, yyp, cj, vals, off, fpa, omega2, cdamp, phi, phi_obs, stiff,
                         cres, spos, prof, reg, rf, work)
         scatter(vals, perm, jj)
@@ -376,7 +464,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
 
     options = dict(
         rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
-        eventsfn=eventsfn, num_events=n_ev, max_num_steps=1_000_000, max_step=scfg.max_step,
+        eventsfn=eventsfn, num_events=n_ev, max_num_steps=budget, max_step=scfg.max_step,
         max_order=scfg.max_order,
     )
     if scfg.linear_solver == "gmres":
@@ -461,11 +549,15 @@ def solve_ida(system: System, *, progress: bool | None = None,
     r = None
     try:
         while k < n:
+            jac_count[0] = 0
             try:
                 r = cy.step(grid[k], "normal", None)
             except KeyError as exc:  # unknown IDA return code (shared/ida-notes.md §4.3)
                 raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
                                     f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
+            except _JacobianBudget:
+                raise stall_failure("ida", grid[k - 1], f"more than {jac_budget} Jacobians",
+                                    regime.describe()) from None
             if first_result:
                 counters.validate(int(r.nfev))
                 first_result = False
@@ -481,7 +573,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     last_fired = set()
                     continue
                 close_segment(r)
-                y, yp = book.apply(te, np.asarray(r.y, dtype=float), fired)
+                r_event, r = r, None  # closed: a failure before the next result adds nothing
+                y, yp = book.apply(te, np.asarray(r_event.y, dtype=float), fired)
                 # first step after the restart: RESTART_STEP_FRACTION of the last step
                 h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
                 cy.init_step(te, y, yp)
@@ -492,6 +585,9 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     kn.outputs(grid[k], y, outs[k], *args)
                     k += 1
                 continue
+            if r.status == -1:  # max_num_steps within this output interval
+                raise stall_failure("ida", grid[k - 1], f"more than {budget} steps",
+                                    regime.describe())
             if r.status < 0:
                 # r.y keeps IDA's last accepted state (shared/ida-notes.md §4.4)
                 near = _closest_contact(grid[k - 1], r.y, K, ev_args)
