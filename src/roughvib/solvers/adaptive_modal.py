@@ -39,8 +39,12 @@ Limits: the Feldmann law or prescribed motion (the set-valued Coulomb law needs 
 
 from __future__ import annotations
 
+import collections
+import copy
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -50,7 +54,8 @@ from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.scene import SceneError
+from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers.checkpoint import Checkpoint, check_resume, write_checkpoint
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
 from roughvib.solvers.ida import (
     RawSolution,
@@ -456,13 +461,19 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 @njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
              atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, ipiv, track_latch, max_steps):
+             prof, reg, rf, work, ws, jac, ipiv, track_latch, fresh, max_steps):
     """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
     are the state and time just past the root, ``fired[i] = 1`` for the roots that crossed)
     or a negative failure code: ``ADV_STALL`` after more than ``max_steps`` step attempts
     within one output interval. The state ``y`` must be consistent with the regime on entry.
+
+    ``fresh``: the state was set from outside (start, event switch); its derivatives, modal
+    force, margins and armed roots are computed on entry. Otherwise (the previous call
+    returned ``ADV_CHUNK``) the loop continues with those of the previous call, exactly as
+    if it had not returned: chunk returns, and the checkpoints written at them, leave the
+    result bit-identical.
 
     Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
     half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
@@ -478,8 +489,9 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
     t = tt[0]
-    derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
-    modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
+    if fresh:
+        derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
+        modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
     # outputs at grid points the event landed on (after the switch, as IDA does)
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
@@ -490,9 +502,10 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     ist[I_K] = k
     if k >= n:
         return ADV_DONE
-    kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-    for i in range(n_ev):
-        armed[i] = 1 if g0[i] > 0.0 else 0
+    if fresh:
+        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+        for i in range(n_ev):
+            armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
     while True:
         k = ist[I_K]
@@ -707,7 +720,9 @@ def _check_scene(system: System) -> None:
                          f"got {scene.plate.loss_factor}")
 
 
-def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> RawSolution:
+def solve_adaptive_modal(system: System, *, progress: bool | None = None,
+                         checkpoint_dir: str | os.PathLike | None = None,
+                         resume: Checkpoint | None = None) -> RawSolution:
     """Integrate with the adaptive exact-modal scheme (see the module docstring).
 
     Parameters
@@ -716,6 +731,13 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
         From :func:`roughvib.model.system.assemble`.
     progress : bool, optional
         Progress bar on stderr (default: scene.output.progress).
+    checkpoint_dir : path, optional
+        Where ``checkpoint.pkl`` is written every ``output.checkpoint_interval`` of simulated
+        time (nothing is written when the interval is 0 or this is None). A checkpoint holds
+        everything the step loop carries, so runs with and without checkpoints, and resumed
+        runs, are bit-identical.
+    resume : Checkpoint, optional
+        Continue from this checkpoint (of the same scene) instead of starting at t = 0.
 
     Returns
     -------
@@ -731,7 +753,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     R = system.n_modes
     lay = system.layout
     grid, outs = output_grid(system)
-    n = grid.size
+    n, n_out = outs.shape
     # largest step: the output step, halved until it is within solver.max_step
     h_max = out_cfg.step
     if scfg.max_step > 0:
@@ -739,15 +761,22 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             h_max *= 0.5
 
     reg, rf = system.new_regime_arrays()
-    y0, closed = system.static_equilibrium()
-    regime = initial_regime(closed, system.fp, lay.tangential, False)
-    regime.pack(reg, rf)
-    y, _ = system.consistent(0.0, y0, reg, rf)
-    y_initial = y.copy()
+    if resume is None:
+        y0, closed = system.static_equilibrium()
+        regime = initial_regime(closed, system.fp, lay.tangential, False)
+        regime.pack(reg, rf)
+        y, _ = system.consistent(0.0, y0, reg, rf)
+        y_initial = y.copy()
+    else:
+        check_resume(resume, system, n, n_out)
+        regime = resume.regime
+        reg[:] = resume.reg
+        rf[:] = resume.rf
+        y = np.array(resume.y, dtype=float)
+        y_initial = np.array(resume.y_initial, dtype=float)
     check_tolerances(system, y_initial)
     args = system.kernel_args(reg, rf)
     (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
-    kn.outputs(0.0, y, outs[0], *args)
 
     nst = lay.size
     n_ev = K + 3
@@ -770,36 +799,87 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    ist[I_K] = 1
-    ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
+    cp_interval = out_cfg.checkpoint_interval
+    # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
+    cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
+    scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
     budget = step_budget(out_cfg.step)
 
-    book = EventBook(system, regime, reg, rf)
+    wall_before = cpu_before = 0.0
+    if resume is None:
+        kn.outputs(0.0, y, outs[0], *args)
+        ist[I_K] = 1
+        ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
+        book = EventBook(system, regime, reg, rf)
+        fresh = True
+    else:
+        loop = resume.loop
+        outs[:resume.k] = resume.outputs
+        ist[:] = loop["ist"]
+        tt[0] = resume.t
+        D[0] = loop["d"]
+        U[0] = loop["u"]
+        G[0] = loop["g"]
+        armed[:] = loop["armed"]
+        prev = dict(resume.stats)
+        wall_before = float(prev.pop("wall_time", 0.0))
+        cpu_before = float(prev.pop("cpu_time", 0.0))
+        book = EventBook(system, regime, reg, rf, events=list(resume.events),
+                         recent=collections.deque(loop["recent"]),
+                         stats=collections.Counter(prev))
+        book.stats["resumes"] += 1
+        fresh = False  # the loop continues exactly where the checkpointed run was
+
     status, message = "success", "reached the end of the output grid"
-    bar = progress_bar(system, progress)
+    bar = progress_bar(system, progress, initial=float(tt[0]))
     chunk = max(1, n // 200)
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
+
+    def write_cp() -> None:
+        k = int(ist[I_K])
+        st = dict(book.stats)
+        st["wall_time"] = wall_before + time.perf_counter() - wall0
+        st["cpu_time"] = cpu_before + time.process_time() - cpu0
+        write_checkpoint(checkpoint_dir, Checkpoint(
+            scene_toml=scene_toml, t=float(tt[0]), k=k, y=y.copy(), y_initial=y_initial,
+            outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
+            regime=copy.deepcopy(regime), events=list(book.events), stats=st,
+            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[0].copy(),
+                  "u": U[0].copy(), "g": G[0].copy(), "armed": armed.copy()},
+            force_amplitude=float(system.force_amplitude),
+            base_dir=str(Path(scene.base_dir).resolve())))
+
     try:
         while True:
             k_stop = min(n, int(ist[I_K]) + chunk)
+            if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
+                k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
+                             + cp_stride + 1)
             code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
                             G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
                             phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            ipiv, track_latch, budget)
+                            ipiv, track_latch, fresh, budget)
+            fresh = False
             regime.v_ext = float(rf[0])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()
             if code == ADV_DONE:
                 break
             if code == ADV_CHUNK:
+                k = int(ist[I_K])
+                if cp_stride and (k - 1) % cp_stride == 0 and k < n:
+                    book.stats["checkpoints"] += 1
+                    if scene_toml:
+                        write_cp()
                 continue
             te = float(tt[0])
             if code == ADV_EVENT:
                 y_new, _ = book.apply(te, y, set(np.flatnonzero(fired).tolist()))
                 y[:] = y_new
+                fresh = True
                 continue
             where = f"t = {te:.6g} s (regime {regime.describe()})"
             if code == ADV_MIN_STEP:
@@ -829,7 +909,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
         "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
         "residual_evaluations": None, "jacobian_evaluations": None,
         "restarts": int(book.stats.get("restarts", 0)),
-        "wall_time": time.perf_counter() - wall0, "cpu_time": time.process_time() - cpu0,
+        "wall_time": wall_before + time.perf_counter() - wall0,
+        "cpu_time": cpu_before + time.process_time() - cpu0,
         "events_total": len(book.events), "largest_step": h_max,
     })
     k_done = int(ist[I_K])

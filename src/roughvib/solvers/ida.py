@@ -40,7 +40,7 @@ from roughvib.model.krylov import krylov_workspace
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
+from roughvib.solvers.checkpoint import Checkpoint, check_resume, write_checkpoint
 from roughvib.solvers.events import (
     EventBook,
     EventRecord,
@@ -359,21 +359,6 @@ def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
                 bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
 
 
-def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
-    """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
-    if scene_to_toml(system.scene) != cp.scene_toml:
-        raise SceneError("the checkpoint was written by a different scene; resume with the "
-                         "scene stored in the checkpoint (roughvib run --resume DIR)")
-    if not (1 <= cp.k < n) or cp.outputs.shape != (cp.k, n_out) or \
-            cp.y.shape != (system.layout.size,):
-        raise SceneError(f"the checkpoint does not fit this model (rows {cp.outputs.shape}, "
-                         f"{cp.y.shape[0]} states; expected {n} rows of {n_out} outputs and "
-                         f"{system.layout.size} states)")
-    if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
-        raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
-                         f"from the recalibrated {system.force_amplitude!r} N")
-
-
 def solve_ida(system: System, *, progress: bool | None = None,
               checkpoint_dir: str | os.PathLike | None = None,
               resume: Checkpoint | None = None) -> RawSolution:
@@ -415,7 +400,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
         y, yp = system.consistent(0.0, y0, reg, rf)
         y_initial = y.copy()
     else:
-        _check_resume(resume, system, n, n_out)
+        check_resume(resume, system, n, n_out)
         regime = resume.regime
         reg[:] = resume.reg
         rf[:] = resume.rf
