@@ -572,7 +572,9 @@ class Solver:
     atol_acceleration : float
         Absolute tolerance of the plate modes expressed as an acceleration [m/s^2]: mode r
         gets atol_q = a / w_r^2 and atol_dq = a / w_r, so high modes stay error-controlled
-        down to this acceleration (what spectra to 50 kHz need).
+        down to this acceleration (what spectra to 50 kHz need). The event-driven solvers
+        refuse ``atol`` and ``atol_acceleration`` below the round-off floors of the scene
+        (docs/robustness.md; they grow with the static load m g).
     max_order : int
         Highest BDF order (1..5). Default 2: orders >= 3 are not A-stable and were measured
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
