@@ -16,8 +16,8 @@ import json
 import platform
 import time
 
+from roughvib.physics.surface.roughness import build_profile
 from roughvib.scene import Block, Roughness
-from roughvib.surface.roughness import build_profile
 
 
 def main() -> None:

@@ -5,7 +5,7 @@ Usage (from the repository root, after the ``roughvib run`` commands of that pag
     python docs/figures/make_figures.py            # reads runs/, writes docs/figures/*.png
     python docs/figures/make_figures.py --runs DIR --out DIR
 
-Every figure is drawn by the library's own plot functions (roughvib.plots) at 100 dpi. A run
+Every figure is drawn by the library's own plot functions (roughvib.views.figures) at 100 dpi. A run
 that is missing is reported and its figures are skipped.
 """
 
@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 import roughvib
-from roughvib import plots
+from roughvib.views import figures as plots
 
 # single-run figures: file -> (run, figure name); the same as
 # `roughvib plot runs/RUN --figure NAME --out docs/figures/FILE`

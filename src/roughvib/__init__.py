@@ -10,20 +10,23 @@ Public API (see docs/quickstart.md)::
     result.events                   # pandas.DataFrame event log
 """
 
+from roughvib import _compat
+from roughvib._version import __version__ as __version__
 from roughvib.scene import Scene, SceneError, builtin_scenes, load_scene
 
 __all__ = ["Result", "Scene", "SceneError", "builtin_scenes", "load_result", "load_scene",
-           "simulate"]
-__version__ = "0.1.0"
+           "resume", "simulate"]
+
+_compat.install()  # old import paths (roughvib.plots, roughvib.sweep, ...) for one release
 
 
 def __getattr__(name):
     # the solver stack (numba, sksundae, xarray) is imported on first use, so that
     # `import roughvib` and scene validation stay fast
-    if name == "simulate":
-        from roughvib.api import simulate
+    if name in ("simulate", "resume"):
+        from roughvib import simulation
 
-        return simulate
+        return getattr(simulation, name)
     if name in ("Result", "load_result"):
         from roughvib import results
 

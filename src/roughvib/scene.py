@@ -260,7 +260,8 @@ class Contact:
         Number of contact springs N_c (the N highest profile maxima under the block).
     stiffness : float or "auto"
         Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
-        from the surface statistics (Greenwood-Williamson / Greenwood-Tripp, roughvib.surface).
+        from the surface statistics (Greenwood-Williamson / Greenwood-Tripp,
+        roughvib.physics.surface).
     min_separation : float
         Minimum distance between two chosen maxima [m] (so two maxima of one asperity are not
         both taken).

@@ -7,8 +7,8 @@ import pytest
 
 import roughvib
 from roughvib.api import simulate
-from roughvib.surface.contact import contact_stiffness
-from roughvib.surface.roughness import build_profile, profile_statistics, select_contacts
+from roughvib.physics.surface.contact import contact_stiffness
+from roughvib.physics.surface.roughness import build_profile, profile_statistics, select_contacts
 
 
 def _scene(name="paper", **over):

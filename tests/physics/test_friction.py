@@ -18,7 +18,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from roughvib.friction import (
+from roughvib.physics.friction import (
     calibrate_force_amplitude,
     feldmann_mu,
     feldmann_mu_law,
@@ -342,7 +342,7 @@ def test_rms_over_periods_of_a_sine():
 _SMALL_CASE = textwrap.dedent("""
     import math, sys
     import numpy as np
-    from roughvib.friction import feldmann_mu, latch_update, simulate_tangential
+    from roughvib.physics.friction import feldmann_mu, latch_update, simulate_tangential
     from roughvib.scene import Friction
     xs = np.linspace(-3e-3, 3e-3, 61)
     mu = [feldmann_mu(x, b, 0.3, 0.4, 500.0, 2e4) for x in xs for b in (1.0, -1.0)]

@@ -1,4 +1,4 @@
-"""Simply supported Kirchhoff plate (roughvib.plate) against closed forms and physics.md §2.
+"""Simply supported Kirchhoff plate (roughvib.physics.plate) against closed forms and physics.md §2.
 
 Reference values come from physics.md (§1.3, §2.1-2.4, §6.3) and from the literature
 (Timoshenko & Woinowsky-Krieger, *Theory of Plates and Shells*, 1959; Cremer, Heckl &
@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from roughvib.plate import (
+from roughvib.physics.plate import (
     PlateModes,
     _polylog_exp,
     infinite_plate_mobility,

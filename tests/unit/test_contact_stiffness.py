@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from roughvib.scene import Roughness, SceneError, load_scene
-from roughvib.surface.contact import (
+from roughvib.physics.surface.contact import (
     contact_stiffness,
     effective_modulus,
     gw_integral,
@@ -21,7 +20,8 @@ from roughvib.surface.contact import (
     summit_parameters,
     velocity_factor,
 )
-from roughvib.surface.roughness import spectral_moments, synthesize_profile
+from roughvib.physics.surface.roughness import spectral_moments, synthesize_profile
+from roughvib.scene import Roughness, SceneError, load_scene
 
 STEEL_E_STAR = 2.1e11 / (2 * (1 - 0.3**2))
 AREA = 1.6e-3

@@ -88,7 +88,7 @@ def test_plot_events_figure(coulomb_run, capsys):
     assert main(["plot", str(coulomb_run), "--figure", "events"]) == 0
     png = coulomb_run / "figures" / "events.png"
     assert png.exists() and png.stat().st_size > 10_000
-    from roughvib.plots import plot_events
+    from roughvib.views.figures import plot_events
 
     axes = plot_events(load_result(coulomb_run))
     assert axes[0].get_ylabel() == "tangential velocity [mm/s]"

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from roughvib.surface.interp import build_coefficients, profile_eval_many
+from roughvib.physics.surface.interp import build_coefficients, profile_eval_many
 
 
 def test_interpolants_pass_through_nodes_and_reproduce_polynomials():

@@ -25,10 +25,11 @@ import xarray as xr
 import roughvib
 from roughvib.analysis import figures_data as fd
 from roughvib.analysis.spectra import band_levels
-from roughvib.plots import FIGURES, save_figure
-from roughvib.report import add_parsers, build_report, write_report
+from roughvib.cli.report import add_parsers
 from roughvib.results import EVENT_COLUMNS, Result
 from roughvib.scene import Scene, scene_to_toml
+from roughvib.views.figures import FIGURES, save_figure
+from roughvib.views.report import build_report, write_report
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 REQUIRED_FIGURES = {"velocity", "friction-velocity", "friction-displacement", "acceleration",
@@ -92,7 +93,7 @@ def test_figure_renders_with_units_on_every_axis(run, name):
 def test_plot_functions_are_pure_and_draw_into_given_axes(run):
     import matplotlib.pyplot as plt
 
-    from roughvib import plots
+    from roughvib.views import figures as plots
 
     result, _ = run
     fig, ax = plt.subplots()
@@ -123,7 +124,7 @@ def test_save_figure_writes_png_at_requested_dpi(run, tmp_path):
 
 
 def test_spectra_noise_floor_adds_a_block_curve(run):
-    from roughvib.plots import plot_spectra
+    from roughvib.views.figures import plot_spectra
 
     result, _ = run
     axes = plot_spectra(result, noise_rms=1e-3)
@@ -136,7 +137,7 @@ def _assert_units(ax):
 
 
 def test_multi_run_figures(run):
-    from roughvib.plots import plot_band_comparison, plot_velocity_sweep
+    from roughvib.views.figures import plot_band_comparison, plot_velocity_sweep
 
     result, _ = run
     ax = plot_band_comparison([result, result], ["a", "b"], quantity="plate")
@@ -363,7 +364,7 @@ def test_report_holds_scene_tables_and_phase_table(run, report):
 
 
 def test_report_survives_a_broken_figure(run, tmp_path, monkeypatch):
-    from roughvib import plots
+    from roughvib.views import figures as plots
 
     def broken(result):
         raise RuntimeError("no ink")

@@ -12,8 +12,7 @@ import pytest
 from scipy import integrate, special
 from scipy import signal as sps
 
-from roughvib.scene import Block, Roughness, SceneError
-from roughvib.surface.roughness import (
+from roughvib.physics.surface.roughness import (
     Profile,
     build_profile,
     cbrt2_positions,
@@ -23,6 +22,7 @@ from roughvib.surface.roughness import (
     trapezoid_weights,
     uniform_positions,
 )
+from roughvib.scene import Block, Roughness, SceneError
 
 BLOCK = Block()
 
@@ -249,7 +249,7 @@ def test_cbrt2_layout_average_matches_its_correlation_prediction(reduced):
 
 
 def test_closed_form_layout_transform_equals_the_direct_sum():
-    from roughvib.surface.roughness import _weight_transform
+    from roughvib.physics.surface.roughness import _weight_transform
 
     ky = np.linspace(-2 * np.pi / 50e-6, 2 * np.pi / 50e-6, 801)
     for y in (uniform_positions(0.04, 1e-5), uniform_positions(0.01, 0.5e-3)):

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from roughvib.physics.surface.contact import contact_stiffness
+from roughvib.physics.surface.roughness import build_profile, select_contacts
 from roughvib.scene import load_scene
-from roughvib.surface.contact import contact_stiffness
-from roughvib.surface.roughness import build_profile, select_contacts
-from roughvib.surface_report import scan_range, write_surface_report
+from roughvib.views.surface_report import scan_range, write_surface_report
 
 
 def _rows(path):

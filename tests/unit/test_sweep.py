@@ -23,8 +23,9 @@ import pytest
 import xarray as xr
 
 import roughvib
-from roughvib import sweep as sw
+from roughvib.cli.sweep import add_parsers
 from roughvib.scene import SceneError
+from roughvib.studies import sweep as sw
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -51,7 +52,7 @@ def _write(path: Path, text: str) -> Path:
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="roughvib")
-    sw.add_parsers(p.add_subparsers(dest="command"))
+    add_parsers(p.add_subparsers(dest="command"))
     return p
 
 
@@ -269,7 +270,7 @@ def test_small_sweep_completes_and_its_table_is_right(small_run, tmp_path):
 
 _KILLABLE = """
 import sys
-from roughvib.sweep import run_sweep
+from roughvib.studies.sweep import run_sweep
 run_sweep(sys.argv[1], sys.argv[2], workers=2, progress=False)
 """
 

@@ -1,7 +1,7 @@
 """Data behind the paper's figures: windows, friction loops, spectra, contact resonance.
 
-This module owns the reductions that the figures (:mod:`roughvib.plots`) and the run report
-(:mod:`roughvib.report`) draw, so that they can be tested and reused without matplotlib:
+This module owns the reductions that the figures (:mod:`roughvib.views.figures`) and the run report
+(:mod:`roughvib.views.report`) draw, so that they can be tested and reused without matplotlib:
 
 * the analysis window of a run (whole excitation periods after the run-in);
 * friction loops against velocity (paper Figs. 3 and 8) and against tangential displacement
@@ -594,7 +594,7 @@ def contact_input_spectra(result: Result, *, contact: int = 0) -> ContactInputSp
     """Wavenumber spectra of the input profile and of the input seen by one contact (Fig. 5).
 
     The profile is rebuilt from the run's scene
-    (:func:`roughvib.surface.roughness.build_profile`). Contact ``k`` at profile coordinate
+    (:func:`roughvib.physics.surface.roughness.build_profile`). Contact ``k`` at profile coordinate
     ``s_k`` (dataset coordinate ``contact_profile_position``) runs over ``s_k + x(t)``; in the
     analysis window it sees the profile between ``s_k + min x`` and ``s_k + max x`` and nothing
     else. Wavelengths longer than that stretch (the peak-to-peak stroke) never reach it, which
@@ -610,7 +610,7 @@ def contact_input_spectra(result: Result, *, contact: int = 0) -> ContactInputSp
     -------
     ContactInputSpectra
     """
-    from roughvib.surface.roughness import build_profile
+    from roughvib.physics.surface.roughness import build_profile
 
     scene = scene_of(result)
     ds = result.dataset

@@ -13,7 +13,7 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 ``stiff``  (K,) contact spring stiffness [N/m]
 ``cres``   (K, K) residual compliance of the truncated modes [m/N]
 ``spos``   (K,) profile coordinates of the contacts at x = 0 [m]
-``prof``   (ncell, deg+1) profile interpolant (roughvib.surface.interp)
+``prof``   (ncell, deg+1) profile interpolant (roughvib.physics.surface.interp)
 ``reg``    int64 regime [b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]; b is the
          friction-law branch (feldmann) or the slip direction +1/-1, 0 = stick (coulomb)
 ``rf``     float64 regime data [v_ext (latch's running velocity extremum), dwell end time]
@@ -36,8 +36,8 @@ import math
 import numpy as np
 from numba import njit
 
-from roughvib.friction import feldmann_mu
-from roughvib.surface.interp import profile_eval
+from roughvib.physics.friction import feldmann_mu
+from roughvib.physics.surface.interp import profile_eval
 
 FP_MASS = 0
 FP_GRAV = 1

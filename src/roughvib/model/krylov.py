@@ -33,8 +33,8 @@ import math
 import numpy as np
 from numba import njit
 
-from roughvib.friction import feldmann_mu
 from roughvib.model import kernels as kn
+from roughvib.physics.friction import feldmann_mu
 
 __all__ = ["jac_vec", "krylov_workspace", "precond_solve", "tangential_coefficients"]
 

@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.friction import calibrate_force_amplitude
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
-from roughvib.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
+from roughvib.physics.friction import calibrate_force_amplitude
+from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
+from roughvib.physics.surface.interp import build_coefficients
+from roughvib.physics.surface.roughness import Profile, build_profile, select_contacts
 from roughvib.scene import Scene, SceneError
-from roughvib.surface.interp import build_coefficients
-from roughvib.surface.roughness import Profile, build_profile, select_contacts
 
 __all__ = ["GRAVITY", "Regime", "System", "assemble"]  # Regime re-exported from .regimes
 
@@ -236,7 +236,7 @@ class System:
 
 
 def _profile_height(system: System, s: float) -> float:
-    from roughvib.surface.interp import profile_eval
+    from roughvib.physics.surface.interp import profile_eval
 
     return profile_eval(system.prof, system.fp[kn.FP_S0], system.fp[kn.FP_DX], s)[0]
 
@@ -244,7 +244,7 @@ def _profile_height(system: System, s: float) -> float:
 def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
     st = scene.contact.stiffness
     if isinstance(st, str):  # "auto": statistical contact model (physics.md §4)
-        from roughvib.surface.contact import contact_stiffness
+        from roughvib.physics.surface.contact import contact_stiffness
 
         # a measured profile brings its own moments; synthetic ones use the model PSD
         cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))

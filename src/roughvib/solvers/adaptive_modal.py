@@ -49,11 +49,12 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from roughvib.friction import feldmann_mu
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
+from roughvib.physics.friction import feldmann_mu
+from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers.checkpoint import Checkpoint, check_resume, write_checkpoint
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
@@ -64,7 +65,6 @@ from roughvib.solvers.ida import (
     output_grid,
     progress_bar,
 )
-from roughvib.surface.interp import profile_eval
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
 

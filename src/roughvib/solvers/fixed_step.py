@@ -26,13 +26,13 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm
 
-from roughvib.friction import feldmann_mu_law, latch_update
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
+from roughvib.physics.friction import feldmann_mu_law, latch_update
+from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.ida import EventRecord, RawSolution
-from roughvib.surface.interp import profile_eval
 
 __all__ = ["modal_propagators", "solve_fixed_step"]
 

@@ -23,14 +23,14 @@ import time
 import numpy as np
 from numba import njit
 
-from roughvib.friction import feldmann_mu_law
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
+from roughvib.physics.friction import feldmann_mu_law
+from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.fixed_step import event_records, log_step_events, step_grid
 from roughvib.solvers.ida import RawSolution
-from roughvib.surface.interp import profile_eval
 
 __all__ = ["impulse_responses", "solve_paper_scheme"]
 

@@ -42,8 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, special
 
+from roughvib.physics.surface.roughness import spectral_moments
 from roughvib.scene import Scene, SceneError
-from roughvib.surface.roughness import spectral_moments
 
 __all__ = [
     "GRAVITY",

@@ -33,9 +33,9 @@ from roughvib.analysis.compare import (
     relative_rms_error,
 )
 from roughvib.analysis.levels import whole_period_window
-from roughvib.api import simulate
 from roughvib.results import Result, load_result
 from roughvib.scene import Scene
+from roughvib.simulation import simulate
 
 __all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS", "crossings",
            "errors_against", "run_study"]

@@ -3,47 +3,24 @@
 ``write_report(DIR)`` reads a result directory written by ``roughvib run`` and writes
 ``DIR/report.html``: the scene, the summary tables (levels, calibration, model, contact
 resonance, third-octave band levels), the solver statistics, the energy audit, the per-cycle
-event phase table and every figure of :data:`roughvib.plots.FIGURES`, embedded as base64 PNG
-data URIs. The page needs no server, no network and no script; it opens from disk in any
-browser.
+event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as
+base64 PNG data URIs. The page needs no server, no network and no script; it opens from disk in
+any browser.
 
-The CLI handler :func:`cmd_report` and :func:`add_parsers` provide ``roughvib report DIR``.
+``roughvib report DIR`` (:mod:`roughvib.cli.report`) calls :func:`write_report`.
 """
 
 from __future__ import annotations
 
-import argparse
-import base64
-import html
-import io
-import math
-import sys
 import time
-from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["add_parsers", "build_report", "cmd_report", "write_report"]
+from roughvib.views.html import esc, figure, figure_data_uri, frame_table, kv_table, num, page
 
-_CSS = """
-body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
-       max-width: 1100px; padding: 0 1em; color: #222; line-height: 1.4; }
-h1 { font-size: 1.5em; margin-bottom: 0.2em; }
-h2 { font-size: 1.15em; border-bottom: 1px solid #ccc; margin-top: 2em; }
-table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.85em; }
-th, td { border: 1px solid #ddd; padding: 2px 8px; text-align: right; }
-th { background: #f3f3f3; }
-td.key, th.key { text-align: left; }
-pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.8em; }
-figure { margin: 1.5em 0; }
-figure img { max-width: 100%; border: 1px solid #eee; }
-figcaption { font-size: 0.85em; color: #555; }
-.status-success { color: #17692b; } .status-failed { color: #a11; }
-.note { font-size: 0.85em; color: #555; }
-nav a { margin-right: 1em; }
-"""
+__all__ = ["build_report", "write_report"]
 
 #: figure name -> caption
 _CAPTIONS = {
@@ -65,55 +42,6 @@ _CAPTIONS = {
     "events": "Regimes: tangential velocity, total normal force, lift-off of each contact "
               "and the block's stick phases.",
 }
-
-
-# --------------------------------------------------------------------------------------------
-# HTML helpers
-# --------------------------------------------------------------------------------------------
-
-def _esc(x) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def _num(x, fmt: str = ".6g") -> str:
-    if x is None:
-        return "n/a"
-    if isinstance(x, bool):
-        return str(x)
-    if isinstance(x, int | np.integer):
-        return str(int(x))
-    if isinstance(x, float | np.floating):
-        return "n/a" if not math.isfinite(float(x)) else format(float(x), fmt)
-    return _esc(x)
-
-
-def _kv_table(rows: Iterable[tuple[str, object, str]]) -> str:
-    """Two-column table of (quantity, value, unit)."""
-    body = "".join(f"<tr><td class='key'>{_esc(k)}</td><td>{_num(v)}</td>"
-                   f"<td class='key'>{_esc(u)}</td></tr>" for k, v, u in rows)
-    return ("<table><tr><th class='key'>quantity</th><th>value</th><th class='key'>unit</th>"
-            f"</tr>{body}</table>")
-
-
-def _frame_table(df, formats: dict | None = None) -> str:
-    formats = formats or {}
-    head = "".join(f"<th>{_esc(c)}</th>" for c in df.columns)
-    rows = []
-    for _, row in df.iterrows():
-        cells = "".join(f"<td>{formats[c](row[c]) if c in formats else _num(row[c])}</td>"
-                        for c in df.columns)
-        rows.append(f"<tr>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
-
-
-def _png_data_uri(fig, dpi: int) -> str:
-    from roughvib.plots import _plt
-
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=dpi)
-    _plt().close(fig)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 # --------------------------------------------------------------------------------------------
@@ -143,7 +71,7 @@ def _levels_section(summary: dict) -> str:
         ("normal force min", m.get("normal_force_min"), "N"),
         ("closed contacts, mean", m.get("active_contacts_mean"), "-"),
     ]
-    return _kv_table(rows)
+    return kv_table(rows)
 
 
 def _model_section(summary: dict) -> str:
@@ -156,7 +84,7 @@ def _model_section(summary: dict) -> str:
             ("profile rms", prof.get("rms"), "m"),
             ("profile rms slope", prof.get("rms_slope"), "-"),
             ("profile rms curvature", prof.get("rms_curvature"), "1/m")]
-    return _kv_table(rows)
+    return kv_table(rows)
 
 
 _SOLVER_UNITS = {"rtol": "-", "atol": "m", "wall_time": "s", "preprocessing_time": "s"}
@@ -169,7 +97,7 @@ def _solver_section(summary: dict) -> str:
     ev = summary.get("events_by_kind", {})
     ev_rows = [(f"events: {k}", v, "-") for k, v in sorted(ev.items())
                if f"events_{k}" not in s]
-    return _kv_table(rows + ev_rows)
+    return kv_table(rows + ev_rows)
 
 
 def _energy_section(summary: dict) -> str:
@@ -178,7 +106,7 @@ def _energy_section(summary: dict) -> str:
         return "<p class='note'>no energy audit in this result</p>"
     rows = [(k, v, "-" if k == "relative_residual" else ("s" if k == "t_end" else "J"))
             for k, v in a.items()]
-    return (_kv_table(rows) + "<p class='note'>residual = inputs (excitation and roughness "
+    return (kv_table(rows) + "<p class='note'>residual = inputs (excitation and roughness "
             "work) − dissipation − change of stored energy; of the order of the integration "
             "tolerance.</p>")
 
@@ -189,7 +117,7 @@ def _resonance_and_bands(result) -> tuple[str, str]:
 
     sp = fd.acceleration_spectra(result)
     cr = fd.contact_resonance(result, spectra=sp)
-    res = _kv_table([
+    res = kv_table([
         ("spring-mass estimate sqrt(s_closed/m)/2π", cr.spring_mass, "Hz"),
         ("peak of block/contact-base transmissibility", cr.transmissibility_peak, "Hz"),
         ("transmissibility at that peak", cr.transmissibility_max, "-"),
@@ -202,12 +130,12 @@ def _resonance_and_bands(result) -> tuple[str, str]:
                        "block [dB re 1e-6 m/s²]": sp.band_db["block"][ok],
                        "plate [dB re 1e-6 m/s²]": sp.band_db["plate"][ok],
                        "plate − block [dB]": (sp.band_db["plate"] - sp.band_db["block"])[ok]})
-    fmt = {c: (lambda v: _num(v, ".1f")) for c in df.columns[1:]}
-    fmt["band centre [Hz]"] = lambda v: _num(float(v), "g")
+    fmt = {c: (lambda v: num(v, ".1f")) for c in df.columns[1:]}
+    fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
     bands = (f"<p class='note'>Hann-tapered whole-window band levels over "
              f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands with fewer than 4 FFT bins "
              f"omitted). Total: block {sp.total_db['block']:.1f} dB, plate "
-             f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + _frame_table(df, fmt))
+             f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + frame_table(df, fmt))
     return res, bands
 
 
@@ -225,7 +153,7 @@ def _stick_slip_section(result) -> str:
         rows += [(f"{label}, rms in stick", d["stick_rms"], unit),
                  (f"{label}, rms in slip", d["slip_rms"], unit),
                  (f"{label}, stick − slip", d["stick_minus_slip_db"], "dB")]
-    return (_kv_table(rows) + "<p class='note'>samples of the analysis window split by the "
+    return (kv_table(rows) + "<p class='note'>samples of the analysis window split by the "
             "logged stick phases; the roughness input rate is the excitation itself, the "
             "accelerations include the ring-down of the slip response.</p>")
 
@@ -248,12 +176,12 @@ def _phase_section(result) -> str:
     out.columns = ["cycle", "start [s]", "end [s]", "stick fraction [-]", "stick phases",
                    "mean stick duration [s]", "lift-offs (all contacts)",
                    "open time (sum over contacts) [s]", "guard activations"]
-    return _frame_table(out) + ("<p class='note'>per excitation cycle from the event log "
+    return frame_table(out) + ("<p class='note'>per excitation cycle from the event log "
                                 "(roughvib events DIR shows the same table).</p>")
 
 
 def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, list[str]]:
-    from roughvib.plots import FIGURES, plot_spectra
+    from roughvib.views.figures import FIGURES, _plt, plot_spectra
 
     parts, drawn = [], []
     for name, draw in FIGURES.items():
@@ -262,22 +190,25 @@ def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, li
                 fig = plot_spectra(result, noise_rms=noise_rms)[0].figure
             else:
                 fig = draw(result)
-            uri = _png_data_uri(fig, dpi)
+            try:
+                fig.tight_layout()
+                uri = figure_data_uri(fig, dpi=dpi)
+            finally:
+                _plt().close(fig)
         except Exception as exc:  # one broken figure must not cost the whole report
-            parts.append(f"<figure id='fig-{_esc(name)}'><p class='status-failed'>figure "
-                         f"{_esc(name)} could not be drawn: {_esc(type(exc).__name__)}: "
-                         f"{_esc(exc)}</p></figure>")
+            parts.append(f"<figure id='fig-{esc(name)}'><p class='status-failed'>figure "
+                         f"{esc(name)} could not be drawn: {esc(type(exc).__name__)}: "
+                         f"{esc(exc)}</p></figure>")
             continue
         drawn.append(name)
-        parts.append(f"<figure id='fig-{_esc(name)}'><img src='{uri}' alt='figure {_esc(name)}'>"
-                     f"<figcaption><b>{_esc(name)}</b>: {_esc(_CAPTIONS.get(name, ''))}"
-                     f"</figcaption></figure>")
+        parts.append(figure(uri, alt=f"figure {name}", id=f"fig-{name}",
+                            caption_html=f"<b>{esc(name)}</b>: {esc(_CAPTIONS.get(name, ''))}"))
     return "".join(parts), drawn
 
 
 def _failed(exc: Exception) -> str:
     return (f"<p class='status-failed'>this section could not be made: "
-            f"{_esc(type(exc).__name__)}: {_esc(exc)}</p>")
+            f"{esc(type(exc).__name__)}: {esc(exc)}</p>")
 
 
 def _safe(fn, *args) -> str:
@@ -309,7 +240,7 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     str
         A complete HTML5 document.
     """
-    from roughvib import __version__
+    from roughvib._version import __version__
 
     s = result.summary
     scene_name = s.get("scene", "?")
@@ -340,24 +271,17 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
             cols = [c for c in ("time", "kind", "contact", "tangential_velocity",
                                 "normal_force") if c in last[0]]
             sections.append(("last-events", "Last events before the failure",
-                             _frame_table(pd.DataFrame(last)[cols])))
+                             frame_table(pd.DataFrame(last)[cols])))
     sections.append(("scene", "Scene (resolved, repeatable)",
-                     f"<pre>{_esc(result.scene_toml or '(no scene.toml)')}</pre>"))
-    nav = "".join(f"<a href='#{i}'>{_esc(h)}</a>" for i, h, _ in sections)
-    body = "".join(f"<section id='{i}'><h2>{_esc(h)}</h2>{c}</section>"
-                   for i, h, c in sections)
+                     f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
     created = result.dataset.attrs.get("created", "") if ok else ""
     status_cls = "status-success" if ok else "status-failed"
-    return (
-        "<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n"
-        "<meta name='viewport' content='width=device-width, initial-scale=1'>\n"
-        f"<title>{_esc(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
-        f"<h1>{_esc(title)}</h1>\n"
-        f"<p>status: <b class='{status_cls}'>{_esc(status)}</b>: {_esc(s.get('message', ''))}"
-        f"<br>run created {_esc(created)}; report by roughvib {_esc(__version__)} on "
-        f"{_esc(time.strftime('%Y-%m-%d %H:%M:%S'))}<br>model after J. Feldmann, "
-        f"J. Vib. Acoust. 134 (2012) 041002. Vertical quantities positive down.</p>\n"
-        f"<nav>{nav}</nav>\n{body}\n</body>\n</html>\n")
+    header = (
+        f"<p>status: <b class='{status_cls}'>{esc(status)}</b>: {esc(s.get('message', ''))}"
+        f"<br>run created {esc(created)}; report by roughvib {esc(__version__)} on "
+        f"{esc(time.strftime('%Y-%m-%d %H:%M:%S'))}<br>model after J. Feldmann, "
+        f"J. Vib. Acoust. 134 (2012) 041002. Vertical quantities positive down.</p>")
+    return page(title, sections, header_html=header)
 
 
 def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: int = 90,
@@ -395,84 +319,3 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
     return path
-
-
-# --------------------------------------------------------------------------------------------
-# CLI
-# --------------------------------------------------------------------------------------------
-
-def cmd_report(args: argparse.Namespace) -> int:
-    """``roughvib report DIR``: write DIR/report.html and print its path.
-
-    Returns
-    -------
-    int
-        0 on success (also for the report of a failed run, with a note on stderr), 2 if DIR
-        is not a readable result directory or an option is out of range.
-    """
-    noise = getattr(args, "noise_floor", None)
-    dpi = getattr(args, "dpi", 90)
-    if noise is not None and not (noise >= 0 and math.isfinite(noise)):
-        print(f"roughvib: error: --noise-floor must be >= 0 m/s^2, got {noise}", file=sys.stderr)
-        return 2
-    if not 20 <= dpi <= 600:
-        print(f"roughvib: error: --dpi must be in [20, 600], got {dpi}", file=sys.stderr)
-        return 2
-    try:
-        path = write_report(args.dir, out=getattr(args, "out", None), dpi=dpi,
-                            noise_rms=noise)
-    except (FileNotFoundError, ValueError) as exc:
-        print(f"roughvib: error: {exc}", file=sys.stderr)
-        return 2
-    summary_status = _status_of(args.dir)
-    if summary_status != "success":
-        print(f"note: {args.dir} holds a failed run ({summary_status}); the report shows its "
-              f"status, statistics and last events only", file=sys.stderr)
-    print(path)
-    return 0
-
-
-def _status_of(result_dir) -> str:
-    import json
-
-    try:
-        return json.loads((Path(result_dir) / "summary.json").read_text()).get("status", "?")
-    except (OSError, ValueError):
-        return "?"
-
-
-def add_parsers(subparsers) -> argparse.ArgumentParser:
-    """Add the ``report`` subcommand to the CLI's subparsers.
-
-    Parameters
-    ----------
-    subparsers
-        The object returned by ``ArgumentParser.add_subparsers``.
-
-    Returns
-    -------
-    argparse.ArgumentParser
-        The ``report`` parser (its handler, :func:`cmd_report`, set as ``func``).
-    """
-    p = subparsers.add_parser(
-        "report", formatter_class=argparse.RawDescriptionHelpFormatter,
-        help="write a self-contained HTML report of a run",
-        description="Write DIR/report.html: the scene, summary tables (levels, contact "
-                    "resonance, third-octave band levels in dB re 1e-6 m/s^2), solver "
-                    "statistics, energy audit, the per-cycle event phase table and every "
-                    "figure (velocity, friction-velocity, friction-displacement, acceleration, "
-                    "spectra, wavenumber, events) as embedded PNGs. The file opens in a browser "
-                    "without a server.",
-        epilog="examples:\n"
-               "  roughvib run --out runs/paper && roughvib report runs/paper\n"
-               "  roughvib report runs/paper --noise-floor 1e-3   # block accelerometer floor\n"
-               "  roughvib report runs/paper --out /tmp/paper.html --dpi 120\n")
-    p.add_argument("dir", help="result directory written by 'roughvib run'")
-    p.add_argument("--out", metavar="HTML", help="output file (default: DIR/report.html)")
-    p.add_argument("--noise-floor", type=float, metavar="RMS",
-                   help="add white noise of this rms [m/s^2] to the block acceleration in the "
-                        "spectra figure (the paper's simulated measuring-chain floor; "
-                        "physics.md suggests 1e-3)")
-    p.add_argument("--dpi", type=int, default=90, help="resolution of the figures (default 90)")
-    p.set_defaults(func=cmd_report)
-    return p

@@ -27,14 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.scene import Scene, SceneError
-from roughvib.surface.contact import contact_stiffness
-from roughvib.surface.roughness import (
+from roughvib.physics.surface.contact import contact_stiffness
+from roughvib.physics.surface.roughness import (
     Profile,
     band_psd,
     build_profile,
     select_contacts,
 )
+from roughvib.scene import Scene, SceneError
 
 __all__ = ["scan_range", "write_surface_report"]
 

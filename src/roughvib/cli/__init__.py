@@ -1,0 +1,80 @@
+"""Command-line interface: thin argument parsing around the public API (no physics here).
+
+Exit status: 0 success, 1 solver failure (status and message in summary.json and on
+stderr), 2 bad input (one line naming the field, rule, unit and value; no traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from roughvib.cli import compare, report, results, run, surface, sweep
+from roughvib.cli.args import EXIT_INPUT, InputError, Terminated, on_sigterm
+
+__all__ = ["build_parser", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``roughvib`` argument parser with every command (each command module adds its own).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+    """
+    fmt = argparse.RawDescriptionHelpFormatter
+    p = argparse.ArgumentParser(
+        prog="roughvib", formatter_class=fmt,
+        description="Roughness-induced vibration of a tangentially oscillating block on a "
+                    "plate (Feldmann 2012), solved event-driven with SUNDIALS IDA.",
+        epilog="examples:\n  roughvib run\n  roughvib run paper-100mms --out runs/fast\n"
+               "  roughvib scenes\n  roughvib events runs/paper\n"
+               "  roughvib plot runs/paper --figure events\n"
+               "  roughvib compare paper --out runs/wp --budget 900\n"
+               "  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib report runs/paper\n"
+               "  roughvib sweep paper-velocity --out runs/velocity\n\n"
+               "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
+               "(Ctrl-C), 143 terminated (SIGTERM)")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    run.add_parsers(sub)
+    results.add_parsers(sub)
+    compare.add_parsers(sub)
+    surface.add_parsers(sub)
+    report.add_parsers(sub)
+    sweep.add_parsers(sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point ``roughvib``; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_INPUT
+    import signal
+
+    from roughvib.scene import SceneError
+
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        signal.signal(signal.SIGTERM, on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave it alone
+        previous = None
+    try:
+        return args.func(args)
+    except (SceneError, InputError) as exc:
+        print(f"roughvib: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt as exc:
+        print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
+              file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

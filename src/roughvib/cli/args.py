@@ -1,0 +1,46 @@
+"""Argument helpers shared by the commands: exit statuses, the one-line input error, ``--set``
+parsing and SIGTERM handling. Imported by the command modules, never importing them.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from typing import Any
+
+__all__ = ["EXIT_INPUT", "EXIT_OK", "EXIT_SOLVER", "InputError", "Terminated", "on_sigterm",
+           "parse_sets", "parse_value"]
+
+EXIT_OK = 0
+EXIT_SOLVER = 1
+EXIT_INPUT = 2
+
+
+class InputError(Exception):
+    """Bad command-line input (exit status 2)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that runs stop the way Ctrl-C stops them."""
+
+
+def on_sigterm(signum, frame):  # pragma: no cover - exercised through a subprocess
+    raise Terminated()
+
+
+def parse_value(text: str) -> Any:
+    """A --set value: TOML syntax (numbers, true/false, [a, b], "str"); bare words are strings."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def parse_sets(items: list[str] | None) -> dict[str, Any]:
+    """``--set KEY=VALUE`` items as a dict of dotted scene keys (InputError without ``=``)."""
+    out: dict[str, Any] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise InputError(f"--set expects section.key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        out[key.strip()] = parse_value(value.strip())
+    return out

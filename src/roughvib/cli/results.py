@@ -1,0 +1,131 @@
+"""``roughvib events`` (phase table and event log) and ``roughvib plot`` (one figure) of a
+saved run."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tomllib
+from pathlib import Path
+
+from roughvib.cli.args import EXIT_OK, InputError
+
+__all__ = ["add_parsers", "cmd_events", "cmd_plot"]
+
+
+def _load(dir_: str):
+    from roughvib.results import load_result
+
+    try:
+        r = load_result(dir_)
+    except (FileNotFoundError, ValueError) as exc:
+        raise InputError(str(exc)) from None
+    if not r.ok:
+        raise InputError(f"{dir_} holds a failed run ({r.status}): {r.summary.get('message')}")
+    return r
+
+
+def _scene_of(result):
+    from roughvib.scene import scene_from_dict
+
+    return scene_from_dict(tomllib.loads(result.scene_toml))
+
+
+def cmd_events(args: argparse.Namespace) -> int:
+    import json
+
+    import pandas as pd
+
+    from roughvib.analysis.events import phase_table
+
+    r = _load(args.dir)
+    scene = _scene_of(r)
+    t_end = float(r.dataset["time"].values[-1])
+    ev = r.events
+    if args.kind:
+        kinds = set(args.kind)
+        unknown = kinds - set(ev["kind"].unique())
+        if unknown and len(ev):
+            print(f"note: no events of kind {', '.join(sorted(unknown))} (present: "
+                  f"{', '.join(sorted(ev['kind'].unique()))})", file=sys.stderr)
+        ev = ev[ev["kind"].isin(kinds)]
+    table = phase_table(r.events, t_end, scene.period, int(r.dataset.sizes["contact"]))
+    if args.cycle is not None:
+        if args.cycle < 0 or args.cycle >= len(table):
+            raise InputError(f"--cycle must be in [0, {len(table) - 1}], got {args.cycle}")
+        lo, hi = table.loc[args.cycle, ["start", "end"]]
+        table = table.iloc[[args.cycle]]
+        ev = ev[(ev["time"] >= lo) & (ev["time"] < hi)]
+    if args.json:
+        out = {"phases": table.to_dict(orient="records")}
+        if args.kind or args.cycle is not None:
+            out["events"] = json.loads(ev.to_json(orient="records"))
+        print(json.dumps(out, indent=1))
+        return EXIT_OK
+    if args.kind:
+        with pd.option_context("display.width", 200, "display.max_rows", args.max_rows,
+                               "display.max_columns", 20):
+            print(ev.drop(columns=["regime_before", "regime_after"]).to_string(index=False)
+                  if len(ev) <= args.max_rows else ev.head(args.max_rows).to_string(index=False))
+        return EXIT_OK
+    K = int(r.dataset.sizes["contact"])
+    print(f"{'cycle':>5} {'start s':>8} {'stick':>6} {'sticks':>6} {'mean ms':>8} "
+          f"{'lift-offs':>9} {'open ms':>8} {'guards':>6}")
+    for _, row in table.iterrows():
+        lifts = sum(int(row[f"lift_offs_{k}"]) for k in range(K))
+        open_ms = sum(row[f"lift_off_time_{k}"] for k in range(K)) * 1e3
+        print(f"{int(row['cycle']):>5} {row['start']:8.4f} {row['stick_fraction']:6.3f} "
+              f"{int(row['stick_phases']):>6} {row['mean_stick_duration'] * 1e3:8.2f} "
+              f"{lifts:>9} {open_ms:8.2f} {int(row['guard_activations']):>6}")
+    per = {k: (int(table[f"lift_offs_{k}"].sum()), table[f"lift_off_time_{k}"].sum() * 1e3)
+           for k in range(K)}
+    print("lift-offs per contact: " + ", ".join(f"{k}: {n} ({ms:.2f} ms open)"
+                                                 for k, (n, ms) in per.items()))
+    return EXIT_OK
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from roughvib.views.figures import FIGURES, save_figure
+
+    if args.figure not in FIGURES:
+        raise InputError(f"--figure must be one of {', '.join(sorted(FIGURES))}, got "
+                         f"{args.figure!r}")
+    r = _load(args.dir)
+    out = Path(args.out) if args.out else Path(args.dir) / "figures" / f"{args.figure}.png"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_figure(FIGURES[args.figure](r), out)
+    print(out)
+    return EXIT_OK
+
+
+def add_parsers(sub) -> None:
+    """Add the ``events`` and ``plot`` commands to ``sub``, the subparsers of ``build_parser``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    e = sub.add_parser(
+        "events", formatter_class=fmt, help="phase table and event log of a run",
+        description="Per excitation cycle: stick fraction, number and mean duration of stick "
+                    "phases, lift-offs and open time per contact, guard activations. "
+                    "--kind lists the events of the given kinds instead.",
+        epilog="examples:\n  roughvib events runs/paper\n"
+               "  roughvib events runs/paper --kind lift_off --kind touch_down --cycle 1\n"
+               "  roughvib events runs/paper --json > phases.json\n")
+    e.add_argument("dir", help="result directory written by 'roughvib run'")
+    e.add_argument("--kind", action="append",
+                   help="list events of this kind (repeatable), e.g. stick, slip, lift_off")
+    e.add_argument("--cycle", type=int, help="only this excitation cycle (0-based)")
+    e.add_argument("--json", action="store_true", help="machine-readable output")
+    e.add_argument("--max-rows", type=int, default=200, help="rows listed with --kind")
+    e.set_defaults(func=cmd_events)
+
+    pl = sub.add_parser(
+        "plot", formatter_class=fmt, help="draw a figure of a run (PNG)",
+        description="Draw one figure of a saved run. Figures: velocity (Figs. 6/7), "
+                    "friction-velocity (3/8), friction-displacement (9), acceleration (10/11), "
+                    "spectra (14), wavenumber (5), events (regime timeline over velocity and "
+                    "normal force). 'roughvib report DIR' draws them all into one HTML file.",
+        epilog="examples:\n  roughvib plot runs/paper --figure events\n"
+               "  roughvib plot runs/paper --figure spectra --out spectra.png\n")
+    pl.add_argument("dir", help="result directory written by 'roughvib run'")
+    pl.add_argument("--figure", default="events", help="figure name (default: events)")
+    pl.add_argument("--out", help="PNG path (default: DIR/figures/NAME.png)")
+    pl.set_defaults(func=cmd_plot)

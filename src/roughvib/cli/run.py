@@ -1,0 +1,149 @@
+"""``roughvib run`` (run a scene, resume a checkpointed run) and ``roughvib scenes``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, Terminated, parse_sets
+
+__all__ = ["add_parsers", "cmd_run", "cmd_scenes"]
+
+
+def _fmt_db(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:6.1f} dB"
+
+
+def _print_summary(summary: dict, out_dir: Path) -> None:
+    m = summary.get("metrics", {})
+    s = summary.get("solver", {})
+    a = summary.get("energy_audit", {})
+    cal = summary.get("calibration", {})
+    lines = [
+        f"scene            {summary.get('scene')}  ->  {out_dir}",
+        f"status           {summary.get('status')}: {summary.get('message')}",
+        f"force amplitude  T0 = {summary.get('force_amplitude', float('nan')):.6g} N"
+        + (f"  (target {cal['target_rms_velocity']} m/s, achieved "
+           f"{cal.get('achieved_rms_velocity', float('nan')):.6g} m/s)"
+           if "target_rms_velocity" in cal else ""),
+    ]
+    if m:
+        lines += [
+            f"window           {m['window_start']:.4f} .. {m['window_end']:.4f} s",
+            f"velocity rms     {m.get('block_tangential_velocity_rms', float('nan')) * 1e3:.3f}"
+            f" mm/s, stick fraction {m.get('stick_fraction', float('nan')):.3f}",
+            f"block accel      {m.get('block_vertical_acceleration_rms', float('nan')):.4g} "
+            f"m/s^2 rms ({_fmt_db(m.get('block_vertical_acceleration_level_db_re_1e-6'))} "
+            f"re 1e-6 m/s^2)",
+            f"plate accel      {m.get('plate_vertical_acceleration_rms', float('nan')):.4g} "
+            f"m/s^2 rms ({_fmt_db(m.get('plate_vertical_acceleration_level_db_re_1e-6'))} "
+            f"re 1e-6 m/s^2)",
+            f"normal force     mean {m.get('normal_force_mean', float('nan')):.5g} N, "
+            f"min {m.get('normal_force_min', float('nan')):.4g} N",
+        ]
+    ev = summary.get("events_by_kind", {})
+    lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
+                                        or "none"))
+    # each solver reports the counters it has (fixed-step schemes have no residual counts)
+    counters = [("steps", "steps"), ("rejected_steps", "rejected"),
+                ("residual_evaluations", "residuals"), ("jacobian_evaluations", "Jacobians"),
+                ("root_evaluations", "root-search steps"), ("restarts", "restarts")]
+    parts = [f"{s[key]} {label}" for key, label in counters if s.get(key) is not None]
+    lines.append(f"solver           {s.get('method', '')}: " + ", ".join(parts)
+                 + f", {s.get('wall_time', 0):.1f} s wall")
+    if a:
+        lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
+                     f"(relative {a.get('relative_residual', 0):.2e})")
+    print("\n".join(lines))
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from roughvib.api import resume, simulate
+    from roughvib.scene import load_scene
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME
+
+    if args.resume:
+        if args.scene is not None or args.set or args.out:
+            raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
+                             "--set or --out with it")
+        out_dir = Path(args.resume)
+        runner = lambda: resume(out_dir, progress=False if args.no_progress else None)  # noqa: E731
+    else:
+        scene = load_scene(args.scene or "paper", parse_sets(args.set))
+        if args.no_progress:
+            scene = scene.with_overrides({"output.progress": False})
+        out_dir = Path(args.out) if args.out else Path("runs") / scene.name
+        cp_dir = out_dir if scene.output.checkpoint_interval > 0 else None
+        if cp_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
+            raise InputError(f"{out_dir / CHECKPOINT_NAME} exists: continue it with 'roughvib "
+                             f"run --resume {out_dir}', or remove it to start again")
+        runner = lambda: simulate(scene, checkpoint_dir=cp_dir)  # noqa: E731
+    try:
+        result = runner()
+    except KeyboardInterrupt as exc:
+        cp = out_dir / CHECKPOINT_NAME
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        if cp.exists():
+            print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
+                  f"'roughvib run --resume {out_dir}'", file=sys.stderr)
+        else:
+            print(f"roughvib: {what}; nothing was written", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
+    result.save(out_dir)
+    if result.ok:
+        (out_dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+    if not args.quiet:
+        _print_summary(result.summary, out_dir)
+    if not result.ok:
+        print(f"roughvib: run failed ({result.status}): {result.summary.get('message')}",
+              file=sys.stderr)
+        t_end = (result.summary.get("partial_result") or {}).get("t_end")
+        if t_end is not None:
+            print(f"roughvib: the time series up to t = {t_end:.6g} s and the event log are in "
+                  f"{out_dir}/partial.nc and events.csv", file=sys.stderr)
+        return EXIT_SOLVER
+    return EXIT_OK
+
+
+def cmd_scenes(args: argparse.Namespace) -> int:
+    from roughvib.scene import builtin_scenes
+
+    scenes = builtin_scenes()
+    width = max(len(n) for n in scenes)
+    for name in sorted(scenes, key=lambda n: (n != "paper", n)):
+        print(f"{name:<{width}}  {scenes[name]}")
+    return EXIT_OK
+
+
+def add_parsers(sub) -> None:
+    """Add the ``run`` and ``scenes`` commands to ``sub``, the subparsers of ``build_parser``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    r = sub.add_parser(
+        "run", formatter_class=fmt, help="run a scene and write its results",
+        description="Run a scene (built-in name or TOML file) and write result.nc, "
+                    "events.csv, summary.json and scene.toml into the output directory.",
+        epilog="examples:\n"
+               "  roughvib run                         # built-in 'paper' scene\n"
+               "  roughvib run paper-100mms --out runs/fast\n"
+               "  roughvib run my_scene.toml --set block.mass=0.543 "
+               "--set output.duration=0.2\n"
+               "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
+               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n")
+    r.add_argument("scene", nargs="?", default=None,
+                   help="built-in scene name (see 'roughvib scenes') or a .toml file "
+                        "(default: paper)")
+    r.add_argument("--resume", metavar="DIR",
+                   help="continue the run whose checkpoint is in DIR (written when "
+                        "output.checkpoint_interval > 0) and write its results there")
+    r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--quiet", action="store_true", help="do not print the summary")
+    r.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("scenes", formatter_class=fmt, help="list the built-in scenes",
+                       description="List the built-in scenes with one line each.",
+                       epilog="example:\n  roughvib scenes\n")
+    s.set_defaults(func=cmd_scenes)

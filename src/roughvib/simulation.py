@@ -1,0 +1,295 @@
+"""Running a scene: ``simulate(scene) -> Result`` and ``resume(directory) -> Result``.
+
+Orchestrates the pipeline scene -> preprocessing/assembly -> solver -> Result and adds what every
+run reports: the energy audit, rms values over whole excitation periods, the stick fraction and
+the solver statistics. The studies (compare, sweep) call :func:`simulate`; users reach it as
+``roughvib.simulate`` or through :mod:`roughvib.api`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import tomllib
+from datetime import UTC, datetime
+
+import numpy as np
+import xarray as xr
+
+from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
+from roughvib.model import kernels as kn
+from roughvib.model.layout import ENERGY_TERMS
+from roughvib.model.system import System, assemble
+from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
+from roughvib.scene import (
+    Scene,
+    SceneError,
+    replace_section,
+    scene_from_dict,
+    scene_to_toml,
+)
+from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
+from roughvib.solvers.ida import RawSolution, solve_ida
+
+__all__ = ["energy_audit", "resume", "simulate"]
+
+
+def energy_audit(system: System, raw: RawSolution) -> dict:
+    """Energy balance of a run: inputs - dissipation - change of stored energy.
+
+    The work of the excitation and of the roughness (kinematic input at the contacts) must
+    equal friction, damper and plate dissipation plus the change of kinetic, elastic and
+    gravitational energy. The running integrals are IDA states, so the residual is of the
+    order of the integration tolerance.
+
+    Returns
+    -------
+    dict
+        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of |terms|).
+    """
+    terms = {n: float(raw.y_final[system.layout.index(f"energy.{n}")]) for n in ENERGY_TERMS}
+    e0 = system.stored_energy(raw.y_initial)
+    e1 = system.stored_energy(raw.y_final)
+    inputs = terms["excitation_work"] + terms["roughness_work"]
+    losses = (terms["friction_dissipation"] + terms["tangential_damping"]
+              + terms["vertical_damping"] + terms["plate_damping"])
+    delta = e1 - e0
+    residual = inputs - losses - delta
+    scale = sum(abs(v) for v in terms.values()) + abs(delta)
+    return {
+        **terms,
+        "stored_energy_change": delta,
+        "residual": residual,
+        "relative_residual": (residual / scale if scale > 0 else 0.0)
+        if np.isfinite(residual) else float("nan"),
+        "t_end": raw.t_final,
+    }
+
+
+def _estimate_travel(scene: Scene) -> float:
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        return abs(exc.velocity) * scene.output.duration + exc.amplitude
+    if exc.target_rms_velocity is not None and exc.frequency > 0:
+        return 2.0 * math.sqrt(2.0) * exc.target_rms_velocity / exc.omega * 1.5
+    return 0.0
+
+
+def _check_travel(system: System, travel: float) -> None:
+    prof = system.profile
+    lo = prof.s0
+    hi = prof.s0 + (prof.z.size - 1) * prof.dx
+    if system.contact_s.min() - travel < lo or system.contact_s.max() + travel > hi:
+        raise SceneError(
+            f"roughness.trace_length must cover the contacts' travel of about ±{travel:.3g} m "
+            f"beyond the block window, got {system.scene.roughness.trace_length} m")
+
+
+def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
+    K = system.n_contacts
+    n = raw.extra.get("rows_filled", raw.time.size)
+    t = raw.time[:n]
+    out = raw.outputs[:n]
+    data = {}
+    for j, name in enumerate(kn.OUT_NAMES):
+        data[name] = ("time", out[:, j])
+    n0 = kn.N_OUT_FIXED
+    data["contact_force"] = (("time", "contact"), out[:, n0:n0 + K])
+    data["roughness_input"] = (("time", "contact"), out[:, n0 + K:n0 + 2 * K])
+    coords = {
+        "time": ("time", t, {"units": "s", "long_name": "time"}),
+        "contact": ("contact", np.arange(K), {"long_name": "contact index"}),
+        "contact_x": ("contact", system.contact_xy[:, 0],
+                      {"units": "m", "long_name": "contact x position on the plate"}),
+        "contact_y": ("contact", system.contact_xy[:, 1],
+                      {"units": "m", "long_name": "contact y position on the plate"}),
+        "contact_profile_position": ("contact", system.contact_s,
+                                     {"units": "m", "long_name": "profile coordinate at x=0"}),
+    }
+    ds = xr.Dataset(data, coords=coords)
+    for name, (units, long) in VARIABLES.items():
+        if name in ds:
+            ds[name].attrs.update(units=units, long_name=long)
+    if not system.tangential:
+        ds["friction_force"].attrs["comment"] = "prescribed tangential motion: no friction model"
+        ds["friction_coefficient"].attrs["comment"] = ds["friction_force"].attrs["comment"]
+    ds.attrs.update(
+        title="roughvib simulation result",
+        convention="vertical quantities are positive downward (direction of gravity); "
+                   "roughness_input = -z(s_k + x), z the profile height (positive up)",
+        scene_name=system.scene.name,
+        roughvib_format_version=FORMAT_VERSION,
+        created=datetime.now(UTC).isoformat(timespec="seconds"),
+        force_amplitude=system.force_amplitude,
+        reference="J. Feldmann, J. Vib. Acoust. 134 (2012) 041002",
+    )
+    return ds
+
+
+def _metrics(system: System, ds: xr.Dataset) -> dict:
+    scene = system.scene
+    t = ds["time"].values
+    if t.size < 2:
+        return {}
+    transient = scene.output.transient
+    if transient >= t[-1]:
+        transient = 0.0  # a run shorter than its run-in: report over the whole record
+    win = whole_period_window(t, scene.period if math.isfinite(scene.period) else 0.0,
+                              transient)
+    tw = t[win]
+    metrics = {"window_start": float(tw[0]), "window_end": float(tw[-1])}
+    for name in ("block_vertical_acceleration", "plate_vertical_acceleration",
+                 "block_tangential_velocity", "block_tangential_displacement", "normal_force",
+                 "friction_force"):
+        v = ds[name].values[win]
+        if np.all(np.isnan(v)):
+            continue
+        metrics[f"{name}_rms"] = float(rms(v - np.mean(v)) if name.endswith("displacement")
+                                       else rms(v))
+    metrics["normal_force_mean"] = float(np.mean(ds["normal_force"].values[win]))
+    metrics["normal_force_min"] = float(np.min(ds["normal_force"].values[win]))
+    v = ds["block_tangential_velocity"].values[win]
+    metrics["stick_fraction"] = float(stick_fraction(v, scene.friction.stick_velocity))
+    for name in ("block_vertical_acceleration", "plate_vertical_acceleration"):
+        r = metrics.get(f"{name}_rms")
+        if r:
+            metrics[f"{name}_level_db_re_1e-6"] = 20 * math.log10(r / 1e-6)
+    cf = ds["contact_force"].values[win]
+    metrics["active_contacts_mean"] = float(np.mean(np.sum(cf > 0, axis=1)))
+    return metrics
+
+
+def simulate(scene: Scene, *, progress: bool | None = None,
+             force_amplitude: float | None = None,
+             checkpoint_dir: str | os.PathLike | None = None,
+             _resume_from: Checkpoint | None = None) -> Result:
+    """Run a scene and return its :class:`~roughvib.results.Result`.
+
+    Parameters
+    ----------
+    scene : Scene
+        From :func:`roughvib.load_scene`.
+    progress : bool, optional
+        Progress bar on stderr (default: ``scene.output.progress``).
+    force_amplitude : float, optional
+        Override T0 [N] (skips the calibration).
+    checkpoint_dir : path, optional
+        With ``output.checkpoint_interval > 0``: write ``checkpoint.pkl`` there (replaced
+        atomically at each checkpoint); continue a stopped run with :func:`resume`.
+
+    Returns
+    -------
+    Result
+        ``result.status`` is ``"success"`` or names the failure; a failed run carries the
+        message and the statistics but no time series.
+
+    Examples
+    --------
+    >>> import roughvib
+    >>> scene = roughvib.load_scene("paper", **{"output.duration": 0.02})
+    >>> result = roughvib.simulate(scene, progress=False)   # doctest: +SKIP
+    >>> result.to_dataset()["block_vertical_acceleration"]   # doctest: +SKIP
+    """
+    t0 = time.perf_counter()
+    system = assemble(scene, force_amplitude=force_amplitude)
+    _check_travel(system, _estimate_travel(scene))
+    t_pre = time.perf_counter() - t0
+    if scene.solver.method == "ida":
+        raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                        resume=_resume_from)
+    elif scene.solver.method == "adaptive-modal":
+        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
+
+        raw = solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                                   resume=_resume_from)
+    elif scene.solver.method == "paper":
+        from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+        raw = solve_paper_scheme(system, progress=progress)
+    else:
+        from roughvib.solvers.fixed_step import solve_fixed_step
+
+        raw = solve_fixed_step(system, progress=progress)
+    ds = _build_dataset(system, raw)
+    events = events_frame(raw.events)
+    audit = energy_audit(system, raw)
+
+    resolved = scene
+    comments = {}
+    if system.tangential:
+        exc = scene.excitation
+        resolved = replace_section(scene, "excitation", force_amplitude=system.force_amplitude,
+                                   target_rms_velocity=None)
+        if exc.target_rms_velocity is not None:
+            comments["excitation.force_amplitude"] = (
+                f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+    scene_toml = scene_to_toml(resolved, comments=comments)
+
+    by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
+    summary = {
+        "format_version": FORMAT_VERSION,
+        "status": raw.status,
+        "message": raw.message,
+        "scene": scene.name,
+        "solver": {"method": scene.solver.method, "rtol": scene.solver.rtol,
+                   "atol": scene.solver.atol, **raw.stats,
+                   "preprocessing_time": t_pre},
+        "force_amplitude": system.force_amplitude,
+        "calibration": system.calibration,
+        "model": {"modes": system.n_modes, "contacts": system.n_contacts,
+                  "states": system.layout.size,
+                  "contact_stiffness_total": float(np.sum(system.stiff)),
+                  "initially_closed_contacts": int(np.sum(raw.y_initial[
+                      system.layout.slice("contact.force")] > 0)),
+                  "profile": system.profile.stats},
+        "events_by_kind": by_kind,
+        "metrics": _metrics(system, ds) if raw.status == "success" else {},
+        "energy_audit": audit,
+    }
+    if raw.status != "success":
+        summary["last_events"] = events.tail(20).to_dict(orient="records")
+        summary["partial_result"] = {
+            "file": "partial.nc", "t_end": float(ds["time"].values[-1]) if ds.sizes["time"]
+            else None, "note": "time series up to the failure; load_result(dir, partial=True)"}
+    if system.tangential and scene.excitation.target_rms_velocity is not None and \
+            raw.status == "success":
+        target = scene.excitation.target_rms_velocity
+        got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
+        summary["calibration"]["achieved_rms_velocity"] = got
+        summary["calibration"]["relative_deviation"] = (got - target) / target
+    return Result(ds, events, summary, scene_toml, extra={"system": system})
+
+
+def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:
+    """Continue a run from ``directory/checkpoint.pkl`` (written with
+    ``output.checkpoint_interval > 0``) to its end.
+
+    The scene is the one stored in the checkpoint; the result (time series, events, energy
+    audit, metrics) is identical to an uninterrupted run of that scene. Checkpoints keep being
+    written to ``directory``.
+
+    Parameters
+    ----------
+    directory : path
+        The run's output directory.
+    progress : bool, optional
+        Progress bar on stderr (default: the scene's ``output.progress``).
+
+    Returns
+    -------
+    Result
+
+    Raises
+    ------
+    SceneError
+        No checkpoint, a checkpoint of another format version, or one that does not fit the
+        scene it carries.
+    """
+    cp = read_checkpoint(directory)
+    try:
+        data = tomllib.loads(cp.scene_toml)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
+    scene = scene_from_dict(data, base_dir=cp.base_dir)
+    return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)

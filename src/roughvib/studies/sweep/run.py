@@ -1,0 +1,373 @@
+"""Running a sweep: each case one Dask task that writes its directory under a temporary name and
+renames it into place when complete; resuming skips the complete cases."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import re
+import secrets
+import shutil
+import signal
+import socket
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from roughvib.scene import Scene, SceneError
+from roughvib.studies.sweep.spec import (
+    CASES_DIR,
+    SUCCESS,
+    Case,
+    Sweep,
+    _replace_file,
+    load_sweep,
+)
+from roughvib.studies.sweep.tables import _write_tables
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+__all__ = ["THREAD_ENV", "SweepRun", "run_sweep"]
+
+#: Environment of every local worker process: one thread for numba, OpenMP and BLAS, so that
+#: N single-threaded workers use N cores and not N x cores.
+THREAD_ENV: dict[str, str] = {
+    "NUMBA_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+}
+
+_TOKEN_FILE = ".sweep-token"
+_STALE = re.compile(r"^\..*\.(tmp|old)-")
+
+
+def _write_json(path: Path, obj: Any) -> None:
+    from roughvib.results import _jsonable
+
+    path.write_text(json.dumps(_jsonable(obj), indent=2))
+
+
+def _new_tmp(root: Path, name: str) -> Path:
+    """A fresh temporary case directory (created with the umask's permissions, unlike
+    ``mkdtemp``'s 0700, so that a shared sweep directory stays readable)."""
+    while True:
+        tmp = root / f".{name}.tmp-{secrets.token_hex(6)}"
+        try:
+            tmp.mkdir()
+            return tmp
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
+
+
+def _publish(tmp: Path, final: Path) -> None:
+    """Rename a complete case directory into place, replacing an older (failed) one."""
+    try:
+        os.rename(tmp, final)
+        return
+    except OSError:
+        if not final.exists():
+            raise
+    old = final.with_name(f".{final.name}.old-{secrets.token_hex(4)}")
+    os.rename(final, old)
+    os.rename(tmp, final)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _failure_summary(name: str, status: str, message: str) -> dict[str, Any]:
+    from roughvib.results import FORMAT_VERSION
+
+    return {"format_version": FORMAT_VERSION, "status": status, "message": message,
+            "scene": name, "solver": {}, "metrics": {}}
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if not isinstance(exc, SceneError) else text
+
+
+def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
+              token: str) -> dict[str, Any]:
+    """Run one case and publish its directory; the Dask task of a sweep.
+
+    Parameters
+    ----------
+    base : Scene
+        Base scene with the fixed overrides.
+    name : str
+        Case name (directory under ``cases_dir``).
+    values : dict
+        The case's varied values (dotted keys).
+    cases_dir : str
+        Absolute path of ``DIR/cases``; must be visible to the worker.
+    token : str
+        Content of ``DIR/.sweep-token``: proves the worker sees the client's directory.
+
+    Returns
+    -------
+    dict
+        ``{"name", "status", "message", "wall_time"}``. Errors of the case itself are
+        recorded, not raised.
+    """
+    for k, v in THREAD_ENV.items():
+        os.environ.setdefault(k, v)  # effective if numba/BLAS are not imported yet
+    t0 = time.perf_counter()
+    started = datetime.now(UTC).isoformat(timespec="seconds")
+    root = Path(cases_dir)
+    token_file = root.parent / _TOKEN_FILE
+    try:
+        seen = token_file.read_text().strip()
+    except OSError:
+        seen = ""
+    if seen != token:
+        raise RuntimeError(f"worker {socket.gethostname()} does not see the sweep directory "
+                           f"{root.parent} of the client (the workers need it on a shared "
+                           f"filesystem under the same path)")
+    tmp = _new_tmp(root, name)
+    try:
+        try:
+            from roughvib.simulation import simulate
+
+            scene = base.with_overrides({**values, "name": name})
+            result = simulate(scene, progress=False)
+            with _local_dask():
+                result.save(tmp)
+            status, message = result.status, str(result.summary.get("message", ""))
+        except SceneError as exc:
+            status, message = "input_error", _one_line(exc)
+            _write_json(tmp / "summary.json", _failure_summary(name, status, message))
+        except Exception as exc:
+            status, message = "error", _one_line(exc)
+            _write_json(tmp / "summary.json", _failure_summary(name, status, message))
+            (tmp / "error.txt").write_text(traceback.format_exc())
+        wall = time.perf_counter() - t0
+        _write_json(tmp / "case.json", {
+            "name": name, "values": values, "status": status, "wall_time": wall,
+            "host": socket.gethostname(), "pid": os.getpid(), "started": started,
+            "finished": datetime.now(UTC).isoformat(timespec="seconds")})
+        _publish(tmp, root / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return {"name": name, "status": status, "message": message, "wall_time": wall}
+
+
+def _local_dask():
+    """Inside a task, make xarray lock its netCDF writes locally: each case writes its own
+    files, and a cluster-wide lock would tie every write to the scheduler connection."""
+    try:
+        import dask
+    except ImportError:  # pragma: no cover - tasks always run under dask
+        return contextlib.nullcontext()
+    return dask.config.set(scheduler="synchronous")
+
+
+def _ignore_sigint() -> bool:
+    """Run on the workers of a sweep's own LocalCluster: Ctrl-C in the terminal reaches the
+    whole process group; the client shuts the workers down, so they need not react."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread of the worker process
+        return False
+    return True
+
+
+def _is_complete(case_dir: Path) -> bool:
+    try:
+        summary = json.loads((case_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return summary.get("status") == SUCCESS and (case_dir / "result.nc").is_file()
+
+
+def _remove_stale(cases_dir: Path) -> None:
+    """Temporary and replaced case directories left by a killed sweep."""
+    for entry in cases_dir.iterdir():
+        if _STALE.match(entry.name):
+            if entry.is_dir():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+
+
+# --------------------------------------------------------------------------------------------
+# running a sweep (client side)
+# --------------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class SweepRun:
+    """Outcome of :func:`run_sweep`.
+
+    Attributes
+    ----------
+    directory : Path
+        The sweep directory.
+    table : pandas.DataFrame
+        The sweep table (as in sweep.csv).
+    skipped : int
+        Cases complete before this run (not re-run).
+    ran : int
+        Cases run now.
+    failed : int
+        Cases in the table whose status is not success.
+    """
+
+    directory: Path
+    table: pd.DataFrame
+    skipped: int
+    ran: int
+    failed: int
+
+
+def _connect(scheduler: str | None, workers: int | None):
+    """A Dask client: to ``scheduler`` if given, else to a new LocalCluster (returned too)."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise SceneError("sweeps need dask.distributed: "
+                         "pip install 'dask[distributed]>=2024.1'") from None
+    if scheduler:
+        return Client(scheduler), None
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                           env=dict(THREAD_ENV))
+    try:
+        client = Client(cluster)
+        client.run(_ignore_sigint)
+        return client, cluster
+    except BaseException:
+        cluster.close()
+        raise
+
+
+def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
+              scheduler: str | None = None, workers: int | None = None, client: Any = None,
+              overrides: dict[str, Any] | None = None, progress: bool = True,
+              log: Callable[[str], None] | None = None) -> SweepRun:
+    """Run (or resume) a sweep: each case one Dask task writing ``out/cases/<case>/``.
+
+    Parameters
+    ----------
+    sweep : str, path, Sweep or dict
+        See :func:`load_sweep`.
+    out : path
+        Sweep directory; created if needed. With a remote scheduler it must be on a filesystem
+        the workers share, under the same path.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://head:8786``). Default: a new
+        ``LocalCluster`` for this call.
+    workers : int, optional
+        Worker processes of the local cluster (default: all cores), one thread each.
+        Ignored with ``scheduler`` or ``client``.
+    client : dask.distributed.Client, optional
+        Use this client (and its cluster) instead; it is not closed.
+    overrides : dict, optional
+        Extra fixed values for every case (dotted keys).
+    progress : bool
+        A progress bar over the cases on stderr.
+    log : callable, optional
+        Receives one-line notes (dashboard address, skipped cases); default: ignored.
+
+    Returns
+    -------
+    SweepRun
+        The table (also in ``out/sweep.csv`` and ``out/sweep.nc``) and the counts.
+
+    Raises
+    ------
+    SceneError
+        Bad sweep file or ``workers < 1``. A failing case does not raise: its status and
+        message are in its directory and in the table.
+    """
+    from tqdm.auto import tqdm
+
+    spec = load_sweep(sweep, overrides)
+    if workers is not None and workers < 1:
+        raise SceneError(f"workers must be >= 1, got {workers}")
+    note = log or (lambda _msg: None)
+    out = Path(out).resolve()
+    cases_dir = out / CASES_DIR
+    cases_dir.mkdir(parents=True, exist_ok=True)
+    token = secrets.token_hex(8)
+    _replace_file(out / _TOKEN_FILE, token)
+    _replace_file(out / "sweep.json", json.dumps(spec.to_json(), indent=2))
+    _remove_stale(cases_dir)
+
+    cases = spec.cases()
+    todo = [c for c in cases if not _is_complete(cases_dir / c.name)]
+    skipped = len(cases) - len(todo)
+    if skipped:
+        note(f"{skipped} of {len(cases)} cases complete in {out}; running the other "
+             f"{len(todo)}")
+    errors: dict[str, tuple[str, str]] = {}
+    interrupted = False
+    if todo:
+        from dask.distributed import as_completed
+
+        own = client is None
+        cluster = None
+        if own:
+            client, cluster = _connect(scheduler, workers)
+        futures: dict[Any, Case] = {}
+        bar = None
+        try:
+            if getattr(client, "dashboard_link", None):
+                note(f"dask dashboard: {client.dashboard_link}")
+            bar = tqdm(total=len(cases), initial=skipped, desc=f"sweep {spec.name}",
+                       unit="case", disable=not progress, file=sys.stderr)
+            for c in todo:
+                fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
+                                    token, pure=False, key=f"case-{c.name}-{token}")
+                futures[fut] = c
+            failed_now = 0
+            for fut in as_completed(list(futures)):
+                case = futures[fut]
+                try:
+                    status = fut.result()["status"]
+                except Exception as exc:  # the task itself died (worker lost, no directory)
+                    status = "worker_lost" if type(exc).__name__ == "KilledWorker" else "error"
+                    errors[case.name] = (status, _one_line(exc))
+                    _record_failure(cases_dir, case.name, status, _one_line(exc))
+                failed_now += status != SUCCESS
+                bar.set_postfix(failed=failed_now, refresh=False)
+                bar.update()
+        except BaseException:
+            # interrupted: queued cases are dropped; the tables are written below, once the
+            # local workers have stopped (cases in flight may still finish and count)
+            interrupted = True
+            with contextlib.suppress(Exception):  # never hide the interrupt itself
+                client.cancel([f for f in futures if not f.done()])
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+            if own:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+            if interrupted:
+                with contextlib.suppress(Exception):
+                    _write_tables(spec, out, errors)
+    table = _write_tables(spec, out, errors)
+    return SweepRun(out, table, skipped, len(todo), int((table["status"] != SUCCESS).sum()))
+
+
+def _record_failure(cases_dir: Path, name: str, status: str, message: str) -> None:
+    """Write a failed case's directory from the client (when the task could not)."""
+    try:
+        tmp = _new_tmp(cases_dir, name)
+        try:
+            _write_json(tmp / "summary.json", _failure_summary(name, status, message))
+            _write_json(tmp / "case.json", {"name": name, "status": status})
+            _publish(tmp, cases_dir / name)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    except OSError:
+        pass  # the table still carries the error (collect_table's ``errors``)

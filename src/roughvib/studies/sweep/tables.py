@@ -1,0 +1,288 @@
+"""The sweep table (``sweep.csv``) and dataset (``sweep.nc``) from the case directories, and the
+slope fits (dB per doubling) of the sweep report."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import re
+import secrets
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from roughvib.scene import Scene
+from roughvib.studies.sweep.spec import CASES_DIR, SUCCESS, Sweep, _canonical, _replace_file
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+    import xarray as xr
+
+__all__ = ["METRICS", "collect_table", "scene_key_units"]
+
+#: table column -> (where in summary.json, units, long name)
+METRICS: dict[str, tuple[tuple[str, ...], str, str]] = {
+    "block_vertical_acceleration_level_db_re_1e-6": (
+        ("metrics", "block_vertical_acceleration_level_db_re_1e-6"), "dB re 1e-6 m s-2",
+        "total block vertical acceleration level"),
+    "plate_vertical_acceleration_level_db_re_1e-6": (
+        ("metrics", "plate_vertical_acceleration_level_db_re_1e-6"), "dB re 1e-6 m s-2",
+        "total plate acceleration level at the observation point"),
+    "block_vertical_acceleration_rms": (
+        ("metrics", "block_vertical_acceleration_rms"), "m s-2",
+        "rms vertical block acceleration"),
+    "plate_vertical_acceleration_rms": (
+        ("metrics", "plate_vertical_acceleration_rms"), "m s-2",
+        "rms plate acceleration at the observation point"),
+    "block_tangential_velocity_rms": (
+        ("metrics", "block_tangential_velocity_rms"), "m s-1",
+        "rms tangential block velocity (friction velocity)"),
+    "stick_fraction": (("metrics", "stick_fraction"), "1", "fraction of time stuck"),
+    "normal_force_mean": (("metrics", "normal_force_mean"), "N", "mean total normal force"),
+    "normal_force_min": (("metrics", "normal_force_min"), "N", "minimum total normal force"),
+    "force_amplitude": (("force_amplitude",), "N", "excitation force amplitude T0"),
+    "energy_relative_residual": (("energy_audit", "relative_residual"), "1",
+                                 "energy audit residual / sum of |terms|"),
+    "steps": (("solver", "steps"), "1", "solver steps"),
+    "solver_wall_time": (("solver", "wall_time"), "s", "solver wall time"),
+}
+
+_DB_PER_DOUBLING_POWER = 10.0 * math.log10(2.0)
+
+
+def _dig(d: dict, path: tuple[str, ...]) -> Any:
+    for p in path:
+        if not isinstance(d, dict):
+            return None
+        d = d.get(p)
+    return d
+
+
+def _number(v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return math.nan
+    return float(v)
+
+
+def collect_table(sweep: Sweep, directory: str | os.PathLike,
+                  errors: dict[str, tuple[str, str]] | None = None) -> pd.DataFrame:
+    """The sweep table from the case directories.
+
+    Parameters
+    ----------
+    sweep : Sweep
+    directory : path
+        Sweep directory (holding ``cases/``).
+    errors : dict, optional
+        Case name -> (status, message) for cases whose failure could not be written.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per case in sweep order: ``case``, the varied keys, ``status``, ``message``,
+        ``wall_time`` [s] (the whole task: calibration, solve, saving), then the columns of
+        :data:`METRICS` (NaN where a case did not succeed). A case without a directory has
+        status ``missing``.
+    """
+    import pandas as pd
+
+    cases_dir = Path(directory) / CASES_DIR
+    keys = sweep.varied_keys
+    rows = []
+    for case in sweep.cases():
+        row: dict[str, Any] = {"case": case.name}
+        for k in keys:
+            row[k] = case.values[k] if k in case.values else sweep.base_value(k)
+        try:
+            summary = json.loads((cases_dir / case.name / "summary.json").read_text())
+        except (OSError, ValueError):
+            summary = None
+        try:
+            info = json.loads((cases_dir / case.name / "case.json").read_text())
+        except (OSError, ValueError):
+            info = {}
+        if summary is None:
+            status, message = (errors or {}).get(case.name, ("missing", "not run (yet)"))
+            summary = {}
+        else:
+            status, message = summary.get("status", "unknown"), summary.get("message", "")
+        row["status"] = status
+        row["message"] = " ".join(str(message or "").split())
+        row["wall_time"] = _number(info.get("wall_time"))
+        for col, (path, _, _) in METRICS.items():
+            row[col] = _number(_dig(summary, path)) if status == SUCCESS else math.nan
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["case", *keys, "status", "message", "wall_time",
+                                       *METRICS])
+
+
+def scene_key_units(key: str) -> str | None:
+    """Unit of a dotted scene key, read from the section's numpydoc ``Attributes``.
+
+    Parameters
+    ----------
+    key : str
+        ``"section.field"``.
+
+    Returns
+    -------
+    str or None
+        The bracketed unit of the field's description (``"-"`` becomes ``"1"``), or None
+        when the docstring gives none.
+    """
+    import inspect
+
+    section, _, field = key.partition(".")
+    cls = next((f.type for f in dataclasses.fields(Scene) if f.name == section), None)
+    if cls is None:
+        return None
+    cls = getattr(sys.modules[Scene.__module__], cls, None) if isinstance(cls, str) else cls
+    doc = inspect.getdoc(cls) or ""
+    current: tuple[str, ...] = ()
+    descr: dict[tuple[str, ...], str] = {}
+    for line in doc.splitlines():
+        m = re.match(r"^(\w[\w, ]*) : ", line)
+        if m:
+            current = tuple(n.strip() for n in m.group(1).split(","))
+            descr[current] = ""
+        elif current:
+            descr[current] += " " + line.strip()
+    for names, text in descr.items():
+        if field in names:
+            units = re.findall(r"\[([^\[\]]+)\]", text)
+            if len(units) == len(names):
+                unit = units[names.index(field)]
+            elif len(units) == 1:
+                unit = units[0]
+            else:
+                return None
+            return "1" if unit == "-" else unit
+    return None
+
+
+def _coord(values: list[Any]):
+    import numpy as np
+
+    if all(isinstance(v, bool) for v in values):
+        return np.array(values, dtype=bool)
+    if all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+        return np.array(values)
+    if all(isinstance(v, str) for v in values):
+        return np.array(values, dtype=str)
+    return np.array([_canonical(v) for v in values], dtype=str)
+
+
+def _dataset(sweep: Sweep, table: pd.DataFrame) -> xr.Dataset:
+    import numpy as np
+    import xarray as xr
+
+    from roughvib._version import __version__
+
+    dims, shape = sweep.dims, sweep.shape
+    index = [c.index for c in sweep.cases()]
+    coords: dict[str, Any] = {}
+    for k, values in sweep.grid.items():
+        attrs = {"long_name": f"scene value {k}"}
+        if (u := scene_key_units(k)) is not None:
+            attrs["units"] = u
+        coords[k] = (k, _coord(values), attrs)
+    if sweep.cases_list:
+        coords["case"] = ("case", np.arange(len(sweep.cases_list)),
+                          {"long_name": "index into the [[case]] list"})
+        for k in sweep.varied_keys:
+            if k in sweep.grid:
+                continue
+            vals = [e.get(k, sweep.base_value(k)) for e in sweep.cases_list]
+            attrs = {"long_name": f"scene value {k}"}
+            if (u := scene_key_units(k)) is not None:
+                attrs["units"] = u
+            coords[k] = ("case", _coord(vals), attrs)
+
+    def grid_of(column: str, fill: Any, dtype: Any):
+        a = np.full(shape, fill, dtype=dtype)
+        for idx, v in zip(index, table[column].to_numpy(), strict=True):
+            a[idx] = v
+        return a
+
+    data = {
+        "case_name": (dims, grid_of("case", "", object).astype(str),
+                      {"long_name": "case directory under cases/"}),
+        "status": (dims, grid_of("status", "", object).astype(str),
+                   {"long_name": "run status (success or the failure cause)"}),
+        "message": (dims, grid_of("message", "", object).astype(str),
+                    {"long_name": "status message"}),
+        "wall_time": (dims, grid_of("wall_time", np.nan, float),
+                      {"units": "s", "long_name": "task wall time (calibration, solve, save)"}),
+    }
+    for col, (_, units, long_name) in METRICS.items():
+        data[col] = (dims, grid_of(col, np.nan, float), {"units": units, "long_name": long_name})
+    return xr.Dataset(data, coords=coords, attrs={
+        "title": f"roughvib sweep {sweep.name}",
+        "description": sweep.description,
+        "base_scene": sweep.base_label,
+        "fixed_values": _canonical(sweep.fixed),
+        "source": sweep.source,
+        "comment": "metrics are NaN where status is not success",
+        "roughvib_version": __version__,
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+    })
+
+
+def _write_tables(sweep: Sweep, out: Path,
+                  errors: dict[str, tuple[str, str]] | None = None) -> pd.DataFrame:
+    table = collect_table(sweep, out, errors)
+    _replace_file(out / "sweep.csv", table.to_csv(index=False, float_format="%.12g"))
+    tmp = out / f".sweep.nc.tmp-{secrets.token_hex(4)}"
+    try:
+        _dataset(sweep, table).to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, out / "sweep.nc")
+    finally:
+        tmp.unlink(missing_ok=True)
+    return table
+
+
+# --------------------------------------------------------------------------------------------
+# fits
+# --------------------------------------------------------------------------------------------
+
+
+def _fit(x, y, seeds) -> dict[str, Any]:
+    """dB per doubling of y over x: per seed, then mean and 95 % interval across seeds.
+
+    ``x`` > 0 (shape (m,)), ``y`` [dB] (shape (m,)), ``seeds``: labels (shape (m,)) or None.
+    With fewer than two seeds that each span two x values, the pooled least-squares slope and
+    its t interval (m - 2 degrees of freedom) are given instead.
+    """
+    import numpy as np
+    from scipy import stats
+
+    from roughvib.analysis.levels import velocity_exponent
+
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    slopes = []
+    if seeds is not None:
+        labels = np.asarray(seeds)
+        for s in dict.fromkeys(labels.tolist()):
+            sel = labels == s
+            if np.unique(x[sel]).size >= 2:
+                slopes.append(velocity_exponent(x[sel], y[sel]).db_per_doubling)
+    if len(slopes) >= 2:
+        s = float(np.mean(slopes))
+        half = float(stats.t.ppf(0.975, len(slopes) - 1) * np.std(slopes, ddof=1)
+                     / math.sqrt(len(slopes)))
+        how = f"mean over {len(slopes)} seeds, 95 % t interval across seeds"
+    else:
+        s, _, se = velocity_exponent(x, y)
+        half = float(stats.t.ppf(0.975, x.size - 2) * se) if x.size > 2 else math.nan
+        how = "least squares over all points, 95 % t interval of the slope" \
+            if x.size > 2 else "two points, no interval"
+    lx = np.log2(x)
+    return {"db_per_doubling": s, "ci_low": s - half, "ci_high": s + half,
+            "exponent_power": s / _DB_PER_DOUBLING_POWER, "n_seeds": len(slopes),
+            "n_points": int(x.size), "method": how,
+            "intercept": float(np.mean(y) - s * np.mean(lx)), "per_seed": slopes}
+
