@@ -103,12 +103,16 @@ class System:
         kn.compressions(t, yy, self.off, self.fp, self.phi, self.cres, self.contact_s,
                         self.prof, self.work)
         rhs = self.work[:k_all].copy()  # compression with F = 0 in the residual term
-        F = np.zeros(k_all)
+        return self._solve_closed(closed, rhs)
+
+    def _solve_closed(self, closed: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """x with (diag(1/s) + C_res) x = rhs on the closed contacts, 0 on the open ones."""
+        x = np.zeros(self.n_contacts)
         idx = np.flatnonzero(closed)
         if idx.size:
             A = self.cres[np.ix_(idx, idx)] + np.diag(1.0 / self.stiff[idx])
-            F[idx] = np.linalg.solve(A, rhs[idx])
-        return F
+            x[idx] = np.linalg.solve(A, rhs[idx])
+        return x
 
     def force_rates(self, t: float, y: np.ndarray, closed: np.ndarray) -> np.ndarray:
         """Time derivatives of the contact forces [N/s] that keep the contact law.
@@ -124,12 +128,7 @@ class System:
         rate = y[lay.index("block.vz")] + self.work[k_all:2 * k_all] * vx
         if self.n_modes:
             rate = rate - self.phi.T @ y[lay.slice("plate.dq")]
-        dF = np.zeros(k_all)
-        idx = np.flatnonzero(closed)
-        if idx.size:
-            A = self.cres[np.ix_(idx, idx)] + np.diag(1.0 / self.stiff[idx])
-            dF[idx] = np.linalg.solve(A, rate[idx])
-        return dF
+        return self._solve_closed(closed, rate)
 
     def consistent(self, t: float, y: np.ndarray, reg: np.ndarray, rf: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:

@@ -51,12 +51,11 @@ from numba import njit
 
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
-from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, check_resume, write_checkpoint
+from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
 from roughvib.solvers.ida import (
     RawSolution,
@@ -761,19 +760,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             h_max *= 0.5
 
     reg, rf = system.new_regime_arrays()
-    if resume is None:
-        y0, closed = system.static_equilibrium()
-        regime = initial_regime(closed, system.fp, lay.tangential, False)
-        regime.pack(reg, rf)
-        y, _ = system.consistent(0.0, y0, reg, rf)
-        y_initial = y.copy()
-    else:
-        check_resume(resume, system, n, n_out)
-        regime = resume.regime
-        reg[:] = resume.reg
-        rf[:] = resume.rf
-        y = np.array(resume.y, dtype=float)
-        y_initial = np.array(resume.y_initial, dtype=float)
+    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
     check_tolerances(system, y_initial)
     args = system.kernel_args(reg, rf)
     (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args

@@ -23,11 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from roughvib.model.regimes import Regime, initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
 
 __all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_resume",
-           "read_checkpoint", "write_checkpoint"]
+           "read_checkpoint", "start_state", "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 CHECKPOINT_VERSION = 1
@@ -102,6 +103,28 @@ def check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
     if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
         raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
                          f"from the recalibrated {system.force_amplitude!r} N")
+
+
+def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpoint | None,
+                n: int, n_out: int) -> tuple[Regime, np.ndarray, np.ndarray]:
+    """Where an event-driven run starts: the regime (packed into ``reg``, ``rf``), the state
+    and the state at t = 0 (energy audit).
+
+    Without ``resume``: the static equilibrium at t = 0, made consistent. With it: the
+    checkpoint's, once :func:`check_resume` has accepted it for this scene and a grid of
+    ``n`` rows of ``n_out`` outputs.
+    """
+    if resume is None:
+        y0, closed = system.static_equilibrium()
+        regime = initial_regime(closed, system.fp, system.layout.tangential, system.coulomb)
+        regime.pack(reg, rf)
+        y, _ = system.consistent(0.0, y0, reg, rf)
+        return regime, y, y.copy()
+    check_resume(resume, system, n, n_out)
+    reg[:] = resume.reg
+    rf[:] = resume.rf
+    return (resume.regime, np.array(resume.y, dtype=float),
+            np.array(resume.y_initial, dtype=float))
 
 
 def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:

@@ -37,10 +37,9 @@ import sksundae as sun
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
-from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, check_resume, write_checkpoint
+from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
 from roughvib.solvers.events import (
     EventBook,
     EventRecord,
@@ -392,22 +391,11 @@ def solve_ida(system: System, *, progress: bool | None = None,
     n, n_out = outs.shape
 
     reg, rf = system.new_regime_arrays()
-    if resume is None:
-        y0, closed = system.static_equilibrium()
-        regime = initial_regime(closed, system.fp, lay.tangential, system.coulomb)
-        regime.pack(reg, rf)
-        t_start, k_start = 0.0, 1
-        y, yp = system.consistent(0.0, y0, reg, rf)
-        y_initial = y.copy()
-    else:
-        check_resume(resume, system, n, n_out)
-        regime = resume.regime
-        reg[:] = resume.reg
-        rf[:] = resume.rf
-        t_start, k_start = float(resume.t), int(resume.k)
+    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
+    t_start, k_start = (0.0, 1) if resume is None else (float(resume.t), int(resume.k))
+    if resume is not None:
         outs[:k_start] = resume.outputs
-        y, yp = system.consistent(t_start, np.array(resume.y, dtype=float), reg, rf)
-        y_initial = np.array(resume.y_initial, dtype=float)
+    y, yp = system.consistent(t_start, y, reg, rf)
     check_tolerances(system, y_initial)
     cp_interval = scene.output.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
