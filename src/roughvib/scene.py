@@ -557,6 +557,8 @@ class Excitation:
 
 #: every value of ``solver.method`` (validated here, offered by ``roughvib compare``)
 SOLVER_METHODS = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
+#: the methods that write checkpoints (``output.checkpoint_interval``)
+CHECKPOINTED = ("ida", "adaptive-modal")
 
 
 @dataclass(frozen=True)
@@ -587,7 +589,9 @@ class Solver:
     atol_acceleration : float
         Absolute tolerance of the plate modes expressed as an acceleration [m/s^2]: mode r
         gets atol_q = a / w_r^2 and atol_dq = a / w_r, so high modes stay error-controlled
-        down to this acceleration (what spectra to 50 kHz need).
+        down to this acceleration (what spectra to 50 kHz need). The event-driven solvers
+        refuse ``atol`` and ``atol_acceleration`` below the round-off floors of the scene
+        (docs/robustness.md; they grow with the static load m g).
     max_order : int
         Highest BDF order (1..5). Default 2: orders >= 3 are not A-stable and were measured
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
@@ -651,8 +655,9 @@ class Output:
         each checkpoint is ``OUT/checkpoint.pkl`` (replaced atomically); ``roughvib run
         --resume OUT`` continues from it with results identical to an uninterrupted run of
         the same scene. IDA is restarted at every checkpoint (about 20 extra steps), so a run
-        with checkpoints differs from one without them within the solver tolerance.
-        ``solver.method = "ida"`` only.
+        with checkpoints differs from one without them within the solver tolerance;
+        adaptive-modal runs with and without checkpoints are identical.
+        ``solver.method = "ida"`` or ``"adaptive-modal"``.
     """
 
     duration: float = 3.0 / 7.0
@@ -709,9 +714,10 @@ class Scene:
                 by + hw >= self.plate.width:
             raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
-        if self.output.checkpoint_interval > 0 and self.solver.method != "ida":
-            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' (only "
-                             f"IDA runs are checkpointed), got {self.solver.method!r}")
+        if self.output.checkpoint_interval > 0 and self.solver.method not in CHECKPOINTED:
+            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' or "
+                             f"'adaptive-modal' (the event-driven solvers are checkpointed), "
+                             f"got {self.solver.method!r}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

@@ -201,7 +201,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     elif scene.solver.method == "adaptive-modal":
         from roughvib.solvers.adaptive_modal import solve_adaptive_modal
 
-        raw = solve_adaptive_modal(system, progress=progress)
+        raw = solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                                   resume=_resume_from)
     elif scene.solver.method == "paper":
         from roughvib.solvers.paper_scheme import solve_paper_scheme
 

@@ -121,13 +121,6 @@ def test_coulomb_law_is_refused_with_a_one_line_error():
 
 
 
-def test_checkpoint_interval_is_refused_in_one_line():
-    over = {"solver.method": "adaptive-modal", "output.checkpoint_interval": 1e-3}
-    with pytest.raises(SceneError, match=r"checkpoint_interval needs solver.method = 'ida'.*"
-                                         r"got 'adaptive-modal'"):
-        roughvib.load_scene("paper", over)
-
-
 def test_error_norm_is_rms_over_the_modes_and_max_over_the_rest():
     from roughvib.solvers.adaptive_modal import _err_norm
 

@@ -1,12 +1,14 @@
-"""Checkpoints of the event-driven IDA loop: what a run needs to continue where it stopped.
+"""Checkpoints of the event-driven solvers: what a run needs to continue where it stopped.
 
 A checkpoint is one file, ``checkpoint.pkl`` in the run's output directory, replaced
 atomically (written to a temporary file in the same directory, then ``os.replace``), so a run
 killed while writing leaves the previous checkpoint intact. It holds the scene (TOML text), the
 output rows already filled, the event log, the statistics, the discrete regime and the
-continuous state at a grid time t_c; IDA is restarted at t_c from a consistent state both in
-the run that wrote it and in the run that resumes from it, which is why the two give identical
-results (docs/robustness.md).
+continuous state at a grid time t_c, and the solver's own loop state. IDA is restarted at t_c
+from a consistent state both in the run that wrote it and in the run that resumes from it; the
+adaptive exact-modal scheme, a one-step method, stores everything its loop carries from one
+step to the next. Either way the resumed run is identical to the uninterrupted one
+(docs/robustness.md).
 
 The file is a Python pickle written by roughvib for roughvib: load only checkpoints you made.
 """
@@ -21,10 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.scene import SceneError
+from roughvib.model.regimes import Regime, initial_regime
+from roughvib.model.system import System
+from roughvib.scene import SceneError, scene_to_toml
 
-__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "read_checkpoint",
-           "write_checkpoint"]
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_resume",
+           "read_checkpoint", "start_state", "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 CHECKPOINT_VERSION = 1
@@ -33,7 +37,7 @@ _MAGIC = "roughvib-checkpoint"
 
 @dataclass
 class Checkpoint:
-    """State of an IDA run at a checkpoint time.
+    """State of an event-driven run at a checkpoint time.
 
     Attributes
     ----------
@@ -44,7 +48,7 @@ class Checkpoint:
     k : int
         Index of the next output row to fill (grid[k - 1] == t).
     y : ndarray, shape (n_states,)
-        State returned by IDA at t_c (before the consistent restart).
+        State at t_c (IDA's, before the consistent restart).
     y_initial : ndarray, shape (n_states,)
         State at t = 0 (energy audit).
     outputs : ndarray, shape (k, n_out)
@@ -58,8 +62,12 @@ class Checkpoint:
     stats : dict
         Solver statistics so far (counts; wall time of the earlier processes).
     loop : dict
-        Event-loop bookkeeping: ``recent`` (event times in the storm window),
-        ``t_last_restart``, ``last_fired``, ``refire_ignored``.
+        Event-loop bookkeeping and what the solver (``scene_toml``'s ``solver.method``)
+        carries between steps. IDA: ``recent`` (event times in the storm window),
+        ``t_last_restart``, ``last_fired``, ``refire_ignored``, ``h_restart``.
+        adaptive-modal: ``recent``, the integer loop state ``ist`` (step level, counters),
+        and the derivatives ``d``, modal forces ``u``, margins ``g`` and armed roots
+        ``armed`` of the state.
     force_amplitude : float
         T0 [N] of the run (resuming checks it is reproduced).
     base_dir : str
@@ -80,6 +88,43 @@ class Checkpoint:
     loop: dict = field(default_factory=dict)
     force_amplitude: float = float("nan")
     base_dir: str = "."
+
+
+def check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
+    """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
+    if scene_to_toml(system.scene) != cp.scene_toml:
+        raise SceneError("the checkpoint was written by a different scene; resume with the "
+                         "scene stored in the checkpoint (roughvib run --resume DIR)")
+    if not (1 <= cp.k < n) or cp.outputs.shape != (cp.k, n_out) or \
+            cp.y.shape != (system.layout.size,):
+        raise SceneError(f"the checkpoint does not fit this model (rows {cp.outputs.shape}, "
+                         f"{cp.y.shape[0]} states; expected {n} rows of {n_out} outputs and "
+                         f"{system.layout.size} states)")
+    if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
+        raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
+                         f"from the recalibrated {system.force_amplitude!r} N")
+
+
+def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpoint | None,
+                n: int, n_out: int) -> tuple[Regime, np.ndarray, np.ndarray]:
+    """Where an event-driven run starts: the regime (packed into ``reg``, ``rf``), the state
+    and the state at t = 0 (energy audit).
+
+    Without ``resume``: the static equilibrium at t = 0, made consistent. With it: the
+    checkpoint's, once :func:`check_resume` has accepted it for this scene and a grid of
+    ``n`` rows of ``n_out`` outputs.
+    """
+    if resume is None:
+        y0, closed = system.static_equilibrium()
+        regime = initial_regime(closed, system.fp, system.layout.tangential, system.coulomb)
+        regime.pack(reg, rf)
+        y, _ = system.consistent(0.0, y0, reg, rf)
+        return regime, y, y.copy()
+    check_resume(resume, system, n, n_out)
+    reg[:] = resume.reg
+    rf[:] = resume.rf
+    return (resume.regime, np.array(resume.y, dtype=float),
+            np.array(resume.y_initial, dtype=float))
 
 
 def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:

@@ -5,11 +5,14 @@ own search); :class:`EventBook` owns what follows, so that both produce the same
 the regime is switched by :func:`roughvib.model.regimes.switch`, the state made consistent by
 :meth:`System.consistent`, both limits of the margins and of the friction force are logged,
 and the event-storm guard (``solver.max_events`` within ``solver.event_window``) stops the run.
+The stall guard (:func:`step_budget`, :func:`stall_failure`) bounds the solver work between two
+output times, so that every run ends.
 """
 
 from __future__ import annotations
 
 import collections
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,7 +21,16 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import Regime, switch
 from roughvib.model.system import System
 
-__all__ = ["EventBook", "EventRecord", "SolverFailure", "initial_phase_events"]
+__all__ = ["EventBook", "EventRecord", "SolverFailure", "initial_phase_events", "stall_failure",
+           "step_budget"]
+
+#: Stall guard: a run whose mean internal step within one output interval falls below
+#: STALL_MEAN_STEP (and that takes more than STALL_MIN_STEPS steps there) stops as "stalled".
+#: Legitimate runs stay far below it: IDA at rtol 1e-14 took ~6,500 steps per 1e-5 s output
+#: interval on a lift-off scene, adaptive-modal ~1,000; the stalls of issue 17 took 20,000
+#: steps (and as many Jacobians) without leaving the interval.
+STALL_MEAN_STEP = 5e-10  # s
+STALL_MIN_STEPS = 20_000
 
 
 class SolverFailure(RuntimeError):
@@ -28,6 +40,25 @@ class SolverFailure(RuntimeError):
         super().__init__(message)
         self.status = status
         self.t = t
+
+
+def step_budget(output_step: float) -> int:
+    """Internal steps allowed within one output interval of ``output_step`` [s]."""
+    return max(STALL_MIN_STEPS, math.ceil(output_step / STALL_MEAN_STEP))
+
+
+def stall_failure(method: str, t: float, what: str, regime: str) -> SolverFailure:
+    """The ``stalled`` failure of the stall guard, with its hint.
+
+    ``what`` says which budget ran out, e.g. "more than 20000 steps".
+    """
+    return SolverFailure(
+        "stalled",
+        f"{method} stalled at t = {t:.6g} s (regime {regime}): {what} within one output "
+        f"interval without reaching its end. Hint: the tolerances may be below what double "
+        f"precision resolves for this scene (loosen solver.atol, solver.atol_acceleration or "
+        f"solver.rtol), or the scene has a discontinuity no event sees; the event log's last "
+        f"entries show where", t)
 
 
 @dataclass
