@@ -33,6 +33,7 @@ __all__ = [
     "Solver",
     "builtin_scenes",
     "load_scene",
+    "read_toml_file",
     "scene_to_toml",
 ]
 
@@ -49,6 +50,9 @@ class SceneError(ValueError):
 def _fmt(value: Any) -> str:
     if isinstance(value, str):
         return repr(value)
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**16:
+        digits = str(abs(value))  # a huge integer (1 followed by 400 zeros): keep the line short
+        return f"{'-' if value < 0 else ''}{digits[0]}.{digits[1:4]}e+{len(digits) - 1}"
     return str(value)
 
 
@@ -59,7 +63,10 @@ def _u(unit: str) -> str:
 def _number(path: str, value: Any, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise SceneError(f"{path} must be a number{_u(unit)}, got {_fmt(value)}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}") from None
     if not math.isfinite(value):
         raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}")
     return value
@@ -90,14 +97,18 @@ def _range(path: str, value: Any, lo: float, hi: float, unit: str, *, lo_open=Fa
     return v
 
 
+#: the largest integer a scene key takes (int64: kernels and seeds store integers as int64)
+_INT_MAX = 2**63 - 1
+
+
 def _integer(path: str, value: Any, lo: int, hi: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
             raise SceneError(f"{path} must be an integer, got {_fmt(value)}")
-    if value < lo or (hi is not None and value > hi):
-        rule = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+    if value < lo or value > (_INT_MAX if hi is None else hi):
+        rule = f">= {lo} (at most 2**63 - 1)" if hi is None else f"in [{lo}, {hi}]"
         raise SceneError(f"{path} must be an integer {rule}, got {_fmt(value)}")
     return value
 
@@ -127,6 +138,26 @@ def _set(obj: Any, name: str, value: Any) -> None:
 
 def _opt_positive(path: str, value: Any, unit: str) -> float | None:
     return None if value is None else _positive(path, value, unit)
+
+
+#: longest scene name [characters]; it names the output directory runs/<name>, next to which a
+#: run keeps a temporary directory and a lock file with a few more characters
+NAME_MAX = 100
+_NAME_FORBIDDEN = set('/\\:*?"<>|')
+
+
+def _file_name(path: str, value: Any) -> str:
+    """A plain file name: what ``runs/<name>`` may be without leaving ``runs/``."""
+    if not isinstance(value, str):
+        raise SceneError(f"{path} must be a string, got {_fmt(value)}")
+    rule = (f"{path} must be a plain file name (1 to {NAME_MAX} characters, no leading '.', "
+            f"no path separator, none of : * ? \" < > |, no control character)")
+    if len(value) > NAME_MAX:
+        raise SceneError(f"{rule}, got {len(value)} characters ({value[:20]!r}...)")
+    if not value or value.startswith(".") or value != value.strip() or \
+            any(c in _NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127 for c in value):
+        raise SceneError(f"{rule}, got {value!r}")
+    return value
 
 
 # --------------------------------------------------------------------------------------------
@@ -668,6 +699,15 @@ class Scene:
     """A complete, validated simulation scene (SI units throughout).
 
     Build one with :func:`load_scene`; change a copy with :meth:`with_overrides`.
+
+    Attributes
+    ----------
+    name : str
+        Names the run; ``roughvib run`` writes to ``runs/<name>`` unless ``--out`` is given, so
+        it must be a plain file name: 1 to 100 characters, no leading ``.``, no leading or
+        trailing blank, no ``/`` or ``\\``, none of ``: * ? " < > |`` and no control character.
+    description : str
+        One line about the scene.
     """
 
     name: str = "paper"
@@ -683,8 +723,7 @@ class Scene:
     base_dir: str = field(default=".", compare=False)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str):
-            raise SceneError(f"name must be a string, got {_fmt(self.name)}")
+        _file_name("name", self.name)
         if not isinstance(self.description, str):
             raise SceneError(f"description must be a string, got {_fmt(self.description)}")
         bx, by = self.plate.block_position
@@ -850,15 +889,35 @@ def builtin_scenes() -> dict[str, str]:
     return out
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
+def read_toml_file(path: Path, what: str = "scene file") -> dict[str, Any]:
+    """Read a TOML file as UTF-8 (a leading byte-order mark is accepted and dropped).
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        What the file is, for the message (``"scene file"``, ``"sweep file"``).
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, bytes that are not UTF-8 (the line and the byte are named), or
+        invalid TOML; one line.
+    """
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
-        raise SceneError(f"scene file {path} cannot be read: {exc.strerror}") from None
+        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{what} {path} must be UTF-8 text (save it as UTF-8), got byte "
+                         f"0x{raw[exc.start]:02x} on line {line}") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {path} is not valid TOML: {exc}") from None
+        raise SceneError(f"{what} {path} is not valid TOML: {exc}") from None
 
 
 def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | None = None,
@@ -903,7 +962,7 @@ def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | 
         if not path.exists():
             raise SceneError(f"scene {str(source)!r} is neither a built-in scene "
                              f"({', '.join(builtins)}) nor an existing file")
-        data = _read_toml(path)
+        data = read_toml_file(path)
         base = path.resolve().parent
     scene = scene_from_dict(data, base_dir=base)
     if overrides or kw:

@@ -19,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from roughvib.scene import Scene, SceneError, load_scene, scene_to_dict
+from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
 
 __all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "builtin_sweeps", "case_name", "load_sweep"]
 
@@ -362,12 +362,7 @@ def load_sweep(source: str | os.PathLike | Sweep | dict,
     if not path.is_file():
         raise SceneError(f"sweep {text!r} is neither a built-in sweep "
                          f"({', '.join(builtins) or 'none installed'}) nor an existing file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise SceneError(f"sweep file {path} cannot be read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"sweep file {path} is not valid TOML: {exc}") from None
+    data = read_toml_file(path, "sweep file")
     stem = _SAFE.sub("_", path.stem) or "sweep"
     return _parse(data, base_dir=path.resolve().parent, source=str(path.resolve()),
                   default_name=stem, overrides=overrides)
