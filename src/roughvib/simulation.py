@@ -13,6 +13,7 @@ import os
 import time
 import tomllib
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -29,7 +30,7 @@ from roughvib.scene import (
     scene_from_dict,
     scene_to_toml,
 )
-from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
+from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
 from roughvib.solvers.ida import RawSolution, solve_ida
 
 __all__ = ["energy_audit", "resume", "simulate"]
@@ -282,8 +283,9 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
     Raises
     ------
     SceneError
-        No checkpoint, a checkpoint of another format version, or one that does not fit the
-        scene it carries.
+        No checkpoint, a checkpoint of another format version, one that does not fit the
+        scene it carries, or an input of the run (a roughness file) that changed since the
+        checkpoint was written.
     """
     cp = read_checkpoint(directory)
     try:
@@ -291,4 +293,5 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
     scene = scene_from_dict(data, base_dir=cp.base_dir)
+    check_inputs(cp, scene, Path(directory) / CHECKPOINT_NAME)
     return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)

@@ -40,7 +40,7 @@ from roughvib.model.krylov import krylov_workspace
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
+from roughvib.solvers.checkpoint import Checkpoint, input_fingerprint, write_checkpoint
 from roughvib.solvers.events import EventBook, EventRecord, SolverFailure
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
@@ -454,7 +454,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
                   "last_fired": sorted(last_fired), "refire_ignored": refire_ignored,
                   "h_restart": h_restart},
             force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve())))
+            base_dir=str(Path(scene.base_dir).resolve()),
+            inputs=input_fingerprint(scene_toml, system.profile.stats)))
 
     book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
     k = k_start
