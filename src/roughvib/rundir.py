@@ -312,15 +312,11 @@ class RunDirectory:
         OutputError
             One line naming the directory and the problem.
         """
+        try:
+            self._check_path()
+        except OSError as exc:  # anything the checks did not foresee: still one line
+            raise OutputError(f"{self.given} cannot be used: {exc.strerror or exc}") from None
         p = self.path
-        if p.exists() and not p.is_dir():
-            raise OutputError(f"{self.given} exists and is not a directory; give a directory "
-                              f"for the run's files")
-        if not p.exists():
-            self._make_parents()
-        elif not _writable(p):
-            raise OutputError(f"{self.given} is not writable")
-        self._inside = p.is_dir() and not _writable(p.parent)
         lock = p / f"{_INSIDE}.lock" if self._inside else p.parent / f".{p.name}.lock"
         self._lock = DirectoryLock(lock, self.given, "roughvib run").acquire()
         try:
@@ -334,6 +330,31 @@ class RunDirectory:
             self.close()
             raise
         return self
+
+    def _check_path(self) -> None:
+        p = self.path
+        try:
+            name_max = os.pathconf(p.anchor or "/", "PC_NAME_MAX")
+        except (OSError, ValueError):  # pragma: no cover - not POSIX
+            name_max = 255
+        for part in p.parts[1:]:
+            if len(os.fsencode(part)) > name_max:
+                raise OutputError(f"{self.given} cannot be created: a name in it has "
+                                  f"{len(os.fsencode(part))} bytes, the filesystem allows "
+                                  f"{name_max}")
+        room = name_max - len(".tmp-") - 13  # the staging directory's longer name
+        if len(os.fsencode(p.name)) > room:
+            raise OutputError(f"{self.given}: the directory name must have at most {room} bytes "
+                              f"(the run is staged next to it under a longer name), got "
+                              f"{len(os.fsencode(p.name))}")
+        if p.exists() and not p.is_dir():
+            raise OutputError(f"{self.given} exists and is not a directory; give a directory "
+                              f"for the run's files")
+        if not p.exists():
+            self._make_parents()
+        elif not _writable(p):
+            raise OutputError(f"{self.given} is not writable")
+        self._inside = p.is_dir() and not _writable(p.parent)
 
     def _make_parents(self) -> None:
         missing = []

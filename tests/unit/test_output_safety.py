@@ -335,6 +335,9 @@ def test_bad_output_paths_are_one_line_before_the_run(tmp_path, capsys, no_simul
         str(afile): "exists and is not a directory",
         str(afile / "sub" / "run"): f"cannot be created: {afile} is a file, not a directory",
         "/proc/roughvib-no/such": "cannot be created",
+        str(tmp_path / ("n" * 300) / "run"): "a name in it has 300 bytes, the filesystem "
+                                             "allows 255",
+        str(tmp_path / ("n" * 238)): "the directory name must have at most 237 bytes",
     }
     ro = tmp_path / "ro"
     ro.mkdir()
