@@ -137,14 +137,19 @@ def add_parsers(sub) -> None:
     r = sub.add_parser(
         "run", formatter_class=fmt, help="run a scene and write its results",
         description="Run a scene (built-in name or TOML file) and write result.nc, "
-                    "events.csv, summary.json and scene.toml into the output directory.",
+                    "events.csv, summary.json and scene.toml into the output directory. The "
+                    "directory is checked before the run; the run appears in it as a whole "
+                    "and never deletes or overwrites files it did not create (an earlier "
+                    "roughvib run there is replaced; other files refuse the run unless "
+                    "--overwrite).",
         epilog="examples:\n"
                "  roughvib run                         # built-in 'paper' scene\n"
                "  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib run my_scene.toml --set block.mass=0.543 "
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
-               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n")
+               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
+               "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n")
     r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
