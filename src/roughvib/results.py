@@ -124,6 +124,8 @@ class Result:
         rows were filled, ``partial.nc`` (the time series up to the failure; never
         ``result.nc``, so nothing takes it for a complete run; read it with
         ``load_result(directory, partial=True)``), and keeps a checkpoint in ``directory``.
+        A checkpoint there refuses the save unless this result's own run wrote it
+        (``simulate(..., checkpoint_dir=directory)`` or ``resume(directory)``).
 
         Parameters
         ----------
@@ -144,7 +146,12 @@ class Result:
             an unfinished run's checkpoint or, without ``overwrite``, other files).
         """
         own = not isinstance(directory, RunDirectory)
-        rd = RunDirectory(directory, overwrite=overwrite) if own else directory
+        if own:  # the run's own checkpoints in that directory do not refuse it
+            cp_dir = self.extra.get("checkpoint_dir")
+            mine = cp_dir is not None and os.path.realpath(cp_dir) == os.path.realpath(directory)
+            rd = RunDirectory(directory, overwrite=overwrite, resume=mine)
+        else:
+            rd = directory
         if own:
             rd.open()
         try:

@@ -239,7 +239,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
-    return Result(ds, events, summary, scene_toml, extra={"system": system})
+    return Result(ds, events, summary, scene_toml,
+                  extra={"system": system, "checkpoint_dir": checkpoint_dir})
 
 
 def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:

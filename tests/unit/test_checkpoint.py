@@ -110,7 +110,10 @@ def test_resume_refuses_when_the_profile_file_changed(tmp_path, capsys):
     with pytest.raises(SceneError, match="cannot be read .*restore it"):
         resume(out)
     f.write_text(text)  # restored: the resumed run is the uninterrupted one
-    _assert_identical(a, resume(out))
+    b = resume(out)
+    _assert_identical(a, b)
+    b.save(out)  # its own checkpoint does not refuse it, and goes with the saved run
+    assert not (out / CHECKPOINT_NAME).exists() and roughvib.load_result(out).ok
 
 
 def _cli(*args):

@@ -152,6 +152,30 @@ def test_the_checkpoint_of_an_unfinished_run_is_never_replaced(tmp_path):
     assert CHECKPOINT_NAME not in os.listdir(out) and _value(out) == 3.0
 
 
+def test_without_a_swap_the_files_move_one_by_one(tmp_path, monkeypatch):
+    # the output directory is the working directory: renaming it away would strand the shell
+    out = tmp_path / "here"
+    _result(1.0).save(out)
+    (out / "notes.txt").write_text("mine")
+    monkeypatch.chdir(out)
+    _result(2.0, ok=False).save(".", overwrite=True)
+    assert Path.cwd() == out and os.getcwd() == str(out)
+    assert sorted(os.listdir(out)) == ["events.csv", "notes.txt", "partial.nc", "scene.toml",
+                                       "summary.json"]  # the earlier result.nc went with its run
+    assert _value(out, partial=True) == 2.0
+    monkeypatch.chdir(tmp_path)
+    # a parent that is not writable: lock and staging directory inside the output directory
+    undo = _unwritable(tmp_path)
+    if undo is None:
+        pytest.skip("cannot make a directory unwritable for this process")
+    try:
+        _result(3.0).save(out, overwrite=True)
+        assert _value(out) == 3.0 and (out / "notes.txt").read_text() == "mine"
+        assert _dotfiles(out) == []
+    finally:
+        undo()
+
+
 # --------------------------------------------------------------------------------------------
 # atomic for the run as a whole
 # --------------------------------------------------------------------------------------------
