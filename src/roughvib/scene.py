@@ -24,6 +24,7 @@ __all__ = [
     "Contact",
     "Excitation",
     "Friction",
+    "ModelValidityWarning",
     "Output",
     "Plate",
     "Roughness",
@@ -33,12 +34,19 @@ __all__ = [
     "Solver",
     "builtin_scenes",
     "load_scene",
+    "read_toml_file",
     "scene_to_toml",
+    "validity_warnings",
 ]
 
 
 class SceneError(ValueError):
     """A scene value is invalid; the message is one line naming field, rule, unit and value."""
+
+
+class ModelValidityWarning(UserWarning):
+    """A scene value is legal but outside the range where the model is valid (one line); a run
+    issues it before its expensive work and lists it in ``summary["warnings"]``."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -49,6 +57,9 @@ class SceneError(ValueError):
 def _fmt(value: Any) -> str:
     if isinstance(value, str):
         return repr(value)
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**16:
+        digits = str(abs(value))  # a huge integer (1 followed by 400 zeros): keep the line short
+        return f"{'-' if value < 0 else ''}{digits[0]}.{digits[1:4]}e+{len(digits) - 1}"
     return str(value)
 
 
@@ -59,7 +70,10 @@ def _u(unit: str) -> str:
 def _number(path: str, value: Any, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise SceneError(f"{path} must be a number{_u(unit)}, got {_fmt(value)}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}") from None
     if not math.isfinite(value):
         raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}")
     return value
@@ -90,14 +104,18 @@ def _range(path: str, value: Any, lo: float, hi: float, unit: str, *, lo_open=Fa
     return v
 
 
+#: the largest integer a scene key takes (int64: kernels and seeds store integers as int64)
+_INT_MAX = 2**63 - 1
+
+
 def _integer(path: str, value: Any, lo: int, hi: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
             raise SceneError(f"{path} must be an integer, got {_fmt(value)}")
-    if value < lo or (hi is not None and value > hi):
-        rule = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+    if value < lo or value > (_INT_MAX if hi is None else hi):
+        rule = f">= {lo} (at most 2**63 - 1)" if hi is None else f"in [{lo}, {hi}]"
         raise SceneError(f"{path} must be an integer {rule}, got {_fmt(value)}")
     return value
 
@@ -127,6 +145,26 @@ def _set(obj: Any, name: str, value: Any) -> None:
 
 def _opt_positive(path: str, value: Any, unit: str) -> float | None:
     return None if value is None else _positive(path, value, unit)
+
+
+#: longest scene name [characters]; it names the output directory runs/<name>, next to which a
+#: run keeps a temporary directory and a lock file with a few more characters
+NAME_MAX = 100
+_NAME_FORBIDDEN = set('/\\:*?"<>|')
+
+
+def _file_name(path: str, value: Any) -> str:
+    """A plain file name: what ``runs/<name>`` may be without leaving ``runs/``."""
+    if not isinstance(value, str):
+        raise SceneError(f"{path} must be a string, got {_fmt(value)}")
+    rule = (f"{path} must be a plain file name (1 to {NAME_MAX} characters, no leading '.', "
+            f"no path separator, none of : * ? \" < > |, no control character)")
+    if len(value) > NAME_MAX:
+        raise SceneError(f"{rule}, got {len(value)} characters ({value[:20]!r}...)")
+    if not value or value.startswith(".") or value != value.strip() or \
+            any(c in _NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127 for c in value):
+        raise SceneError(f"{rule}, got {value!r}")
+    return value
 
 
 # --------------------------------------------------------------------------------------------
@@ -689,6 +727,15 @@ class Scene:
     """A complete, validated simulation scene (SI units throughout).
 
     Build one with :func:`load_scene`; change a copy with :meth:`with_overrides`.
+
+    Attributes
+    ----------
+    name : str
+        Names the run; ``roughvib run`` writes to ``runs/<name>`` unless ``--out`` is given, so
+        it must be a plain file name: 1 to 100 characters, no leading ``.``, no leading or
+        trailing blank, no ``/`` or ``\\``, none of ``: * ? " < > |`` and no control character.
+    description : str
+        One line about the scene.
     """
 
     name: str = "paper"
@@ -704,8 +751,7 @@ class Scene:
     base_dir: str = field(default=".", compare=False)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str):
-            raise SceneError(f"name must be a string, got {_fmt(self.name)}")
+        _file_name("name", self.name)
         if not isinstance(self.description, str):
             raise SceneError(f"description must be a string, got {_fmt(self.description)}")
         bx, by = self.plate.block_position
@@ -872,15 +918,35 @@ def builtin_scenes() -> dict[str, str]:
     return out
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
+def read_toml_file(path: Path, what: str = "scene file") -> dict[str, Any]:
+    """Read a TOML file as UTF-8 (a leading byte-order mark is accepted and dropped).
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        What the file is, for the message (``"scene file"``, ``"sweep file"``).
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, bytes that are not UTF-8 (the line and the byte are named), or
+        invalid TOML; one line.
+    """
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
-        raise SceneError(f"scene file {path} cannot be read: {exc.strerror}") from None
+        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{what} {path} must be UTF-8 text (save it as UTF-8), got byte "
+                         f"0x{raw[exc.start]:02x} on line {line}") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {path} is not valid TOML: {exc}") from None
+        raise SceneError(f"{what} {path} is not valid TOML: {exc}") from None
 
 
 def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | None = None,
@@ -925,12 +991,76 @@ def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | 
         if not path.exists():
             raise SceneError(f"scene {str(source)!r} is neither a built-in scene "
                              f"({', '.join(builtins)}) nor an existing file")
-        data = _read_toml(path)
+        data = read_toml_file(path)
         base = path.resolve().parent
     scene = scene_from_dict(data, base_dir=base)
     if overrides or kw:
         scene = scene.with_overrides(overrides, **kw)
     return scene
+
+
+#: a plate thicker than this fraction of its smaller side is no thin (Kirchhoff) plate
+THIN_PLATE_RATIO = 0.1
+#: thin-plate theory holds for bending wavelengths longer than this many plate thicknesses
+BENDING_WAVELENGTH_THICKNESSES = 6.0
+
+
+def validity_warnings(scene: Scene) -> list[str]:
+    """Legal scene values outside the model's validity, as one-line messages.
+
+    * a plate thicker than 1/10 of its smaller side: Kirchhoff (thin-plate) theory does not
+      hold;
+    * plate modes whose bending wavelength is shorter than 6 plate thicknesses: thin-plate
+      theory, which neglects shear and rotary inertia, overestimates their frequencies;
+    * ``output.transient`` not shorter than ``output.duration``: the metrics include the
+      run-in;
+    * an analysis window (after the run-in) shorter than one excitation period: the rms
+      values are no cycle averages, and a calibrated target velocity is missed.
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    list of str
+        Empty when nothing applies.
+    """
+    out = []
+    plt = scene.plate
+    side = min(plt.length, plt.width)
+    if plt.kind == "modal":
+        if plt.thickness > THIN_PLATE_RATIO * side:
+            out.append(f"plate.thickness {plt.thickness} m is more than {THIN_PLATE_RATIO:g} x "
+                       f"the plate's smaller side ({side} m): Kirchhoff (thin-plate) theory "
+                       f"does not hold, so the plate modes are not those of this plate")
+        else:
+            # bending wavenumber k = 2 pi / (6 h) at omega = k^2 sqrt(B / m'')
+            k = 2 * math.pi / (BENDING_WAVELENGTH_THICKNESSES * plt.thickness)
+            f6 = k**2 * math.sqrt(plt.bending_stiffness / plt.mass_per_area) / (2 * math.pi)
+            if f6 < plt.max_frequency:
+                out.append(f"plate modes above {f6:.4g} Hz have bending wavelengths shorter than "
+                           f"{BENDING_WAVELENGTH_THICKNESSES:g} x plate.thickness "
+                           f"({plt.thickness} m): thin-plate theory overestimates their "
+                           f"frequencies (no shear, no rotary inertia); lower "
+                           f"plate.max_frequency to {f6:.4g} Hz or read those bands with care, "
+                           f"got {plt.max_frequency} Hz")
+    out_ = scene.output
+    exc = scene.excitation
+    window = out_.duration - out_.transient
+    if window <= 0:
+        out.append(f"output.transient ({out_.transient:.6g} s) is not shorter than "
+                   f"output.duration ({out_.duration:.6g} s): the metrics are taken over the "
+                   f"whole record, run-in included")
+        window = out_.duration
+    periodic = exc.frequency > 0 and (exc.kind == "force" or exc.amplitude > 0)
+    if periodic and window < scene.period:
+        target = (" and miss excitation.target_rms_velocity, which is calibrated for whole "
+                  "cycles") if exc.kind == "force" and exc.target_rms_velocity else ""
+        out.append(f"the analysis window ({window:.6g} s) is shorter than one excitation period "
+                   f"({scene.period:.6g} s): the rms values and levels average over part of a "
+                   f"cycle{target}; make output.duration - output.transient at least one period")
+    return out
 
 
 def replace_section(scene: Scene, section: str, **changes: Any) -> Scene:

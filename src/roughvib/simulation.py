@@ -13,6 +13,7 @@ import os
 import time
 import tomllib
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -20,7 +21,7 @@ import xarray as xr
 from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
-from roughvib.model.system import System, assemble
+from roughvib.model.system import System, assemble, estimate_travel
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
 from roughvib.scene import (
     Scene,
@@ -29,7 +30,7 @@ from roughvib.scene import (
     scene_from_dict,
     scene_to_toml,
 )
-from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
+from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
 from roughvib.solvers.ida import RawSolution, solve_ida
 
 __all__ = ["energy_audit", "resume", "simulate"]
@@ -65,25 +66,6 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
         if np.isfinite(residual) else float("nan"),
         "t_end": raw.t_final,
     }
-
-
-def _estimate_travel(scene: Scene) -> float:
-    exc = scene.excitation
-    if exc.kind == "prescribed":
-        return abs(exc.velocity) * scene.output.duration + exc.amplitude
-    if exc.target_rms_velocity is not None and exc.frequency > 0:
-        return 2.0 * math.sqrt(2.0) * exc.target_rms_velocity / exc.omega * 1.5
-    return 0.0
-
-
-def _check_travel(system: System, travel: float) -> None:
-    prof = system.profile
-    lo = prof.s0
-    hi = prof.s0 + (prof.z.size - 1) * prof.dx
-    if system.contact_s.min() - travel < lo or system.contact_s.max() + travel > hi:
-        raise SceneError(
-            f"roughness.trace_length must cover the contacts' travel of about ±{travel:.3g} m "
-            f"beyond the block window, got {system.scene.roughness.trace_length} m")
 
 
 def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
@@ -192,8 +174,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     >>> result.to_dataset()["block_vertical_acceleration"]   # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude)
-    _check_travel(system, _estimate_travel(scene))
+    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
     t_pre = time.perf_counter() - t0
     if scene.solver.method == "ida":
         raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
@@ -246,6 +227,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "events_by_kind": by_kind,
         "metrics": _metrics(system, ds) if raw.status == "success" else {},
         "energy_audit": audit,
+        "warnings": list(system.warnings),
     }
     if raw.status != "success":
         summary["last_events"] = events.tail(20).to_dict(orient="records")
@@ -258,7 +240,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
-    return Result(ds, events, summary, scene_toml, extra={"system": system})
+    return Result(ds, events, summary, scene_toml,
+                  extra={"system": system, "checkpoint_dir": checkpoint_dir})
 
 
 def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:
@@ -283,8 +266,9 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
     Raises
     ------
     SceneError
-        No checkpoint, a checkpoint of another format version, or one that does not fit the
-        scene it carries.
+        No checkpoint, a checkpoint of another format version, one that does not fit the
+        scene it carries, or an input of the run (a roughness file) that changed since the
+        checkpoint was written.
     """
     cp = read_checkpoint(directory)
     try:
@@ -292,4 +276,5 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
     scene = scene_from_dict(data, base_dir=cp.base_dir)
+    check_inputs(cp, scene, Path(directory) / CHECKPOINT_NAME)
     return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)

@@ -15,7 +15,7 @@ STAGES = {
     "physics": 1,  # plate, friction, surface/
     "model": 2,
     "solvers": 3,
-    "results": 4,
+    "results": 4, "rundir": 4,  # a run directory: checks, lock, atomic publish
     "analysis": 5,
     "simulation": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
     "views": 7,  # figures, the HTML builder and the reports

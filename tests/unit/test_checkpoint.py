@@ -81,6 +81,42 @@ def test_checkpoint_errors_are_one_line(tmp_path, capsys):
         roughvib.load_scene("paper", {"output.checkpoint_interval": 1e-6})
 
 
+def test_resume_refuses_when_the_profile_file_changed(tmp_path, capsys):
+    # the run reads a profile file; editing it afterwards must not pass unnoticed on resume
+    from roughvib.physics.surface.roughness import build_profile
+
+    base = roughvib.load_scene("paper")
+    f = tmp_path / "profile.txt"
+    np.savetxt(f, build_profile(base.roughness, base.block).z)
+    text = f.read_text()
+    scene = roughvib.load_scene("paper", {**FAST, "roughness.kind": "file",
+                                          "roughness.path": str(f), "output.duration": 0.01,
+                                          "output.checkpoint_interval": 0.005})
+    out = tmp_path / "run"
+    a = simulate(scene, checkpoint_dir=out)  # the API leaves the checkpoint in place
+    assert a.ok
+    recorded = read_checkpoint(out).inputs["roughness_file"]
+    assert recorded == {"path": str(f), "sha256": a.summary["model"]["profile"]["sha256"]}
+    lines = text.splitlines()
+    lines[8000] = "1e-7"  # one sample under the block
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.raises(SceneError, match=r"roughness.path .*profile.txt changed since the "
+                                         r"checkpoint was written \(SHA-256 "):
+        resume(out)
+    capsys.readouterr()
+    assert main(["run", "--resume", str(out), "--no-progress", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "changed since the checkpoint" in err
+    f.unlink()
+    with pytest.raises(SceneError, match="cannot be read .*restore it"):
+        resume(out)
+    f.write_text(text)  # restored: the resumed run is the uninterrupted one
+    b = resume(out)
+    _assert_identical(a, b)
+    b.save(out)  # its own checkpoint does not refuse it, and goes with the saved run
+    assert not (out / CHECKPOINT_NAME).exists() and roughvib.load_result(out).ok
+
+
 def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 

@@ -87,3 +87,59 @@ def test_unknown_section_and_type_errors():
 def test_unknown_scene_name():
     with pytest.raises(SceneError, match="neither a built-in scene"):
         load_scene("no-such-scene")
+
+
+@pytest.mark.parametrize("name,fragment", [
+    ("/some/abs/path", "got '/some/abs/path'"),
+    ("../../x", "got '../../x'"),
+    ("", "got ''"),
+    (".", "got '.'"),
+    ("..", "got '..'"),
+    ("a\\b", "got 'a\\\\b'"),
+    ("a\nb", "got 'a\\nb'"),
+    ("x" * 300, "got 300 characters"),
+    (" padded", "got ' padded'"),
+    (7, "name must be a string, got 7"),
+])
+def test_scene_name_must_be_a_plain_file_name(name, fragment):
+    # the name decides the output directory runs/<name>: it must not leave runs/ (or be runs/)
+    with pytest.raises(SceneError) as info:
+        load_scene("paper", {"name": name})
+    msg = str(info.value)
+    assert fragment in msg and "\n" not in msg
+    assert msg.startswith("name must be")
+
+
+def test_plain_names_pass():
+    for name in ("paper", "light block, 50 mm per s", "v=0.02,seed=3-7725088a3a",
+                 "x" * 100, "Stahlplatte-ü"):
+        assert load_scene("paper", {"name": name}).name == name
+
+
+def test_scene_files_must_be_utf8_and_may_carry_a_bom(tmp_path):
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbfname = \"bom\"\n[block]\nmass = 0.3\n")
+    s = load_scene(bom)
+    assert s.name == "bom" and s.block.mass == 0.3
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b"name = \"x\"\ndescription = \"caf\xe9\"\n")
+    with pytest.raises(SceneError) as info:
+        load_scene(latin)
+    assert str(info.value) == (f"scene file {latin} must be UTF-8 text (save it as UTF-8), "
+                               f"got byte 0xe9 on line 2")
+
+
+@pytest.mark.parametrize("key", ["block.mass", "plate.thickness", "roughness.seed",
+                                 "solver.max_events", "contact.points"])
+def test_numbers_beyond_float_or_int64_range_are_one_line_errors(key, tmp_path):
+    huge = int("1" + "0" * 400)
+    with pytest.raises(SceneError) as info:
+        load_scene("paper", {key: huge})
+    msg = str(info.value)
+    assert msg.startswith(key) and msg.endswith("got 1.000e+400") and len(msg) < 200
+    # the same number written in a scene file
+    section, field = key.split(".")
+    f = tmp_path / "huge.toml"
+    f.write_text(f"[{section}]\n{field} = 1{'0' * 400}\n")
+    with pytest.raises(SceneError, match=r"got 1\.000e\+400$"):
+        load_scene(f)

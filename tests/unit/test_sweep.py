@@ -26,6 +26,7 @@ import roughvib
 from roughvib.cli.sweep import add_parsers
 from roughvib.scene import SceneError
 from roughvib.studies import sweep as sw
+from roughvib.studies.sweep import run as sw_run
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -135,13 +136,32 @@ def test_grid_and_case_list_combine_and_case_keys_fill_from_the_base(tmp_path):
     ('base = "nope"\n[grid]\n"roughness.seed" = [1]', "base: scene 'nope' is neither"),
     ('base = "paper"', "a sweep file needs a [grid] table or [[case]] entries"),
     ('[grid\n', "is not valid TOML"),
+    (f'[grid]\n"block.mass" = [0.2, 1{"0" * 400}]',
+     "grid.block.mass must be a number within the range of a 64-bit integer or float, got an "
+     "integer of 401 digits"),
+    (f'[[case]]\n"plate.block_position" = [1{"0" * 400}, 0.1]',
+     "case[0].plate.block_position must be a number within the range"),
+    (f'[set]\n"block.mass" = 1{"0" * 400}\n[grid]\n"roughness.seed" = [1]',
+     "set: block.mass must be a finite number kg, got 1.000e+400"),
+    (b'name = "caf\xe9"\n', "sweep file .* must be UTF-8 text (save it as UTF-8), got byte 0xe9"),
 ])
 def test_bad_sweep_files_raise_one_line_scene_errors(tmp_path, text, fragment):
-    path = _write(tmp_path / "bad.toml", text)
+    path = tmp_path / "bad.toml"
+    if isinstance(text, bytes):
+        path.write_bytes(text)
+        fragment = fragment.replace(".*", str(path))
+    else:
+        _write(path, text)
     with pytest.raises(SceneError) as info:
         sw.load_sweep(path)
     assert fragment in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_sweep_file_with_a_byte_order_mark_is_read(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SMALL.encode())
+    assert sw.load_sweep(path).grid == sw.load_sweep(_write(tmp_path / "s.toml", SMALL)).grid
 
 
 def test_builtin_paper_velocity_sweep():
@@ -184,12 +204,66 @@ def test_scheduler_address_is_passed_to_dask_client(monkeypatch, tmp_path):
 
     monkeypatch.setattr(distributed, "Client", FakeClient)
     monkeypatch.setattr(distributed, "LocalCluster", no_local_cluster)
+    monkeypatch.setattr(sw_run, "_probe", lambda address: None)  # no scheduler at head:8786
     spec = _write(tmp_path / "s.toml", SMALL)
     args = _parser().parse_args(["sweep", str(spec), "--out", str(tmp_path / "out"),
                                  "--scheduler", "tcp://head:8786", "--no-progress"])
     with pytest.raises(_Connected):
         args.func(args)
     assert seen == ["tcp://head:8786"]
+
+
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    args = _parser().parse_args(["sweep", str(_write(tmp_path / "s.toml", SMALL)), "--out",
+                                 str(out), "--scheduler", "tcp://127.0.0.1:1", "--no-progress"])
+    with pytest.raises(SceneError) as info:  # main() prints it as one line, exit status 2
+        args.func(args)
+    assert str(info.value).startswith("--scheduler tcp://127.0.0.1:1: cannot connect (")
+    assert "\n" not in str(info.value) and not out.exists()
+    with pytest.raises(SceneError, match="--scheduler must be an address like tcp://host:8786"):
+        sw.run_sweep(tmp_path / "s.toml", out, scheduler="tcp://127.0.0.1:port")
+
+
+def test_a_second_sweep_into_the_same_directory_is_refused(tmp_path):
+    from roughvib.rundir import DirectoryLock, OutputError
+
+    out = tmp_path / "out"
+    out.mkdir()
+    spec = _write(tmp_path / "s.toml", SMALL)
+    with DirectoryLock(out / ".sweep.lock", str(out), "sweep"):  # as a running sweep holds it
+        with pytest.raises(OutputError) as info:
+            sw.run_sweep(spec, out, workers=1, progress=False)
+        msg = str(info.value)
+        assert msg.startswith(f"{out} is in use by another sweep (pid {os.getpid()} on ")
+        assert "\n" not in msg
+        # the first sweep's token (which its workers check) is untouched
+        assert not (out / ".sweep-token").exists() and not (out / "sweep.json").exists()
+
+
+def test_a_task_never_recomputes_a_complete_case_and_cleans_dead_workers_tmp(tmp_path):
+    # Dask re-runs the tasks of a killed worker, finished ones too: the task must check
+    spec = sw.load_sweep(_write(tmp_path / "s.toml", SMALL))
+    case = spec.cases()[0]
+    cases = tmp_path / "out" / "cases"
+    cases.mkdir(parents=True)
+    (cases.parent / ".sweep-token").write_text("t0")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    tag = sw_run._host_tag()
+    stale = cases / f".{case.name}.tmp-{tag}-{dead.pid}-0123456789ab"
+    alive = cases / f".{case.name}.tmp-{tag}-{os.getppid()}-0123456789ab"
+    for d in (stale, alive):
+        d.mkdir()
+        (d / "summary.json").write_text("{}")
+    first = sw_run._run_case(spec.base, case.name, case.values, str(cases), "t0")
+    assert first["status"] == "success"
+    assert not stale.exists() and alive.exists()  # only the dead process's directory goes
+    before = _stamp(cases / case.name)
+    again = sw_run._run_case(spec.base, case.name, case.values, str(cases), "t0")
+    assert again["message"] == "complete on disk, not recomputed"
+    assert again["wall_time"] == first["wall_time"]
+    assert _stamp(cases / case.name) == before
 
 
 def test_local_cluster_has_single_threaded_workers(monkeypatch, tmp_path):
@@ -320,6 +394,32 @@ def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, clien
     reference = pd.read_csv(small_run[1].directory / "sweep.csv").drop(
         columns=list(VARIABLE_TIME))
     pd.testing.assert_frame_equal(resumed, reference)
+
+
+def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path):
+    # a killed worker loses the results it held; Dask would recompute them (4 of 12 cases
+    # ran twice in the report of issue 18): finished cases must stay untouched on disk
+    import threading
+
+    spec = _write(tmp_path / "small.toml", SMALL)
+    out = tmp_path / "out"
+    box: dict = {}
+    thread = threading.Thread(target=lambda: box.update(
+        run=sw.run_sweep(spec, out, client=client, progress=False)))
+    thread.start()
+    deadline = time.monotonic() + 150
+    while not _completed(out / "cases"):
+        assert thread.is_alive() and time.monotonic() < deadline, "no case completed"
+        time.sleep(0.02)
+    done = _completed(out / "cases")
+    stamps = {c: _stamp(out / "cases" / c) for c in done}
+    pid = json.loads((out / "cases" / sorted(done)[0] / "case.json").read_text())["pid"]
+    os.kill(pid, signal.SIGKILL)  # the worker that ran a finished case
+    thread.join(timeout=300)
+    run = box["run"]
+    assert run.failed == 0 and run.ran == 4
+    assert {c: _stamp(out / "cases" / c) for c in done} == stamps
+    assert not [p.name for p in (out / "cases").iterdir() if p.name.startswith(".")]
 
 
 def test_invalid_case_fails_alone_with_its_message(client, tmp_path, capsys):

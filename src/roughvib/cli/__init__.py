@@ -54,8 +54,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_INPUT
     import signal
+    import warnings
 
-    from roughvib.scene import SceneError
+    from roughvib.scene import ModelValidityWarning, SceneError
+
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, ModelValidityWarning):  # one line, like the errors
+            print(f"roughvib: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
 
     previous = signal.getsignal(signal.SIGTERM)
     try:
@@ -63,7 +72,10 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:  # not the main thread (e.g. called from a worker): leave it alone
         previous = None
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            warnings.simplefilter("always", ModelValidityWarning)
+            return args.func(args)
     except (SceneError, InputError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return EXIT_INPUT

@@ -58,8 +58,20 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     print("\n".join(lines))
 
 
+def _failure_files(summary: dict, out_dir: Path) -> str:
+    """The files a failed run wrote, each with what it holds (only files that exist)."""
+    files = summary.get("files") or {}
+    t_end = (summary.get("partial_result") or {}).get("t_end")
+    parts = [f"{out_dir / 'summary.json'} (status, message, last events)"]
+    if "partial.nc" in files:
+        parts.append(f"{out_dir / 'partial.nc'} (time series up to t = {t_end:.6g} s)")
+    if "events.csv" in files:
+        parts.append(f"{out_dir / 'events.csv'} (event log)")
+    return ", ".join(parts)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from roughvib.api import resume, simulate
+    from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
@@ -68,40 +80,43 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
                              "--set or --out with it")
         out_dir = Path(args.resume)
-        runner = lambda: resume(out_dir, progress=False if args.no_progress else None)  # noqa: E731
     else:
         scene = load_scene(args.scene or "paper", parse_sets(args.set))
         if args.no_progress:
             scene = scene.with_overrides({"output.progress": False})
         out_dir = Path(args.out) if args.out else Path("runs") / scene.name
         cp_dir = out_dir if scene.output.checkpoint_interval > 0 else None
-        if cp_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
-            raise InputError(f"{out_dir / CHECKPOINT_NAME} exists: continue it with 'roughvib "
-                             f"run --resume {out_dir}', or remove it to start again")
-        runner = lambda: simulate(scene, checkpoint_dir=cp_dir)  # noqa: E731
+    # the output directory is checked and locked before anything expensive (imports included)
+    rundir = RunDirectory(out_dir, overwrite=args.overwrite, resume=bool(args.resume)).open()
     try:
-        result = runner()
-    except KeyboardInterrupt as exc:
-        cp = out_dir / CHECKPOINT_NAME
-        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        if cp.exists():
-            print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
-                  f"'roughvib run --resume {out_dir}'", file=sys.stderr)
-        else:
-            print(f"roughvib: {what}; nothing was written", file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
-    result.save(out_dir)
-    if result.ok:
-        (out_dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+        if rundir.replaces and not args.resume:
+            print(f"roughvib: note: {out_dir} holds an earlier run; this run replaces it when it "
+                  f"ends", file=sys.stderr)
+        try:
+            from roughvib.api import resume, simulate
+
+            if args.resume:
+                result = resume(out_dir, progress=False if args.no_progress else None)
+            else:
+                result = simulate(scene, checkpoint_dir=cp_dir)
+        except KeyboardInterrupt as exc:
+            cp = out_dir / CHECKPOINT_NAME
+            what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+            if cp.exists():
+                print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
+                      f"'roughvib run --resume {out_dir}'", file=sys.stderr)
+            else:
+                print(f"roughvib: {what}; nothing was written", file=sys.stderr)
+            return 143 if isinstance(exc, Terminated) else 130
+        result.save(rundir)
+    finally:
+        rundir.close()
     if not args.quiet:
         _print_summary(result.summary, out_dir)
     if not result.ok:
         print(f"roughvib: run failed ({result.status}): {result.summary.get('message')}",
               file=sys.stderr)
-        t_end = (result.summary.get("partial_result") or {}).get("t_end")
-        if t_end is not None:
-            print(f"roughvib: the time series up to t = {t_end:.6g} s and the event log are in "
-                  f"{out_dir}/partial.nc and events.csv", file=sys.stderr)
+        print(f"roughvib: written: {_failure_files(result.summary, out_dir)}", file=sys.stderr)
         return EXIT_SOLVER
     return EXIT_OK
 
@@ -122,14 +137,19 @@ def add_parsers(sub) -> None:
     r = sub.add_parser(
         "run", formatter_class=fmt, help="run a scene and write its results",
         description="Run a scene (built-in name or TOML file) and write result.nc, "
-                    "events.csv, summary.json and scene.toml into the output directory.",
+                    "events.csv, summary.json and scene.toml into the output directory. The "
+                    "directory is checked before the run; the run appears in it as a whole "
+                    "and never deletes or overwrites files it did not create (an earlier "
+                    "roughvib run there is replaced; other files refuse the run unless "
+                    "--overwrite).",
         epilog="examples:\n"
                "  roughvib run                         # built-in 'paper' scene\n"
                "  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib run my_scene.toml --set block.mass=0.543 "
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
-               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n")
+               "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
+               "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n")
     r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
@@ -139,6 +159,11 @@ def add_parsers(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="write into a directory that holds files roughvib did not write: the "
+                        "run's files replace files of the same names, the others are kept "
+                        "(without it such a directory is refused; an earlier roughvib run "
+                        "alone is always replaced as a whole)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="do not print the summary")
     r.set_defaults(func=cmd_run)

@@ -10,6 +10,7 @@ derivatives after a regime switch, and the stored energy for the energy audit.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,9 +23,11 @@ from roughvib.physics.friction import calibrate_force_amplitude
 from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
 from roughvib.physics.surface.interp import build_coefficients
 from roughvib.physics.surface.roughness import Profile, build_profile, select_contacts
-from roughvib.scene import Scene, SceneError
+from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
 
-__all__ = ["GRAVITY", "Regime", "System", "assemble"]  # Regime re-exported from .regimes
+# Regime is re-exported from .regimes
+__all__ = ["GRAVITY", "MAX_RMS_SLOPE", "MAX_RMS_TO_BLOCK", "Regime", "System", "WARN_RMS_SLOPE",
+           "WARN_RMS_TO_BLOCK", "assemble", "check_profile", "estimate_travel"]
 
 GRAVITY = 9.81  # m/s^2, the paper's value (F_stat = m g)
 
@@ -51,6 +54,7 @@ class System:
     cres: np.ndarray
     prof: np.ndarray
     work: np.ndarray = field(repr=False)
+    warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
 
     # ---- sizes -----------------------------------------------------------------------
     @property
@@ -256,22 +260,134 @@ def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dic
     return float(st), {}
 
 
-def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
+#: above this rms slope of the input profile the run is refused: the contact springs act
+#: vertically and friction along the mean surface, which is the small-slope limit; at an rms
+#: slope of 1 a typical flank is at 45 degrees and the model does not describe the contact
+MAX_RMS_SLOPE = 1.0
+#: above this rms slope a run warns: the neglected terms are of the order of the slope (10 %)
+WARN_RMS_SLOPE = 0.1
+#: above this fraction of the block's smaller side the rms roughness is refused: the block is
+#: rigid, cannot pitch or roll, and rests on heights that are small against its size
+MAX_RMS_TO_BLOCK = 1e-2
+#: above this fraction a run warns (surface heights then approach waviness, not roughness)
+WARN_RMS_TO_BLOCK = 1e-3
+
+
+def _roughness_key(scene: Scene) -> str:
+    r = scene.roughness
+    if r.kind == "file":
+        return f"roughness.path {r.path!r} (units = {r.units!r})"
+    if r.kind == "sinusoid":
+        return f"roughness.amplitude {r.amplitude} m (wavelength {r.wavelength} m)"
+    if r.reduce_3d:
+        return f"roughness.raw_rms {r.raw_rms} m"
+    return f"roughness.rms {r.rms} m"
+
+
+def check_profile(scene: Scene, profile: Profile) -> list[str]:
+    """Plausibility of the input profile: refuse what the model cannot represent, warn where a
+    legal profile lies outside the model's validity.
+
+    Parameters
+    ----------
+    scene : Scene
+    profile : Profile
+        The input profile of the scene (``stats`` with ``rms`` [m] and ``rms_slope`` [-]).
+
+    Returns
+    -------
+    list of str
+        Warnings (one line each).
+
+    Raises
+    ------
+    SceneError
+        rms slope above :data:`MAX_RMS_SLOPE`, or rms height above :data:`MAX_RMS_TO_BLOCK`
+        of the block's smaller side (a profile in micrometres declared as metres fails both).
+    """
+    rms = float(profile.stats.get("rms", 0.0))
+    slope = float(profile.stats.get("rms_slope", 0.0))
+    side = min(scene.block.length, scene.block.width)
+    key = _roughness_key(scene)
+    hint = "; are the file's heights in um or nm?" if scene.roughness.kind == "file" else ""
+    if slope > MAX_RMS_SLOPE:
+        raise SceneError(f"{key} gives an input profile with rms slope {slope:.3g}, the model "
+                         f"needs at most {MAX_RMS_SLOPE:g} (vertical contact springs and "
+                         f"friction along the mean surface hold for small slopes only){hint}")
+    if rms > MAX_RMS_TO_BLOCK * side:
+        raise SceneError(f"{key} gives an input profile of {rms:.3g} m rms, the model needs at "
+                         f"most {MAX_RMS_TO_BLOCK:g} x the block's smaller side ({side} m) (a "
+                         f"rigid block that cannot pitch or roll, on heights small against "
+                         f"its size){hint}")
+    out = []
+    if slope > WARN_RMS_SLOPE:
+        out.append(f"{key} gives an input profile with rms slope {slope:.3g}, above "
+                   f"{WARN_RMS_SLOPE:g}: the small-slope contact model neglects terms of the "
+                   f"order of the slope")
+    if rms > WARN_RMS_TO_BLOCK * side:
+        out.append(f"{key} gives an input profile of {rms:.3g} m rms, above "
+                   f"{WARN_RMS_TO_BLOCK:g} x the block's smaller side ({side} m): heights "
+                   f"approach waviness, which a rigid block without pitch and roll does not "
+                   f"follow")
+    return out
+
+
+def estimate_travel(scene: Scene) -> float:
+    """Tangential travel of the contacts beyond their rest positions [m], estimated before
+    the run (for a calibrated force: 1.5 x the sinusoidal displacement amplitude of the target
+    velocity)."""
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        return abs(exc.velocity) * scene.output.duration + exc.amplitude
+    if exc.target_rms_velocity is not None and exc.frequency > 0:
+        return 2.0 * math.sqrt(2.0) * exc.target_rms_velocity / exc.omega * 1.5
+    return 0.0
+
+
+def _check_travel(scene: Scene, profile: Profile, contact_s: np.ndarray, travel: float) -> None:
+    lo = profile.s0
+    hi = profile.s0 + (profile.z.size - 1) * profile.dx
+    if contact_s.min() - travel < lo or contact_s.max() + travel > hi:
+        r = scene.roughness
+        if r.kind == "file":
+            raise SceneError(f"roughness.path {r.path!r} must cover the contacts' travel of "
+                             f"about ±{travel:.3g} m beyond the block window, got a profile of "
+                             f"{hi - lo:.6g} m")
+        raise SceneError(
+            f"roughness.trace_length must cover the contacts' travel of about ±{travel:.3g} m "
+            f"beyond the block window, got {r.trace_length} m")
+
+
+def assemble(scene: Scene, *, force_amplitude: float | None = None,
+             travel: float | None = None) -> System:
     """Turn a validated scene into a :class:`System` (preprocessing happens here, once).
+
+    Every check of the input runs before the expensive steps (plate modes, residual
+    compliance, T0 calibration): the profile's plausibility (:func:`check_profile`), the
+    validity warnings (issued as :class:`~roughvib.scene.ModelValidityWarning` and kept in
+    ``System.warnings``) and, with ``travel``, the coverage of the profile.
 
     Parameters
     ----------
     scene : Scene
     force_amplitude : float, optional
         Use this T0 [N] instead of the scene's value or calibration.
+    travel : float, optional
+        Check that the profile covers this tangential travel of the contacts [m] (see
+        :func:`estimate_travel`).
     """
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
     K = scene.contact.points
     tangential = exc.kind == "force"
 
     profile = build_profile(scene.roughness, blk, Path(scene.base_dir))
+    notes = check_profile(scene, profile) + validity_warnings(scene)
     spos = np.asarray(select_contacts(profile, K, blk.length, scene.contact.min_separation),
                       dtype=float)
+    if travel is not None:
+        _check_travel(scene, profile, spos, travel)
+    for note in notes:
+        warnings.warn(note, ModelValidityWarning, stacklevel=2)
     s_total, stiff_info = _contact_stiffness_total(scene, profile)
     stiff = np.full(K, s_total / K)
     x0, y0 = plt.block_position
@@ -353,7 +469,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
         modes=modes, force_amplitude=T0, calibration=calibration, off=layout.offsets(), fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
-        work=np.zeros(5 * K + 8),
+        work=np.zeros(5 * K + 8), warnings=notes,
     )
 
 

@@ -55,7 +55,12 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
+from roughvib.solvers.checkpoint import (
+    Checkpoint,
+    input_fingerprint,
+    start_state,
+    write_checkpoint,
+)
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
 from roughvib.solvers.ida import (
     RawSolution,
@@ -838,7 +843,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[0].copy(),
                   "u": U[0].copy(), "g": G[0].copy(), "armed": armed.copy()},
             force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve())))
+            base_dir=str(Path(scene.base_dir).resolve()),
+            inputs=input_fingerprint(scene_toml, system.profile.stats)))
 
     try:
         while True:

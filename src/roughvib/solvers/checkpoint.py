@@ -9,12 +9,15 @@ from a consistent state both in the run that wrote it and in the run that resume
 adaptive exact-modal scheme, a one-step method, stores everything its loop carries from one
 step to the next. Either way the resumed run is identical to the uninterrupted one
 (docs/robustness.md).
+It also records what the run read besides the scene (the SHA-256 of a roughness file), and
+:func:`check_inputs` refuses to resume when that has changed.
 
 The file is a Python pickle written by roughvib for roughvib: load only checkpoints you made.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import pickle
 import tempfile
@@ -25,10 +28,11 @@ import numpy as np
 
 from roughvib.model.regimes import Regime, initial_regime
 from roughvib.model.system import System
-from roughvib.scene import SceneError, scene_to_toml
+from roughvib.scene import Scene, SceneError, scene_to_toml
 
-__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_resume",
-           "read_checkpoint", "start_state", "write_checkpoint"]
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_inputs",
+           "check_resume", "input_fingerprint", "read_checkpoint", "start_state",
+           "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 CHECKPOINT_VERSION = 1
@@ -72,6 +76,8 @@ class Checkpoint:
         T0 [N] of the run (resuming checks it is reproduced).
     base_dir : str
         Directory relative paths of the scene (roughness files) are resolved against.
+    inputs : dict
+        What the run depends on besides the code, from :func:`input_fingerprint`.
     """
 
     scene_toml: str
@@ -88,6 +94,76 @@ class Checkpoint:
     loop: dict = field(default_factory=dict)
     force_amplitude: float = float("nan")
     base_dir: str = "."
+    inputs: dict = field(default_factory=dict)
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
+    """What a run depends on: the scene (its TOML text) and a roughness file's contents.
+
+    Parameters
+    ----------
+    scene_toml : str
+        The scene as stored in the checkpoint.
+    profile_stats : dict
+        ``Profile.stats`` of the run: ``path`` and ``sha256`` of the bytes read from a
+        roughness file (absent for synthetic profiles).
+
+    Returns
+    -------
+    dict
+        ``scene_sha256`` and, with a roughness file, ``roughness_file`` = ``{"path",
+        "sha256"}``.
+    """
+    out: dict = {"scene_sha256": _sha256(scene_toml.encode())}
+    if profile_stats.get("sha256"):
+        out["roughness_file"] = {"path": str(profile_stats["path"]),
+                                 "sha256": profile_stats["sha256"]}
+    return out
+
+
+def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
+    """Refuse to resume if an input of the checkpoint's run has changed since it was written.
+
+    Parameters
+    ----------
+    cp : Checkpoint
+    scene : Scene
+        The scene stored in the checkpoint.
+    path : Path
+        The checkpoint file (for the message).
+
+    Raises
+    ------
+    SceneError
+        One line: the scene text is damaged, or the roughness file is missing, changed, or
+        was not recorded (a checkpoint of an older roughvib).
+    """
+    again = "start the run again without --resume"
+    recorded = cp.inputs.get("scene_sha256")
+    if recorded is not None and recorded != _sha256(cp.scene_toml.encode()):
+        raise SceneError(f"{path}: the checkpoint's scene does not match its recorded SHA-256 "
+                         f"(a damaged file); {again}")
+    if scene.roughness.kind != "file":
+        return
+    rec = cp.inputs.get("roughness_file")
+    if not rec:
+        raise SceneError(f"{path}: the checkpoint records no SHA-256 of roughness.path (an "
+                         f"older roughvib wrote it), so an edited profile file would go "
+                         f"unnoticed; {again}")
+    try:
+        now = _sha256(Path(rec["path"]).read_bytes())
+    except OSError as exc:
+        raise SceneError(f"roughness.path {rec['path']} cannot be read ({exc.strerror}): the "
+                         f"checkpoint in {path.parent} was written with it; restore it or "
+                         f"{again}") from None
+    if now != rec["sha256"]:
+        raise SceneError(f"roughness.path {rec['path']} changed since the checkpoint was "
+                         f"written (SHA-256 {rec['sha256'][:12]}... then, {now[:12]}... now): "
+                         f"restore it or {again}")
 
 
 def check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:

@@ -39,7 +39,12 @@ from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
+from roughvib.solvers.checkpoint import (
+    Checkpoint,
+    input_fingerprint,
+    start_state,
+    write_checkpoint,
+)
 from roughvib.solvers.events import (
     EventBook,
     EventRecord,
@@ -515,7 +520,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
                   "last_fired": sorted(last_fired), "refire_ignored": refire_ignored,
                   "h_restart": h_restart},
             force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve())))
+            base_dir=str(Path(scene.base_dir).resolve()),
+            inputs=input_fingerprint(scene_toml, system.profile.stats)))
 
     book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
     if resume is None:

@@ -31,6 +31,7 @@ curvature)^2.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import warnings
@@ -624,6 +625,8 @@ class MeasuredProfile:
     path : Path
     last_line : int
         Line number of the last data line (1-based).
+    sha256 : str
+        SHA-256 of the file's bytes as read (a resumed run checks the file is unchanged).
     """
 
     z: np.ndarray
@@ -632,6 +635,7 @@ class MeasuredProfile:
     layout: str
     path: Path
     last_line: int
+    sha256: str = ""
 
 
 _Y_HEADER = re.compile(r"^\s*#\s*y\s*:\s*(.*)$", re.IGNORECASE)
@@ -695,13 +699,16 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
         p = Path(base_dir) / p
     where = f"roughness.path {p}"
     try:
-        text = p.read_text()
-    except UnicodeDecodeError:
-        raise SceneError(f"{where} cannot be read as text (binary file?), got "
-                         f"{p.stat().st_size} bytes") from None
+        raw = p.read_bytes()
     except OSError as exc:
         raise SceneError(f"{where} cannot be read: {exc.strerror}, got path "
                          f"{str(path)!r}") from None
+    try:  # UTF-8 (ASCII included); a leading byte-order mark is dropped, not read as data
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{where} line {line}: the file must be UTF-8 text (a binary file, or "
+                         f"another encoding?), got byte 0x{raw[exc.start]:02x}") from None
     scale = _UNITS[units]
     rows: list[list[float]] = []
     lines: list[int] = []
@@ -790,7 +797,7 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
                          f"block length: need a length >= {min_length:.6g} m{why}, got {n} "
                          f"points x {dx:.6g} m = {(n - 1) * dx:.6g} m")
     return MeasuredProfile(z=z, dx=float(dx), y=y, layout=layout, path=p,
-                           last_line=lines[-1])
+                           last_line=lines[-1], sha256=hashlib.sha256(raw).hexdigest())
 
 
 # --------------------------------------------------------------------------------------------
@@ -848,7 +855,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         meas = read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
                                  min_length=min_len, min_length_reason=reason)
         dx = meas.dx
-        stats.update(path=str(meas.path), layout=meas.layout)
+        stats.update(path=str(meas.path), layout=meas.layout, sha256=meas.sha256)
         if meas.z.ndim == 2:
             traces = meas.z - meas.z.mean(axis=0)
             y = meas.y if meas.y is not None else np.linspace(-block.width / 2,

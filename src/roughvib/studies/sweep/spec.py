@@ -19,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from roughvib.scene import Scene, SceneError, load_scene, scene_to_dict
+from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
 
 __all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "builtin_sweeps", "case_name", "load_sweep"]
 
@@ -164,6 +164,16 @@ def _check_key(base: Scene, key: str, where: str) -> None:
                          f"{', '.join(known)})")
 
 
+def _check_range(value: Any, where: str) -> None:
+    """Numbers of a grid or case must fit a float64 or int64 (the tables store them)."""
+    if isinstance(value, list):
+        for v in value:
+            _check_range(v, where)
+    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**63 - 1:
+        raise SceneError(f"{where} must be a number within the range of a 64-bit integer or "
+                         f"float, got an integer of {len(str(abs(value)))} digits")
+
+
 def _canonical(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
@@ -285,6 +295,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, source: str, default_name: s
             raise SceneError(f"grid.{k} must be a non-empty list of values, got {values!r}")
         seen = []
         for v in values:
+            _check_range(v, f"grid.{k}")
             c = _canonical(v)
             if c in seen:
                 raise SceneError(f"grid.{k} has the value {v!r} more than once")
@@ -303,6 +314,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, source: str, default_name: s
         flat = _flatten(entry)
         for k in flat:
             _check_key(base, k, f"case[{i}].")
+            _check_range(flat[k], f"case[{i}].{k}")
             if k in grid:
                 raise SceneError(f"case[{i}].{k} is also a grid key; give it in one place")
             if k in fixed:
@@ -362,12 +374,7 @@ def load_sweep(source: str | os.PathLike | Sweep | dict,
     if not path.is_file():
         raise SceneError(f"sweep {text!r} is neither a built-in sweep "
                          f"({', '.join(builtins) or 'none installed'}) nor an existing file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise SceneError(f"sweep file {path} cannot be read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"sweep file {path} is not valid TOML: {exc}") from None
+    data = read_toml_file(path, "sweep file")
     stem = _SAFE.sub("_", path.stem) or "sweep"
     return _parse(data, base_dir=path.resolve().parent, source=str(path.resolve()),
                   default_name=stem, overrides=overrides)
