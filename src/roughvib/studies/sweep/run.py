@@ -286,7 +286,7 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         Bad sweep file or ``workers < 1``. A failing case does not raise: its status and
         message are in its directory and in the table.
     """
-    from tqdm.auto import tqdm
+    from roughvib._progress import progress_bar
 
     spec = load_sweep(sweep, overrides)
     if workers is not None and workers < 1:
@@ -320,8 +320,8 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         try:
             if getattr(client, "dashboard_link", None):
                 note(f"dask dashboard: {client.dashboard_link}")
-            bar = tqdm(total=len(cases), initial=skipped, desc=f"sweep {spec.name}",
-                       unit="case", disable=not progress, file=sys.stderr)
+            bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
+                               unit="case", disable=not progress, file=sys.stderr)
             for c in todo:
                 fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
                                     token, pure=False, key=f"case-{c.name}-{token}")
