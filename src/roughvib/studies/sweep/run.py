@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import logging
 import os
 import re
 import secrets
@@ -15,6 +16,7 @@ import socket
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -27,6 +29,7 @@ from roughvib.studies.sweep.spec import (
     Case,
     Sweep,
     _replace_file,
+    adopt_old_case_names,
     load_sweep,
 )
 from roughvib.studies.sweep.tables import _write_tables
@@ -236,8 +239,11 @@ def _connect(scheduler: str | None, workers: int | None):
     if scheduler:
         return Client(scheduler), None
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           env=dict(THREAD_ENV))
+    with warnings.catch_warnings():  # the port is in the dashboard line run_sweep writes
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
+                                category=UserWarning)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               env=dict(THREAD_ENV))
     try:
         client = Client(cluster)
         client.run(_ignore_sigint)
@@ -245,6 +251,19 @@ def _connect(scheduler: str | None, workers: int | None):
     except BaseException:
         cluster.close()
         raise
+
+
+def _close_quietly(cluster) -> None:
+    """Close the sweep's own LocalCluster without Dask's "Worker process still alive after 4.0
+    seconds, killing": the cases are published by then, and on a busy machine the workers,
+    which ignore SIGINT, are simply slower to exit than the nanny waits."""
+    nanny = logging.getLogger("distributed.nanny")
+    level = nanny.level
+    nanny.setLevel(logging.ERROR)
+    try:
+        cluster.close()
+    finally:
+        nanny.setLevel(level)
 
 
 def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
@@ -299,6 +318,10 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
     _replace_file(out / _TOKEN_FILE, token)
     _replace_file(out / "sweep.json", json.dumps(spec.to_json(), indent=2))
     _remove_stale(cases_dir)
+    renamed = adopt_old_case_names(spec, cases_dir)
+    if renamed:
+        note(f"renamed {len(renamed)} case directories of an older roughvib to the new names "
+             f"(e.g. {renamed[0][0]} -> {renamed[0][1]}); nothing recomputed")
 
     cases = spec.cases()
     todo = [c for c in cases if not _is_complete(cases_dir / c.name)]
@@ -351,7 +374,7 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
             if own:
                 client.close()
                 if cluster is not None:
-                    cluster.close()
+                    _close_quietly(cluster)
             if interrupted:
                 with contextlib.suppress(Exception):
                     _write_tables(spec, out, errors)
