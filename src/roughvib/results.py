@@ -45,6 +45,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "friction_coefficient": ("1", "friction force / normal force"),
     "contact_force": ("N", "normal force per contact spring"),
     "roughness_input": ("m", "roughness displacement input per contact (positive down)"),
+    "contact_closed": ("1", "contact closed (1) or open, lifted off (0), from the event log"),
+    "stick": ("1", "block in a stick phase (1) or sliding (0), from the event log"),
 }
 
 EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
