@@ -29,7 +29,9 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-__all__ = ["EVENT_COLUMNS", "Result", "VARIABLES", "load_result"]
+from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
+
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "REGIME_NOTATION", "Result", "VARIABLES", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -191,6 +193,5 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
     ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
     if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
         return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ev = pd.read_csv(d / "events.csv")
-    ev["contact"] = ev["contact"].astype("Int64")
+    ev = pd.read_csv(d / "events.csv", dtype={"contact": "Int64"})
     return Result(ds, ev, summary, scene_toml)

@@ -1,6 +1,9 @@
-"""Inspecting runs: the regime time series and the provenance in result.nc."""
+"""Inspecting runs: events, plot and report of a failed run, event kinds, the regime notation,
+the integer contact column, the regime time series and the provenance in result.nc."""
 
+import base64
 import dataclasses
+import json
 import re
 import tomllib
 from pathlib import Path
@@ -12,9 +15,11 @@ import xarray as xr
 
 import roughvib
 from roughvib.cli import main
-from roughvib.results import load_result
+from roughvib.results import EVENT_COLUMNS, EVENT_KINDS, REGIME_NOTATION, Result, load_result
+from roughvib.scene import Scene, scene_to_toml
 
 ROOT = Path(__file__).resolve().parents[2]
+SRC = ROOT / "src" / "roughvib"
 
 # a block pushed at 0.1 m/s over a 10 um sinusoid on a rigid base: the contacts lift off and
 # touch down every few milliseconds (Feldmann law unused: the tangential motion is prescribed)
@@ -43,6 +48,121 @@ def bouncing_run(tmp_path_factory):
     assert main(["run", "--out", str(out), "--quiet", *BOUNCING, "--set", "contact.points=3",
                  "--set", "roughness.wavelength=0.73e-3", "--set", "output.duration=0.01"]) == 0
     return out
+
+
+def _banner(err: str, run_dir: Path) -> None:
+    lines = [ln for ln in err.splitlines() if "FAILED" in ln]
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"roughvib: note: {run_dir} holds a FAILED run (event_storm at t")
+    assert "partial.nc" in lines[0] and "Traceback" not in err
+
+
+# --------------------------------------------------------------------------------------------
+# failed runs
+# --------------------------------------------------------------------------------------------
+
+
+def test_events_of_a_failed_run(failed_run, capsys):
+    log = pd.read_csv(failed_run / "events.csv")
+    assert main(["events", str(failed_run)]) == 0
+    cap = capsys.readouterr()
+    _banner(cap.err, failed_run)
+    # the phase table counts every logged lift-off, also the one at the failure itself
+    header, row, per_contact = cap.out.splitlines()
+    assert header.split()[0] == "cycle"
+    n_lift = int((log["kind"] == "lift_off").sum())
+    assert n_lift == 2 and int(row.split()[5]) == n_lift
+    assert int(row.split()[7]) == 1  # the storm guard
+    assert per_contact.startswith(f"lift-offs per contact: 0: {n_lift} ")
+    assert main(["events", str(failed_run), "--kind", "event_storm", "--json"]) == 0
+    cap = capsys.readouterr()
+    _banner(cap.err, failed_run)
+    (storm,) = json.loads(cap.out)["events"]
+    assert storm["kind"] == "event_storm" and storm["contact"] is None
+
+
+def test_plot_of_a_failed_run(failed_run, tmp_path, capsys):
+    png = tmp_path / "events.png"
+    assert main(["plot", str(failed_run), "--figure", "events", "--out", str(png)]) == 0
+    cap = capsys.readouterr()
+    _banner(cap.err, failed_run)
+    assert cap.out.strip() == str(png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5_000
+
+
+def test_report_of_a_failed_run_shows_its_partial_record(failed_run, tmp_path, capsys):
+    html = tmp_path / "r.html"
+    assert main(["report", str(failed_run), "--out", str(html), "--dpi", "30"]) == 0
+    cap = capsys.readouterr()
+    _banner(cap.err, failed_run)
+    text = html.read_text(encoding="utf-8")
+    banner = re.findall(r"<div class='banner' role='alert'>(.*?)</div>", text, flags=re.S)
+    assert len(banner) == 1 and "This run FAILED (event_storm at t = " in banner[0]
+    assert text.index("class='banner'") < text.index("<h2")  # at the top of the page
+    pngs = [base64.b64decode(b) for b in re.findall(r'src="data:image/png;base64,([^"]+)"',
+                                                    text)]
+    assert len(pngs) >= 3 and all(p[:4] == b"\x89PNG" and len(p) > 1000 for p in pngs)
+    assert "id='phases'" in text and "id='last-events'" in text
+    # the last-events table: contact as an integer, empty for the block-level storm
+    last = text[text.index("id='last-events'"):text.index("id='phases'")]
+    assert "<td>0</td>" in last and "0.0</td>" not in last and "nan" not in last.lower()
+
+
+def test_failed_run_without_any_record_is_one_line(tmp_path, capsys):
+    summary = {"format_version": 1, "status": "ida_error", "message": "IDA failed at t = 0",
+               "scene": "paper"}
+    Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary,
+           scene_to_toml(Scene())).save(tmp_path / "bad")
+    for cmd in (["events"], ["plot", "--figure", "events"]):
+        assert main([cmd[0], str(tmp_path / "bad"), *cmd[1:]]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "stopped before its first output sample" in err
+
+
+# --------------------------------------------------------------------------------------------
+# event kinds, regime notation, the contact column
+# --------------------------------------------------------------------------------------------
+
+
+def test_unknown_kind_is_one_line_listing_the_kinds(failed_run, capsys):
+    assert main(["events", str(failed_run), "--kind", "stick", "--kind", "bogus"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and len(cap.err.strip().splitlines()) == 1
+    assert cap.err.startswith("roughvib: error: --kind must be one of ")
+    assert cap.err.strip().endswith("got 'bogus'")
+    assert all(k in cap.err for k in EVENT_KINDS)
+
+
+def test_every_kind_a_solver_logs_is_documented():
+    from roughvib.solvers.fixed_step import EV_KINDS
+
+    written = set(re.findall(r'Transition\("(\w+)"', (SRC / "model/regimes.py").read_text()))
+    written |= set(re.findall(r'"(\w+)" if regime\.stick else "(\w+)"',
+                              (SRC / "model/regimes.py").read_text())[0])
+    written |= set(EV_KINDS) | {"event_storm"}
+    assert "event_storm" in (SRC / "solvers/events.py").read_text()
+    assert written == set(EVENT_KINDS)
+
+
+def test_events_help_explains_kinds_and_regime_notation(capsys):
+    with pytest.raises(SystemExit):
+        main(["events", "--help"])
+    out = capsys.readouterr().out
+    assert REGIME_NOTATION in out and "closed=1111011111 b=+1 s=-1 slip" in out
+    assert all(re.search(rf"^  {k} +\S", out, flags=re.M) for k in EVENT_KINDS)
+
+
+def test_events_csv_contact_is_an_integer_column(bouncing_run, failed_run):
+    for run in (bouncing_run, failed_run):
+        raw = pd.read_csv(run / "events.csv", dtype=str, keep_default_na=False)
+        contact = raw["contact"]
+        block = raw["kind"].isin(["stick", "slip", "event_storm", "latch_flip",
+                                  "friction_branch"])
+        assert (contact[block] == "").all()
+        assert contact[~block].str.fullmatch(r"\d+").all() and (~block).any()
+        ev = load_result(run, partial=True).events
+        assert ev["contact"].dtype == "Int64"
+        assert ev["contact"].isna().tolist() == block.tolist()
 
 
 # --------------------------------------------------------------------------------------------

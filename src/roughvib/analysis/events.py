@@ -103,7 +103,10 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
         a, b = float(edges[c]), float(edges[c + 1])
         if b <= a:
             continue
-        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b]
+        # the last cycle also counts the events at the end of the run (a failed run stops
+        # at its last event)
+        b_ev = b if c < edges.size - 2 else float(np.nextafter(b, np.inf))
+        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b_ev]
         row = {
             "cycle": c, "start": a, "end": b,
             "stick_fraction": _overlap(sticks, a, b) / (b - a),
@@ -112,9 +115,10 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
             if started else 0.0,
         }
         for k in range(n_contacts):
-            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k] if real and a <= s < b)
+            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k]
+                                        if real and a <= s < b_ev)
             row[f"lift_off_time_{k}"] = _overlap(lifts[k], a, b)
-        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b)))
+        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b_ev)))
         rows.append(row)
     return pd.DataFrame(rows)
 
