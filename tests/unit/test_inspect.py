@@ -1,10 +1,15 @@
 """Inspecting runs: events, plot and report of a failed run, event kinds, the regime notation,
-the integer contact column, the regime time series and the provenance in result.nc."""
+the integer contact column, the regime time series and the provenance in result.nc, a closed
+output pipe, ``--version``, ``dir(roughvib)``."""
 
 import base64
 import dataclasses
+import io
 import json
+import os
 import re
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -221,3 +226,48 @@ def test_failed_run_partial_nc_has_the_regime_series(failed_run):
     assert np.array_equal(ds["contact_closed"].values[:, 0] == 1,
                           ds["contact_force"].values[:, 0] > 0)
     assert ds.attrs["status"] == "event_storm" and ds.attrs["solver_max_events"] == 2
+
+
+# --------------------------------------------------------------------------------------------
+# pipes, version, public names
+# --------------------------------------------------------------------------------------------
+
+
+def test_closed_output_pipe_ends_quietly(failed_run):
+    """``roughvib events DIR --json | head -1``: the reader is gone before roughvib writes."""
+    r, w = os.pipe()
+    os.close(r)  # the reader went away early
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    try:
+        p = subprocess.run([sys.executable, "-m", "roughvib", "events", str(failed_run),
+                            "--json"], stdout=w, stderr=subprocess.PIPE, text=True, env=env,
+                           timeout=300)
+    finally:
+        os.close(w)
+    assert p.returncode == 141, p.stderr
+    assert "Traceback" not in p.stderr and "BrokenPipe" not in p.stderr
+
+
+def test_broken_pipe_while_writing_is_handled(failed_run, monkeypatch, capsys):
+    class Gone(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(sys, "stdout", Gone())
+    assert main(["events", str(failed_run), "--json"]) == 141
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"roughvib {roughvib.__version__}"
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert project.get("version", roughvib.__version__) == roughvib.__version__
+
+
+def test_dir_lists_the_public_api():
+    names = dir(roughvib)
+    assert set(roughvib.__all__) <= set(names) and "simulate" in names
+    for name in roughvib.__all__:
+        assert getattr(roughvib, name) is not None

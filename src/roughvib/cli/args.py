@@ -7,12 +7,13 @@ from __future__ import annotations
 import tomllib
 from typing import Any
 
-__all__ = ["EXIT_INPUT", "EXIT_OK", "EXIT_SOLVER", "InputError", "Terminated",
+__all__ = ["EXIT_INPUT", "EXIT_OK", "EXIT_PIPE", "EXIT_SOLVER", "InputError", "Terminated",
            "failed_run_note", "on_sigterm", "parse_sets", "parse_value"]
 
 EXIT_OK = 0
 EXIT_SOLVER = 1
 EXIT_INPUT = 2
+EXIT_PIPE = 141  # 128 + SIGPIPE: the reader of stdout went away (``| head``)
 
 
 class InputError(Exception):
