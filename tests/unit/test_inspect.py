@@ -157,6 +157,17 @@ def test_events_help_explains_kinds_and_regime_notation(capsys):
     assert all(re.search(rf"^  {k} +\S", out, flags=re.M) for k in EVENT_KINDS)
 
 
+def test_docs_explain_every_kind_and_the_notation():
+    text = (ROOT / "docs" / "events.md").read_text()
+    for kind in EVENT_KINDS:
+        assert re.search(rf"^\| `{kind}` \| \S", text, flags=re.M), kind
+    for token in ("closed=1111011111 b=+1 s=-1 slip", "closed=111 slip+", "`b=`", "`s=`",
+                  "contact_closed", "stick(time)", "scene_toml", "solver_<key>"):
+        assert token in text, token
+    assert "docs/events.md" in (ROOT / "README.md").read_text()
+    assert "events.md" in (ROOT / "docs" / "quickstart.md").read_text()
+
+
 def test_events_csv_contact_is_an_integer_column(bouncing_run, failed_run):
     for run in (bouncing_run, failed_run):
         raw = pd.read_csv(run / "events.csv", dtype=str, keep_default_na=False)

@@ -75,7 +75,8 @@ def add_parsers(subparsers) -> argparse.ArgumentParser:
                     "statistics, energy audit, the per-cycle event phase table and every "
                     "figure (velocity, friction-velocity, friction-displacement, acceleration, "
                     "spectra, wavenumber, events) as embedded PNGs. The file opens in a browser "
-                    "without a server.",
+                    "without a server. The report of a failed run opens with a banner and shows "
+                    "what the run recorded up to the failure (partial.nc, events.csv).",
         epilog="examples:\n"
                "  roughvib run --out runs/paper && roughvib report runs/paper\n"
                "  roughvib report runs/paper --noise-floor 1e-3   # block accelerometer floor\n"
