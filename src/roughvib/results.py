@@ -31,11 +31,12 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
 from roughvib.rundir import RunDirectory
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
-__all__ = ["EVENT_COLUMNS", "MixedRunError", "Result", "VARIABLES", "check_run_files",
-           "load_result"]
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
+           "VARIABLES", "check_run_files", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -51,6 +52,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "friction_coefficient": ("1", "friction force / normal force"),
     "contact_force": ("N", "normal force per contact spring"),
     "roughness_input": ("m", "roughness displacement input per contact (positive down)"),
+    "contact_closed": ("1", "contact closed (1) or open, lifted off (0), from the event log"),
+    "stick": ("1", "block in a stick phase (1) or sliding (0), from the event log"),
 }
 
 EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
@@ -293,6 +296,5 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
     ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
     if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
         return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ev = pd.read_csv(d / "events.csv")
-    ev["contact"] = ev["contact"].astype("Int64")
+    ev = pd.read_csv(d / "events.csv", dtype={"contact": "Int64"})
     return Result(ds, ev, summary, scene_toml)

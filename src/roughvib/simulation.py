@@ -109,6 +109,56 @@ def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
     return ds
 
 
+def _add_regimes(ds: xr.Dataset, system: System, events) -> None:
+    """``contact_closed(time, contact)`` and ``stick(time)`` from the event log, on the grid."""
+    from roughvib.analysis.events import regime_series
+    from roughvib.model.regimes import initial_regime
+
+    _, closed0 = system.static_equilibrium()  # the start of every solver
+    start = initial_regime(closed0, system.fp, system.tangential, system.coulomb)
+    closed, stick = regime_series(events, ds["time"].values, closed0,
+                                  start.stick and system.tangential)
+    ds["contact_closed"] = (("time", "contact"), closed)
+    ds["stick"] = ("time", stick)
+    for name, meanings in (("contact_closed", "open closed"), ("stick", "slip stick")):
+        units, long = VARIABLES[name]
+        ds[name].attrs.update(units=units, long_name=long, flag_values=np.array([0, 1], np.int8),
+                              flag_meanings=meanings)
+    if not system.tangential:
+        ds["stick"].attrs["comment"] = "prescribed tangential motion: the block never sticks"
+
+
+def _attr(value):
+    """A scene value as a netCDF attribute (numbers and strings as they are)."""
+    if isinstance(value, bool) or value is None:
+        return str(value).lower() if value is not None else "none"
+    if isinstance(value, int | float | str):
+        return value
+    return repr(value)
+
+
+def _provenance(scene: Scene, scene_toml: str) -> dict:
+    """What a reader of result.nc needs to know how the run was made (dataset attributes)."""
+    import dataclasses
+    from importlib import metadata
+
+    from roughvib._version import __version__
+
+    def version(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    attrs = {"roughvib_version": __version__,
+             "software": ", ".join(f"{d} {version(d)}" for d in
+                                   ("numpy", "scipy", "numba", "scikit-sundae", "xarray"))}
+    for f in dataclasses.fields(scene.solver):  # every field, also ones added later
+        attrs[f"solver_{f.name}"] = _attr(getattr(scene.solver, f.name))
+    attrs["scene_toml"] = scene_toml
+    return attrs
+
+
 def _metrics(system: System, ds: xr.Dataset) -> dict:
     scene = system.scene
     t = ds["time"].values
@@ -206,6 +256,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
     scene_toml = scene_to_toml(resolved, comments=comments)
+    _add_regimes(ds, system, events)
+    ds.attrs.update(_provenance(resolved, scene_toml))
 
     by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
     summary = {

@@ -10,11 +10,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
 import time
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +30,7 @@ from roughvib.cli.sweep import add_parsers
 from roughvib.scene import SceneError
 from roughvib.studies import sweep as sw
 from roughvib.studies.sweep import run as sw_run
+from roughvib.studies.sweep.spec import old_case_name
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -97,9 +101,10 @@ def test_grid_is_the_product_in_file_order_and_names_are_stable_and_safe(tmp_pat
     assert [c.index for c in cases] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     names = [c.name for c in cases]
     assert len(set(names)) == 4
-    for n in names:
-        assert all(ch.isalnum() or ch in "._=,+-" for ch in n) and not n.startswith(".")
-    assert names[1].startswith("target_rms_velocity=0.01,seed=2-")
+    for n in names:  # nothing a shell needs quoted, not hidden, not an option
+        assert all(ch.isalnum() or ch in "._+-" for ch in n) and n[0] not in ".-"
+        assert shlex.quote(n) == n
+    assert names[1].startswith("target_rms_velocity-0.01__seed-2__")
     # same file again, nested-table spelling, extended grid: existing names unchanged
     nested = SMALL.replace('"excitation.target_rms_velocity" = [0.01, 0.02]',
                            "excitation.target_rms_velocity = [0.01, 0.02, 0.04]")
@@ -420,6 +425,48 @@ def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path):
     assert run.failed == 0 and run.ran == 4
     assert {c: _stamp(out / "cases" / c) for c in done} == stamps
     assert not [p.name for p in (out / "cases").iterdir() if p.name.startswith(".")]
+
+
+def test_case_directories_of_the_old_names_are_adopted_not_recomputed(small_run, client,
+                                                                      tmp_path):
+    """A sweep run by roughvib 0.1 named its cases ``key=value,...-hash``; resuming renames
+    them to today's names (recorded in case.json) and runs nothing again."""
+    spec_path, run = small_run
+    spec = sw.load_sweep(spec_path)
+    out = tmp_path / "old"
+    (out / "cases").mkdir(parents=True)
+    olds = {}
+    for case in spec.cases():
+        old = old_case_name(spec.base, case.values, spec.varied_keys)
+        assert "=" in old and "," in old and old.endswith(case.name[-10:])
+        shutil.copytree(run.directory / "cases" / case.name, out / "cases" / old)
+        olds[case.name] = old
+    notes = []
+    again = sw.run_sweep(spec_path, out, client=client, progress=False, log=notes.append)
+    assert (again.skipped, again.ran, again.failed) == (4, 0, 0)
+    assert sorted(p.name for p in (out / "cases").iterdir()) == sorted(olds)
+    for new, old in olds.items():
+        info = json.loads((out / "cases" / new / "case.json").read_text())
+        assert info["renamed_from"] == old and info["name"] == new
+    assert any(n.startswith("renamed 4 case directories of an older roughvib") and
+               "nothing recomputed" in n for n in notes)
+    assert list(again.table["case"]) == [c.name for c in spec.cases()]
+    assert (again.table["status"] == "success").all()
+
+
+def test_busy_dashboard_port_is_one_line_not_a_dask_warning(monkeypatch, tmp_path):
+    def busy_port_cluster(**kw):
+        warnings.warn("Port 8787 is already in use.\nPerhaps you already have a cluster "
+                      "running?\nHosting the HTTP server on port 40001 instead", UserWarning,
+                      stacklevel=1)
+        raise _Connected
+
+    monkeypatch.setattr(distributed, "LocalCluster", busy_port_cluster)
+    with warnings.catch_warnings(record=True) as seen, pytest.raises(_Connected):
+        warnings.simplefilter("always")
+        sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out", workers=1,
+                     progress=False)
+    assert not [w for w in seen if "already in use" in str(w.message)]
 
 
 def test_invalid_case_fails_alone_with_its_message(client, tmp_path, capsys):

@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "stick_intervals"]
+__all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "regime_series",
+           "stick_intervals"]
 
 GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "chatter_guard", "event_storm")
 
@@ -105,7 +106,10 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
         a, b = float(edges[c]), float(edges[c + 1])
         if b <= a:
             continue
-        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b]
+        # the last cycle also counts the events at the end of the run (a failed run stops
+        # at its last event)
+        b_ev = b if c < edges.size - 2 else float(np.nextafter(b, np.inf))
+        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b_ev]
         row = {
             "cycle": c, "start": a, "end": b,
             "stick_fraction": _overlap(sticks, a, b) / (b - a),
@@ -114,8 +118,53 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
             if started else 0.0,
         }
         for k in range(n_contacts):
-            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k] if real and a <= s < b)
+            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k]
+                                        if real and a <= s < b_ev)
             row[f"lift_off_time_{k}"] = _overlap(lifts[k], a, b)
-        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b)))
+        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b_ev)))
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _step_series(times: np.ndarray, values: np.ndarray, initial: int, grid: np.ndarray
+                 ) -> np.ndarray:
+    """A piecewise-constant state on ``grid``: ``initial``, then ``values[i]`` from
+    ``times[i]`` on (an event at a grid time counts from that sample)."""
+    states = np.concatenate([[initial], values]).astype(np.int8)
+    return states[np.searchsorted(times, grid, side="right")]
+
+
+def regime_series(events: pd.DataFrame, time: np.ndarray, closed0: np.ndarray, stick0: bool
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The contacts' open/closed state and the block's stick flag on a time grid.
+
+    Parameters
+    ----------
+    events : DataFrame
+        Event log (columns time, kind, contact).
+    time : ndarray, shape (n,)
+        Output grid [s].
+    closed0 : ndarray of int, shape (K,)
+        1 where contact k is closed at the start of the run.
+    stick0 : bool
+        Whether the block starts in stick.
+
+    Returns
+    -------
+    closed : ndarray of int8, shape (n, K)
+        1 while contact k is closed, 0 while it is lifted off: ``closed0`` switched by the
+        ``lift_off`` and ``touch_down`` events of contact k.
+    stick : ndarray of int8, shape (n,)
+        1 in a stick phase: ``stick0`` switched by the ``stick`` and ``slip`` events.
+    """
+    ev = events.sort_values("time", kind="stable")
+    t = ev["time"].to_numpy(dtype=float)
+    kind = ev["kind"].to_numpy(dtype=object)
+    contact = ev["contact"].to_numpy(dtype=float, na_value=-1.0)
+    grid = np.asarray(time, dtype=float)
+    closed = np.empty((grid.size, len(closed0)), dtype=np.int8)
+    for k, c0 in enumerate(closed0):
+        sel = (contact == k) & ((kind == "lift_off") | (kind == "touch_down"))
+        closed[:, k] = _step_series(t[sel], kind[sel] == "touch_down", int(c0), grid)
+    sel = (kind == "stick") | (kind == "slip")
+    return closed, _step_series(t[sel], kind[sel] == "stick", int(stick0), grid)

@@ -350,17 +350,18 @@ def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
 def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
     """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
 
-    ``progress`` None means the scene's ``output.progress``.
+    ``progress`` None means the scene's ``output.progress``. When stderr is not a terminal
+    (a log file), a few whole lines instead (:mod:`roughvib._progress`).
     """
-    from tqdm import tqdm
+    from roughvib._progress import progress_bar as bar
 
     scene = system.scene
     if progress is None:
         progress = scene.output.progress
-    return tqdm(total=float(scene.output.duration), initial=initial, unit="s",
-                unit_scale=False, disable=not progress, file=sys.stderr,
-                desc=f"roughvib {scene.name}", leave=False,
-                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
+    return bar(float(scene.output.duration), initial=initial, unit="s sim",
+               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
+               value_format=".4f", unit_scale=False, leave=False,
+               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
 
 
 def solve_ida(system: System, *, progress: bool | None = None,

@@ -184,7 +184,7 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
     DataFrame
         One row per run (including failed and skipped runs).
     """
-    from tqdm import tqdm
+    from roughvib._progress import progress_bar
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -218,7 +218,7 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
     last_cost: dict[str, float] = {}
     spent = 0.0
     period = base.period if math.isfinite(base.period) else 0.0
-    bar = tqdm(total=len(queue), desc="work-precision runs", disable=not progress, unit="run")
+    bar = progress_bar(len(queue), desc="work-precision runs", disable=not progress, unit="run")
     for run in queue:
         row = {"method": run.method, "setting": run.setting,
                "setting_name": "rtol" if run.method in TOLERANCE_METHODS else "step [s]"}

@@ -36,6 +36,7 @@ figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: 0.85em; color: #555; }
 .status-success { color: #17692b; } .status-failed { color: #a11; }
 .note { font-size: 0.85em; color: #555; }
+.banner { border: 2px solid #a11; background: #fdecea; padding: 0.6em 1em; margin: 1em 0; }
 nav a { margin-right: 1em; }
 """
 

@@ -9,6 +9,7 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import logging
 import os
 import re
 import secrets
@@ -32,6 +33,7 @@ from roughvib.studies.sweep.spec import (
     Case,
     Sweep,
     _replace_file,
+    adopt_old_case_names,
     load_sweep,
 )
 from roughvib.studies.sweep.tables import _write_tables
@@ -299,8 +301,11 @@ def _connect(scheduler: str | None, workers: int | None):
                              f"{CONNECT_TIMEOUT:g} s ({_one_line(exc)}); start one with 'dask "
                              f"scheduler' or check the address") from None
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           env=dict(THREAD_ENV))
+    with warnings.catch_warnings():  # the port is in the dashboard line run_sweep writes
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
+                                category=UserWarning)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               env=dict(THREAD_ENV))
     try:
         client = Client(cluster)
         client.run(_ignore_sigint)
@@ -308,6 +313,19 @@ def _connect(scheduler: str | None, workers: int | None):
     except BaseException:
         cluster.close()
         raise
+
+
+def _close_quietly(cluster) -> None:
+    """Close the sweep's own LocalCluster without Dask's "Worker process still alive after 4.0
+    seconds, killing": the cases are published by then, and on a busy machine the workers,
+    which ignore SIGINT, are simply slower to exit than the nanny waits."""
+    nanny = logging.getLogger("distributed.nanny")
+    level = nanny.level
+    nanny.setLevel(logging.ERROR)
+    try:
+        cluster.close()
+    finally:
+        nanny.setLevel(level)
 
 
 def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
@@ -376,12 +394,16 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                 workers: int | None, client: Any, progress: bool,
                 note: Callable[[str], None]) -> SweepRun:
     """The body of :func:`run_sweep`, holding the sweep directory's lock."""
-    from tqdm.auto import tqdm
+    from roughvib._progress import progress_bar
 
     token = secrets.token_hex(8)
     _replace_file(out / _TOKEN_FILE, token)
     _replace_file(out / "sweep.json", json.dumps(spec.to_json(), indent=2))
     _remove_stale(cases_dir)
+    renamed = adopt_old_case_names(spec, cases_dir)
+    if renamed:
+        note(f"renamed {len(renamed)} case directories of an older roughvib to the new names "
+             f"(e.g. {renamed[0][0]} -> {renamed[0][1]}); nothing recomputed")
 
     cases = spec.cases()
     todo = [c for c in cases if not _is_complete(cases_dir / c.name)]
@@ -403,8 +425,8 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
         try:
             if getattr(client, "dashboard_link", None):
                 note(f"dask dashboard: {client.dashboard_link}")
-            bar = tqdm(total=len(cases), initial=skipped, desc=f"sweep {spec.name}",
-                       unit="case", disable=not progress, file=sys.stderr)
+            bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
+                               unit="case", disable=not progress, file=sys.stderr)
             for c in todo:
                 fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
                                     token, pure=False, key=f"case-{c.name}-{token}")
@@ -436,7 +458,7 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
             if own:
                 client.close()
                 if cluster is not None:
-                    cluster.close()
+                    _close_quietly(cluster)
             if interrupted:
                 with contextlib.suppress(Exception):
                     _write_tables(spec, out, errors)

@@ -21,12 +21,14 @@ from typing import Any
 
 from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
 
-__all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "builtin_sweeps", "case_name", "load_sweep"]
+__all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "adopt_old_case_names", "builtin_sweeps",
+           "case_name", "load_sweep", "old_case_name"]
 
 SUCCESS = "success"
 CASES_DIR = "cases"
 _TOP_KEYS = ("name", "description", "base", "set", "grid", "case")
-_SAFE = re.compile(r"[^A-Za-z0-9._=,+-]+")
+_SAFE = re.compile(r"[^A-Za-z0-9._=,+-]+")  # sweep names (and the case names before 0.2)
+_SHELL_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")  # case names: nothing a shell needs quoted
 
 # --------------------------------------------------------------------------------------------
 # sweep description
@@ -40,7 +42,7 @@ class Case:
     Attributes
     ----------
     name : str
-        Directory name under ``DIR/cases`` (filesystem-safe, stable).
+        Directory name under ``DIR/cases`` (stable; no character a shell needs quoted).
     values : dict
         The varied values of this case, dotted scene key -> value.
     index : tuple of int
@@ -194,8 +196,23 @@ def _fmt_value(v: Any) -> str:
     return _canonical(v)
 
 
+def _case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None, *,
+               pair: str, sep: str, tail: str, safe: re.Pattern) -> str:
+    keys = list(keys) if keys is not None else list(values)
+    lasts = [k.rsplit(".", 1)[-1] for k in keys]
+    parts = []
+    for k in [k for k in keys if k in values] + [k for k in values if k not in keys]:
+        last = k.rsplit(".", 1)[-1]
+        label = last if lasts.count(last) <= 1 else k
+        parts.append(f"{label}{pair}{_fmt_value(values[k])}")
+    readable = safe.sub("_", sep.join(parts))[:80].lstrip(".-")
+    digest = hashlib.sha256(_canonical({"base": _fingerprint(base), "values": values})
+                            .encode()).hexdigest()[:10]
+    return f"{readable}{tail}{digest}" if readable else digest
+
+
 def case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = None) -> str:
-    """Stable, filesystem-safe directory name of a case.
+    """Stable directory name of a case that a shell takes without quotes.
 
     Parameters
     ----------
@@ -210,21 +227,56 @@ def case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = 
     Returns
     -------
     str
-        ``"target_rms_velocity=0.01,seed=2-1a2b3c4d5e"``: readable values (at most 80
-        characters of ``[A-Za-z0-9._=,+-]``) and 10 hex digits of a SHA-256 over the base scene
-        and the values.
+        ``"target_rms_velocity-0.01__seed-2__1a2b3c4d5e"``: ``key-value`` pairs joined by
+        ``__`` (at most 80 characters of ``[A-Za-z0-9._+-]``, anything else replaced by
+        ``_``), then ``__`` and 10 hex digits of a SHA-256 over the base scene and the values.
+        The exact values are in the case's ``case.json``.
     """
-    keys = list(keys) if keys is not None else list(values)
-    lasts = [k.rsplit(".", 1)[-1] for k in keys]
-    parts = []
-    for k in [k for k in keys if k in values] + [k for k in values if k not in keys]:
-        last = k.rsplit(".", 1)[-1]
-        label = last if lasts.count(last) <= 1 else k
-        parts.append(f"{label}={_fmt_value(values[k])}")
-    readable = _SAFE.sub("_", ",".join(parts))[:80].lstrip(".")
-    digest = hashlib.sha256(_canonical({"base": _fingerprint(base), "values": values})
-                            .encode()).hexdigest()[:10]
-    return f"{readable}-{digest}" if readable else digest
+    return _case_name(base, values, keys, pair="-", sep="__", tail="__", safe=_SHELL_SAFE)
+
+
+def old_case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = None
+                  ) -> str:
+    """The name roughvib 0.1 gave a case (``"target_rms_velocity=0.01,seed=2-1a2b3c4d5e"``),
+    same hash as :func:`case_name`; kept to adopt the case directories of older sweeps."""
+    return _case_name(base, values, keys, pair="=", sep=",", tail="-", safe=_SAFE)
+
+
+def adopt_old_case_names(sweep: Sweep, cases_dir: Path) -> list[tuple[str, str]]:
+    """Rename the case directories of an older roughvib (``key=value,...``) to today's names.
+
+    A directory is renamed only if no directory of the new name exists; its ``case.json``
+    then records the old name under ``renamed_from``. Nothing is recomputed: a complete case
+    stays complete under its new name.
+
+    Parameters
+    ----------
+    sweep : Sweep
+    cases_dir : Path
+        ``DIR/cases`` of the sweep.
+
+    Returns
+    -------
+    list of (str, str)
+        The (old, new) names renamed.
+    """
+    renamed = []
+    keys = sweep.varied_keys
+    for case in sweep.cases():
+        old = cases_dir / old_case_name(sweep.base, case.values, keys)
+        new = cases_dir / case.name
+        if old == new or not old.is_dir() or new.exists():
+            continue
+        os.rename(old, new)
+        info_path = new / "case.json"
+        try:
+            info = json.loads(info_path.read_text())
+        except (OSError, ValueError):
+            info = {"values": case.values}
+        info.update(name=case.name, renamed_from=old.name)
+        _replace_file(info_path, json.dumps(info, indent=2))
+        renamed.append((old.name, case.name))
+    return renamed
 
 
 def _sweeps_dir():
