@@ -17,6 +17,8 @@ EVENT_KINDS: dict[str, str] = {
     "hysteresis_hold": "guard (Coulomb law): stick held within friction.switching_hysteresis "
                        "above mu_stick F_N",
     "dwell_hold": "guard (Coulomb law): break-away held until friction.dwell_time in stick",
+    "chatter_guard": "guard (Coulomb law): stick held for friction.chatter_window after more "
+                     "than friction.chatter_switches stick/slip switches within that window",
     "event_storm": "guard: too many events within solver.event_window; the run stops",
 }
 

@@ -172,7 +172,8 @@ def test_progress_on_stderr_into_a_log_file_is_whole_lines(tmp_path):
     text = log.read_text()
     assert p.returncode == 0, text
     assert p.stdout == "" and "\r" not in text and text.endswith("\n")
-    lines = text.splitlines()
+    # the short run also draws validity warnings (one line each): the progress is the rest
+    lines = [ln for ln in text.splitlines() if not ln.startswith("roughvib: warning: ")]
     assert 1 <= len(lines) <= 12 and all(" s sim (" in ln for ln in lines)
     assert lines[-1].startswith("roughvib paper: 0.0040/0.0040 s sim (100 %)")
 

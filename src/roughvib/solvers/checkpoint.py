@@ -23,12 +23,16 @@ import pickle
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from roughvib.model.regimes import Regime, initial_regime
-from roughvib.model.system import System
 from roughvib.scene import Scene, SceneError, scene_to_toml
+
+if TYPE_CHECKING:  # the model (numba kernels) is needed only to start a run, not to name
+    # a checkpoint file: roughvib.rundir reads CHECKPOINT_NAME before any heavy import
+    from roughvib.model.regimes import Regime
+    from roughvib.model.system import System
 
 __all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_inputs",
            "check_resume", "input_fingerprint", "read_checkpoint", "start_state",
@@ -191,6 +195,8 @@ def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpo
     ``n`` rows of ``n_out`` outputs.
     """
     if resume is None:
+        from roughvib.model.regimes import initial_regime
+
         y0, closed = system.static_equilibrium()
         regime = initial_regime(closed, system.fp, system.layout.tangential, system.coulomb)
         regime.pack(reg, rf)
