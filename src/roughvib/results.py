@@ -70,7 +70,7 @@ def _jsonable(obj: Any) -> Any:
 
 @dataclass
 class Result:
-    """Outcome of :func:`roughvib.simulate`.
+    """Outcome of :func:`roughvib.simulate <roughvib.simulation.simulate>`.
 
     Attributes
     ----------
@@ -159,7 +159,7 @@ def events_frame(records: list) -> pd.DataFrame:
 
 
 def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Result:
-    """Read a result directory written by :meth:`Result.save`.
+    """Read a result directory written by :meth:`Result.save <roughvib.results.Result.save>`.
 
     Parameters
     ----------

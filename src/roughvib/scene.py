@@ -428,12 +428,12 @@ class Friction:
         epsilon_v: the latch flips once the velocity has moved back from its running extremum
         by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
     stick_velocity : float
-        |v| below this counts as stick for phase logging and the stick fraction [m/s].
+        ``|v|`` below this counts as stick for phase logging and the stick fraction [m/s].
     stribeck_velocity : float or None
-        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-|v| / v_s) with
+        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-``|v|`` / v_s) with
         this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
     switching_hysteresis : float
-        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-], so normal-force
+        ``coulomb``: break-away needs ``|friction|`` > mu_stick F_N (1 + this) [-], so normal-force
         ripple does not chatter the stick/slip boundary. Each time it holds the block in
         stick is counted.
     dwell_time : float

@@ -286,16 +286,17 @@ def static_compliance(plate: Plate, points: ArrayLike) -> np.ndarray:
     -----
     Levy form (Timoshenko & Woinowsky-Krieger 1959, §36): with the series taken along the
     shorter side L1 (index n, theta = n pi u / L1) and the other side L2, the 1-D Green's
-    function of D (d^2/dv^2 - alpha^2)^2 on the infinite line is (1 + alpha |d|) exp(-alpha |d|)
-    / (4 alpha^3); odd images of the source about v = 0 and v = L2 (sources at v1 + 2 j L2 with
-    sign +1 and -v1 + 2 j L2 with sign -1) satisfy w = w'' = 0 on both edges. Hence
+    function of D (d^2/dv^2 - alpha^2)^2 on the infinite line is
+    ``(1 + alpha |d|) exp(-alpha |d|) / (4 alpha^3)``; odd images of the source about v = 0 and
+    v = L2 (sources at v1 + 2 j L2 with sign +1 and -v1 + 2 j L2 with sign -1) satisfy
+    w = w'' = 0 on both edges. Hence::
 
         G = L1^2 / (2 pi^3 B') sum_images sign S(kappa, pi u1 / L1, pi u2 / L1),
         kappa = pi |v2 - v_image| / L1,
 
-    with S summed over n in closed form by :func:`_levy_image_sum`. The direct term carries the
+    with S summed over n in closed form by ``_levy_image_sum``. The direct term carries the
     slow n^-3 convergence of the point compliance; evaluating it in closed form removes every
-    truncation error, and the images decay like exp(-2 pi |j| L2 / L1), so all with
+    truncation error, and the images decay like exp(-2 pi ``|j|`` L2 / L1), so all with
     kappa < 45 are kept (a handful for any aspect ratio).
     """
     pts = np.asarray(points, dtype=float)

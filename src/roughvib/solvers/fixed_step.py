@@ -95,7 +95,7 @@ def log_step_events(t0, h, comp_old, comp, v0, v1, tang, vth, exact_stick, log_l
                     ev_t, ev_kind, ev_contact, n_ev, tangential):
     """Events of one step by sign change, with linear interpolation (shared by the loops).
 
-    Contacts: the compression changes sign (lift-off / touch-down). Tangential: |v| crosses
+    Contacts: the compression changes sign (lift-off / touch-down). Tangential: ``|v|`` crosses
     ``vth`` (stick / slip; ``exact_stick``: stick means v == 0), and the hysteresis latch is
     advanced (``latch_flip`` logged when ``log_latch``). Updates ``comp_old`` and ``tang`` in
     place and returns the new event count.

@@ -14,7 +14,7 @@ same function is ignored once; more than ``solver.max_events`` events within
 
 scikit-sundae pitfalls handled here (shared/ida-notes.md §4): the eventsfn's event history is
 cleared after every event; step counts are read through SUNDIALS' ``IDAGetNumSteps`` (not
-exposed by sksundae; see :class:`_IdaCounters`); unknown return codes are caught.
+exposed by sksundae; see ``_IdaCounters``); unknown return codes are caught.
 """
 
 from __future__ import annotations

@@ -463,6 +463,7 @@ def _whole(fn: Callable, **kw) -> Callable[[Result], Figure]:
     return draw
 
 
+#: figure name -> drawing function (``roughvib plot --figure NAME`` and the run report)
 FIGURES: dict[str, Callable[[Result], Figure]] = {
     "velocity": _whole(plot_velocity),
     "friction-velocity": _whole(plot_friction_velocity_pair),

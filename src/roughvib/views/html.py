@@ -20,6 +20,7 @@ import numpy as np
 __all__ = ["CSS", "esc", "figure", "figure_data_uri", "frame_table", "kv_table", "num", "page",
            "png_data_uri", "slug", "table"]
 
+#: the style sheet of every report page (inline, so that a page is one file)
 CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
        max-width: 1100px; padding: 0 1em; color: #222; line-height: 1.4; }

@@ -29,7 +29,7 @@ The equivalent GW surface of two surfaces with comparable summits has 1/R = 1/be
 the two models agree within 1 % in stiffness and micro-contact count for the default surface;
 with beta = R (reading "beta is the summit radius" literally) GT is 4.8-4.9 % softer.
 
-For Gaussian summits F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi) (D the parabolic
+For Gaussian summits ``F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi)`` (D the parabolic
 cylinder function); an exponential summit distribution (standardised: phi*(s) = exp(-(s+1)),
 s >= -1) gives F_n = Gamma(n+1) exp(-(h+1)) and exactly k = P / sigma_s.
 """

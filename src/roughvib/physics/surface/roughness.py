@@ -24,7 +24,7 @@ with a warning) or ``none``. It is applied to ``synthetic`` and ``file`` profile
 
 Spectral conventions: wavenumbers k are angular [rad/m]; a one-sided profile PSD G(k)
 [m^2/(rad/m)] integrates to the variance, ``integral_0^inf G dk = rms^2``; an isotropic areal
-PSD S2(|k|) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
+PSD S2(``|k|``) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
 moments are ``m_n = integral k^n G(k) dk``: m0 = rms^2, m2 = (rms slope)^2, m4 = (rms
 curvature)^2.
 """
@@ -229,16 +229,16 @@ def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> n
 
 
 def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
-    """Isotropic areal PSD S2(|k|) of the raw surface (physics.md §5.2).
+    """Isotropic areal PSD S2(``|k|``) of the raw surface (physics.md §5.2).
 
     The same band and roll-off as :func:`band_psd` with the areal exponent: S2 = C for
-    k_L <= |k| < k_0, C (|k|/k_0)^-(2+2H) up to k_H, zero outside. A profile cut through such
-    a surface has G(k) ~ k^-(1+2H) above k_0, like :func:`band_psd`.
+    ``k_L <= |k| < k_0``, ``C (|k|/k_0)^-(2+2H)`` up to k_H, zero outside. A profile cut through
+    such a surface has G(k) ~ k^-(1+2H) above k_0, like :func:`band_psd`.
 
     Parameters
     ----------
     k : array_like
-        |k| [rad/m].
+        ``|k|`` [rad/m].
     roughness : Roughness
     rms : float, optional
         Normalise so that the integral over the wavenumber plane is ``rms**2`` [m].
@@ -269,8 +269,8 @@ def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: b
     areal : bool
         False: the profile PSD :func:`band_psd`. True: a profile along x through the isotropic
         surface :func:`areal_psd` (the ``reduce_3d`` surface), m_n = integral kx^n S2 d^2k,
-        which with the angular means <cos^2> = 1/2 and <cos^4> = 3/8 is m2 = <|k|^2> / 2,
-        m4 = 3 <|k|^4> / 8 over S2.
+        which with the angular means <cos^2> = 1/2 and <cos^4> = 3/8 is m2 = ``<|k|^2> / 2``,
+        m4 = ``3 <|k|^4> / 8`` over S2.
 
     Returns
     -------
@@ -485,7 +485,7 @@ def synthesize_span_averages(roughness: Roughness,
     (0.8 GB) although only averages across the block are needed. Averaging is linear, so each
     layout's average is formed in the (kx, ky) domain, c(kx) = sum_ky Z(kx, ky) v(ky) with
     v(ky) = sum_j w_j exp(i ky y_j) / sum_j w_j, chunk by chunk over kx (only kx <= k_H carry
-    power, and per kx only the ky inside the disc |k| <= k_H), and one inverse FFT per layout
+    power, and per kx only the ky inside the disc ``|k|`` <= k_H), and one inverse FFT per layout
     gives the profile. The result is exactly the average of the traces of that periodic
     surface at the given (arbitrary, not gridded) positions; memory stays at a few MB and the
     default case (4001 traces) takes about 2 s of CPU.
@@ -957,7 +957,7 @@ def select_contacts(profile: Profile, n: int, window_length: float, min_separati
     Rules, in order:
 
     1. The window is ``|s - s_centre| <= window_length / 2`` (grid points).
-    2. Flat window (height range below 1e-12 of the largest |z|, or exactly zero, e.g. kind
+    2. Flat window (height range below 1e-12 of the largest ``|z|``, or exactly zero, e.g. kind
        ``none``): n points equally spaced with equal gaps to each other and to the window
        edges, ``s_centre + linspace(-w/2, w/2, n + 2)[1:-1]`` (n = 1: the centre).
        ``min_separation`` is not applied.

@@ -49,7 +49,7 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     Parameters
     ----------
     directory : path
-        Sweep directory written by :func:`run_sweep`.
+        Sweep directory written by :func:`.run_sweep`.
 
     Returns
     -------
