@@ -1,7 +1,7 @@
 """The result contract shared by every solver: time series, event log, summary; netCDF I/O.
 
 A :class:`Result` holds an :class:`xarray.Dataset` on the uniform output grid (every variable
-with a ``units`` attribute; vertical quantities positive downward, physics.md §1.4), the event
+with a ``units`` attribute; vertical quantities positive downward, docs/theory.md), the event
 log as a :class:`pandas.DataFrame`, and a JSON-able summary (solver statistics, calibrated
 T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 

@@ -384,8 +384,8 @@ def acceleration_spectra(result: Result, *, resolution: float = 25.0,
         Narrow-band bin spacing [Hz] (25 Hz: 4000-sample segments at the 1e-5 s grid).
     noise_rms : float, optional
         rms [m/s^2] of white Gaussian noise (0 ... fs/2) added to the block acceleration as the
-        electrical floor of the measuring chain the paper simulates in its Fig. 14 (physics.md
-        §7 suggests 1e-3 m/s^2). The clean block spectrum is kept as well.
+        electrical floor of the measuring chain the paper simulates in its Fig. 14 (1e-3 m/s^2 is
+        an estimate of it, docs/theory.md). The clean block spectrum is kept as well.
     noise_seed : int
         Seed of that noise.
     fmin, fmax : float

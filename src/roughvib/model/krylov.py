@@ -1,7 +1,7 @@
 """Numba kernels for IDA's Krylov path: the exact block-elimination preconditioner and J v.
 
 IDA's Newton matrix is ``J = dF/dy + cj dF/dyp`` of the residual in
-:mod:`roughvib.model.kernels`. Its structure (the "arrow" of shared/ida-notes.md §3):
+:mod:`roughvib.model.kernels`. Its structure (an "arrow"):
 
 * a 2x2 block per plate mode (q_r, dq_r), coupled to the rest only through the K contact
   forces (column ``-phi_rk / M``);

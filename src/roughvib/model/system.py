@@ -219,7 +219,7 @@ def _profile_height(system: System, s: float) -> float:
 
 def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
     st = scene.contact.stiffness
-    if isinstance(st, str):  # "auto": statistical contact model (physics.md §4)
+    if isinstance(st, str):  # "auto": statistical contact model (docs/theory.md)
         from roughvib.physics.surface.contact import contact_stiffness
 
         # a measured profile brings its own moments; synthetic ones use the model PSD

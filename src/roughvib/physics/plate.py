@@ -1,6 +1,6 @@
 """Simply supported Kirchhoff plate: modes, shapes, static and residual compliance, mobility.
 
-This module owns the linear plate of physics.md §2: the mode set for a frequency band, the
+This module owns the linear plate (docs/theory.md): the mode set for a frequency band, the
 (unnormalised) mode shapes, the exact static Green's function, the residual compliance of the
 truncated modes and the frequency-response (mobility) functions used to check the modal model.
 
@@ -349,7 +349,7 @@ def residual_compliance(plate: Plate, modes: PlateModes, points: ArrayLike) -> n
     """Static compliance of the modes left out of ``modes`` between points [m/N].
 
     C_res = G_static,exact - sum_(r in modes) phi_r(i) phi_r(j) / (M omega_r^2)
-    (physics.md §2.4), the quasi-static flexibility of the truncated modes.
+    (docs/theory.md), the quasi-static flexibility of the truncated modes.
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 The plate modes couple to the block only through the K contact forces, and each mode is a
 linear oscillator. Over a step of length h with the modal force linear in time (first-order
-hold), a mode is propagated exactly, whatever omega h is (physics.md §2.5; the fixed-step
+hold), a mode is propagated exactly, whatever omega h is (docs/theory.md; the fixed-step
 ``exact-modal`` scheme):
 
     [q, q']_{n+1} = Phi(h) [q, q']_n + G0(h) u_n + G1(h) u_{n+1},   u = phi^T F / M.

@@ -359,7 +359,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
         [third-octave, narrow band].
     noise_rms : float, optional
         rms [m/s^2] of a simulated white accelerometer noise added to the block (drawn as a
-        further thin line); physics.md §7 suggests 1e-3.
+        further thin line); 1e-3 is an estimate of the paper's.
     resolution : float
         Narrow-band bin spacing [Hz].
 
