@@ -64,7 +64,7 @@ autodoc_member_order = "bysource"
 # the types are in the numpydoc Parameters/Returns sections; signatures with annotations would
 # need the other projects' inventories to link (see nitpick_ignore_regex)
 autodoc_typehints = "none"
-autodoc_default_options = {"members": True, "show-inheritance": False}
+autodoc_default_options = {"members": True}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_attributes_as_param_list = True
