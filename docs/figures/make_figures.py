@@ -28,7 +28,7 @@ SINGLE = {
     "acceleration-10mms.png": ("paper", "acceleration"),
     "acceleration-100mms.png": ("paper-100mms", "acceleration"),
 }
-NOISE_RMS = 1e-3  # simulated accelerometer floor on the block [m/s^2 rms], physics.md §7
+NOISE_RMS = 1e-3  # simulated accelerometer floor on the block [m/s^2 rms], docs/theory.md
 
 
 def main(argv: list[str] | None = None) -> int:

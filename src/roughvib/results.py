@@ -1,7 +1,7 @@
 """The result contract shared by every solver: time series, event log, summary; netCDF I/O.
 
 A :class:`Result` holds an :class:`xarray.Dataset` on the uniform output grid (every variable
-with a ``units`` attribute; vertical quantities positive downward, physics.md §1.4), the event
+with a ``units`` attribute; vertical quantities positive downward, docs/theory.md), the event
 log as a :class:`pandas.DataFrame`, and a JSON-able summary (solver statistics, calibrated
 T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 
@@ -79,7 +79,7 @@ def _jsonable(obj: Any) -> Any:
 
 @dataclass
 class Result:
-    """Outcome of :func:`roughvib.simulate`.
+    """Outcome of :func:`roughvib.simulate <roughvib.simulation.simulate>`.
 
     Attributes
     ----------
@@ -262,7 +262,7 @@ def events_frame(records: list) -> pd.DataFrame:
 
 
 def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Result:
-    """Read a result directory written by :meth:`Result.save`.
+    """Read a result directory written by :meth:`Result.save <roughvib.results.Result.save>`.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Scene description: frozen, validated dataclasses in SI units, TOML load/save.
 
 This module owns the *contract* of a scene file. Every value has a default taken from the
-paper scene of ``physics.md`` §7, so an empty TOML file is the paper scene. A bad value raises
+paper scene (docs/theory.md), so an empty TOML file is the paper scene. A bad value raises
 :class:`SceneError` (a ``ValueError``) whose message names the field path, the rule, the unit
 and the value, e.g. ``plate.thickness must be > 0 m, got -0.003``.
 
@@ -183,7 +183,7 @@ class Block:
     length, width : float
         Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
     vertical_damping : float
-        Viscous damper r1 on the absolute vertical block velocity [N s/m] (physics.md §1.5(f)).
+        Viscous damper r1 on the absolute vertical block velocity [N s/m] (docs/theory.md).
     tangential_damping : float
         Viscous damper r2 on the absolute tangential block velocity [N s/m].
     """
@@ -229,7 +229,7 @@ class Plate:
     observation_position : tuple of float
         Plate coordinates of the plate accelerometer [m]; keep it away from the contacts.
     residual_compliance : bool
-        Add the static compliance of the truncated modes at the contacts (physics.md §2.4).
+        Add the static compliance of the truncated modes at the contacts (docs/theory.md).
     """
 
     kind: str = "modal"
@@ -375,12 +375,12 @@ class Roughness:
         by span-averaging across the block width (then ``rms`` is not used).
     trace_layout : {"uniform", "cbrt2"}
         ``reduce_3d``: where the averaged traces lie across the width. ``uniform`` (default):
-        a pitch of ``spacing``, the continuous width average of physics.md §5.2 (about
+        a pitch of ``spacing``, the continuous width average of docs/theory.md (about
         -23 dB for the default surface). ``cbrt2``: the paper's separations growing by
         2^(1/3) from one edge, averaged with trapezoidal weights (about -10 dB; the paper
         used that layout for a coherence integral, see docs/theory.md).
     filter : {"highpass", "block-lowpass", "none"}
-        Functional filter over the block length (physics.md §5.3).
+        Functional filter over the block length (docs/theory.md).
     path : str
         ``file``: path of a text/CSV profile (relative paths are relative to the scene file).
     units : {"m", "um", "nm"}
@@ -452,10 +452,10 @@ class Friction:
     Attributes
     ----------
     law : {"feldmann", "coulomb"}
-        ``feldmann``: the paper's Eq. 10 with the latched hysteresis of physics.md §1.5(g)
+        ``feldmann``: the paper's Eq. 10 with the latched hysteresis of docs/theory.md
         (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
         Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
-        zero and the friction force is an algebraic unknown (physics.md §3.4 A).
+        zero and the friction force is an algebraic unknown (docs/theory.md).
     mu_slip, mu_stick : float
         Quasi-static kinetic and static coefficients [-].
     a1, a2 : float
@@ -466,15 +466,15 @@ class Friction:
         epsilon_v: the latch flips once the velocity has moved back from its running extremum
         by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
     stick_velocity : float
-        |v| below this counts as stick for phase logging and the stick fraction [m/s].
+        ``|v|`` below this counts as stick for phase logging and the stick fraction [m/s].
     stribeck_velocity : float or None
-        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-|v| / v_s) with
+        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-``|v|`` / v_s) with
         this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
     switching_hysteresis : float
-        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-]. 0 (default):
-        the exact law, break-away when |friction| reaches mu_stick F_N. A value > 0 is an
-        opt-in guard that changes the law everywhere: each time it holds the block in stick
-        is logged (``hysteresis_hold``) and counted.
+        ``coulomb``: break-away needs ``|friction|`` > mu_stick F_N (1 + this) [-]. 0
+        (default): the exact law, break-away when ``|friction|`` reaches mu_stick F_N. A value
+        > 0 is an opt-in guard that changes the law everywhere: each time it holds the block in
+        stick is logged (``hysteresis_hold``) and counted.
     dwell_time : float
         ``coulomb``: minimum time in stick before break-away is allowed [s]. 0 (default): off.
         Like the hysteresis an opt-in guard; each hold is logged (``dwell_hold``) and counted.
@@ -611,7 +611,7 @@ class Solver:
         tolerances) and located events (the fast reference; Feldmann law or prescribed
         motion). Fixed-step baselines
         (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
-        piecewise-linear force and an implicit contact/block step (physics.md §2.5);
+        piecewise-linear force and an implicit contact/block step (docs/theory.md);
         ``newmark`` average-acceleration Newmark on the modal model; ``paper`` the paper's
         scheme: backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
         convolution of its impulse response (explicit in the plate, O(N^2) cost); ``moreau``

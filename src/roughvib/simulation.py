@@ -47,7 +47,7 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
     Returns
     -------
     dict
-        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of |terms|).
+        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of ``|terms|``).
     """
     terms = {n: float(raw.y_final[system.layout.index(f"energy.{n}")]) for n in ENERGY_TERMS}
     e0 = system.stored_energy(raw.y_initial)
@@ -201,7 +201,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     Parameters
     ----------
     scene : Scene
-        From :func:`roughvib.load_scene`.
+        From :func:`roughvib.load_scene <roughvib.scene.load_scene>`.
     progress : bool, optional
         Progress bar on stderr (default: ``scene.output.progress``).
     force_amplitude : float, optional

@@ -8,8 +8,10 @@ One 2-worker LocalCluster (processes, one thread each) is shared by the module; 
 from __future__ import annotations
 
 import argparse
+import base64
 import json
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -24,6 +26,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+from browser import inspect_page
 
 import roughvib
 from roughvib.cli.sweep import add_parsers
@@ -535,7 +538,27 @@ def test_report_fits_db_per_doubling_per_seed(small_run, capsys):
         assert f["ci_low"] < f["db_per_doubling"] < f["ci_high"]
         assert f"{f['db_per_doubling']:.2f}" in md.read_text()
     html = (out / "report" / "report.html").read_text()
-    assert 'src="velocity.png"' in html and "dB per doubling" in html
+    assert "dB per doubling" in html and 'src="velocity.png"' not in html
+    # self-contained like the run report: the study figure is embedded, byte for byte
+    uris = re.findall(r'<img src="data:image/png;base64,([^"]+)"', html)
+    assert [base64.b64decode(u, validate=True) for u in uris] == [png.read_bytes()]
+    assert "](velocity.png)" in md.read_text()  # the Markdown keeps its link to the file
+
+
+def test_report_in_headless_chromium(small_run, tmp_path):
+    out = small_run[1].directory
+    page = out / "report" / "report.html"
+    if not page.exists():
+        sw.sweep_report(out)
+    seen = inspect_page(page, tmp_path)
+    assert seen["ready"] == "complete" and seen["title"].startswith("Sweep report")
+    assert len(seen["images"]) == 1
+    img = seen["images"][0]
+    assert img["decoded"] and img["width"] > 0 and img["height"] > 0, img
+    assert img["inked_pixels"] > 100, img  # not a blank picture
+    assert img["shown_width"] > 0 and img["shown_height"] > 0, img
+    assert seen["links"] and all(link["href"].startswith("#") and link["resolves"]
+                                 and link["shown"] for link in seen["links"]), seen["links"]
 
 
 def test_report_of_a_directory_that_is_no_sweep_is_a_one_line_error(tmp_path):

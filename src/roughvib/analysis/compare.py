@@ -1,7 +1,7 @@
 """Error metrics between a run and a reference run (work-precision studies).
 
 * :func:`band_level_errors` — third-octave band level differences [dB] of two signals, reduced
-  to the largest |dB| over a frequency range;
+  to the largest ``|dB|`` over a frequency range;
 * :func:`relative_rms_error` — rms(x - x_ref) / rms(x_ref) on a common grid;
 * :func:`match_events` — one-to-one matching of events of the same kind and contact by time
   (greedy by closeness within a window), returning the time errors and the unmatched count.
@@ -84,7 +84,7 @@ def band_level_errors(x: np.ndarray, x_ref: np.ndarray, fs: float, *, fmin: floa
 
 
 def max_abs_db(centres: np.ndarray, diff_db: np.ndarray, f_lo: float, f_hi: float) -> float:
-    """Largest |dB| over bands with centres in [f_lo, f_hi]; NaN if none is available."""
+    """Largest ``|dB|`` over bands with centres in [f_lo, f_hi]; NaN if none is available."""
     sel = (centres >= f_lo * 0.999) & (centres <= f_hi * 1.001) & np.isfinite(diff_db)
     return float(np.max(np.abs(diff_db[sel]))) if sel.any() else float("nan")
 
@@ -102,7 +102,7 @@ def match_events(events: pd.DataFrame, reference: pd.DataFrame, *,
                  ) -> tuple[np.ndarray, int]:
     """Match events one-to-one to the reference by kind, contact and time.
 
-    For each (kind, contact) the pairs are taken greedily in order of increasing |dt|, each
+    For each (kind, contact) the pairs are taken greedily in order of increasing ``|dt|``, each
     event used at most once, and only within ``window`` [s].
 
     Returns

@@ -1,7 +1,7 @@
 """Scalar levels, analysis windows and friction-loop helpers.
 
 This module owns the one-number reductions of a result: rms and dB levels, the velocity
-exponent of levels over a velocity sweep (physics.md §6.1), the stick fraction, the
+exponent of levels over a velocity sweep (docs/theory.md), the stick fraction, the
 whole-period analysis window, and the global tangential stiffness dT/dx of the friction loop
 (paper Fig. 9b).
 """
@@ -75,7 +75,7 @@ def velocity_exponent(velocities: ArrayLike, levels_db: ArrayLike, *,
     The slope ``s`` [dB per doubling] is the robust number to compare. The exponent follows
     from it and depends on what is said to scale as v**n:
 
-    * ``basis='power'`` (default, the paper's reading, physics.md §6.1): the mean square
+    * ``basis='power'`` (default, the paper's reading, docs/theory.md): the mean square
       ``a**2 ∝ v**n``, ``L = 10 log10 a**2 + c``, so ``n = s / (10 log10 2) = s / 3.01``; the
       paper's "3 to 3.5" is 9 to 10.5 dB per doubling.
     * ``basis='amplitude'``: ``a ∝ v**n``, ``n = s / (20 log10 2) = s / 6.02`` (half the

@@ -86,7 +86,7 @@ def add_parsers(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--noise-floor", type=float, metavar="RMS",
                    help="add white noise of this rms [m/s^2] to the block acceleration in the "
                         "spectra figure (the paper's simulated measuring-chain floor; "
-                        "physics.md suggests 1e-3)")
+                        "1e-3 is an estimate of it)")
     p.add_argument("--dpi", type=int, default=90, help="resolution of the figures (default 90)")
     p.set_defaults(func=cmd_report)
     return p

@@ -37,7 +37,7 @@ class Regime:
     v_ext : float
         feldmann: running velocity extremum tracked by the latch [m/s].
     stick : bool
-        Stick phase (feldmann: |v| < friction.stick_velocity, for logging; coulomb: the regime).
+        Stick phase (feldmann: ``|v|`` < friction.stick_velocity, for logging; coulomb: the regime).
     dwell_end : float
         coulomb: break-away is held until this time [s] (``NO_DWELL`` when inactive).
     coulomb : bool
@@ -89,7 +89,7 @@ def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
     """Regime at t = 0: the static contact set, block at rest.
 
     feldmann: latch s = -1 (accelerating branch), branch from sign(s v_h) (or of T0 when
-    v_h = 0), stick phase. coulomb: stick unless |T0| exceeds the break-away bound with the
+    v_h = 0), stick phase. coulomb: stick unless ``|T0|`` exceeds the break-away bound with the
     static normal force m g, then slip in the direction of T0.
     """
     reg = Regime(closed=closed.astype(np.int64), coulomb=coulomb)

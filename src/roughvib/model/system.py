@@ -1,4 +1,4 @@
-"""Assemble a scene into a :class:`System`: flat kernel arrays, regimes, consistent states.
+"""Assemble a scene into a :class:`.System`: flat kernel arrays, regimes, consistent states.
 
 ``assemble(scene)`` runs the preprocessing once (roughness profile, contact points, plate
 modes, residual compliance, T0 calibration) and packs everything the numba kernels need.
@@ -79,6 +79,7 @@ class System:
                 self.work)
 
     def new_regime_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Zeroed regime arrays ``(reg, rf)`` of the kernels' argument tail (int64, float64)."""
         return np.zeros(kn.REG_CLOSED + self.n_contacts, dtype=np.int64), np.zeros(2)
 
     @property
@@ -251,7 +252,7 @@ def _profile_height(system: System, s: float) -> float:
 
 def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
     st = scene.contact.stiffness
-    if isinstance(st, str):  # "auto": statistical contact model (physics.md §4)
+    if isinstance(st, str):  # "auto": statistical contact model (docs/theory.md)
         from roughvib.physics.surface.contact import contact_stiffness
 
         # a measured profile brings its own moments; synthetic ones use the model PSD

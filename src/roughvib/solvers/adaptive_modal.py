@@ -2,7 +2,7 @@
 
 The plate modes couple to the block only through the K contact forces, and each mode is a
 linear oscillator. Over a step of length h with the modal force linear in time (first-order
-hold), a mode is propagated exactly, whatever omega h is (physics.md §2.5; the fixed-step
+hold), a mode is propagated exactly, whatever omega h is (docs/theory.md; the fixed-step
 ``exact-modal`` scheme):
 
     [q, q']_{n+1} = Phi(h) [q, q']_n + G0(h) u_n + G1(h) u_{n+1},   u = phi^T F / M.
@@ -17,8 +17,8 @@ What this module adds to the fixed-step scheme, to make it a reference-grade sol
 * **Error control** by step doubling: every step of length h is also taken as two steps of
   h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps (kept),
   weighted by IDA's tolerances (``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration``:
-  :func:`roughvib.solvers.ida._atol_vector`): RMS over the modes as in IDA, max over the
-  block, contact and energy states (see :func:`_err_norm`). Step sizes are
+  ``roughvib.solvers.ida._atol_vector``): RMS over the modes as in IDA, max over the
+  block, contact and energy states (see ``_err_norm``). Step sizes are
   dyadic fractions of the output step, so the propagators of each size are computed once and
   cached, and every output time is a step boundary (no interpolation of the modes).
 * **Events as in IDA**: the regime is fixed within a step (no active set, no max()); the
@@ -218,7 +218,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
     ``d[0]`` = z'' [m/s^2], ``d[1]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
-    time derivatives of the energy integrals [W], exactly as in :func:`kernels.residual`.
+    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`.
     """
     idq, ivz, ix, iF, R, K = off[1], off[3], off[4], off[6], off[8], off[9]
     m = fp[kn.FP_MASS]

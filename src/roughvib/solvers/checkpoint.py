@@ -66,7 +66,7 @@ class Checkpoint:
     regime : object
         The :class:`~roughvib.model.regimes.Regime`.
     events : list
-        :class:`~roughvib.solvers.ida.EventRecord` so far.
+        :class:`~roughvib.solvers.events.EventRecord` so far.
     stats : dict
         Solver statistics so far (counts; wall time of the earlier processes).
     loop : dict

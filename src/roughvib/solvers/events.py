@@ -3,7 +3,7 @@
 The solvers own *when* a root fires (IDA's root finding, or the adaptive exact-modal scheme's
 own search); :class:`EventBook` owns what follows, so that both produce the same event log:
 the regime is switched by :func:`roughvib.model.regimes.switch`, the state made consistent by
-:meth:`System.consistent`, both limits of the margins and of the friction force are logged,
+:meth:`.System.consistent`, both limits of the margins and of the friction force are logged,
 and the event-storm guard (``solver.max_events`` within ``solver.event_window``) stops the run.
 The stall guard (:func:`step_budget`, :func:`stall_failure`) bounds the solver work between two
 output times, so that every run ends.
@@ -75,7 +75,7 @@ class EventRecord:
     contact : int
         Contact index for contact events, -1 for block-level events.
     regime_before, regime_after : str
-        :meth:`Regime.describe` texts.
+        :meth:`.Regime.describe` texts.
     margin_before, margin_after : float
         The root function that fired, at the event, evaluated with the regime before (≈ 0,
         it just crossed) and with the regime after the switch (the new regime's margin for
@@ -151,7 +151,7 @@ class EventBook:
         Switched in place; ``reg``/``rf`` (the kernels' view of it) are repacked after every
         switch.
     reg, rf : ndarray
-        From :meth:`System.new_regime_arrays`.
+        From :meth:`.System.new_regime_arrays`.
     """
 
     system: System

@@ -12,9 +12,9 @@ Guards (docs/theory.md): a root that fires again within ``REFIRE_DT`` of the res
 same function is ignored once; more than ``solver.max_events`` events within
 ``solver.event_window`` stop the run with status ``event_storm``.
 
-scikit-sundae pitfalls handled here (shared/ida-notes.md §4): the eventsfn's event history is
+scikit-sundae pitfalls handled here: the eventsfn's event history is
 cleared after every event; step counts are read through SUNDIALS' ``IDAGetNumSteps`` (not
-exposed by sksundae; see :class:`_IdaCounters`); unknown return codes are caught.
+exposed by sksundae; see ``_IdaCounters``); unknown return codes are caught.
 """
 
 from __future__ import annotations
@@ -312,7 +312,7 @@ def _krylov_options(system: System, args: tuple) -> dict:
     """IDA options of the matrix-free path: GMRES(1) + exact preconditioner + analytic Jv.
 
     Both callbacks evaluate the Newton matrix at IDA's current iterate, so the preconditioned
-    system is the identity and one Krylov iteration solves it (ida-notes §3).
+    system is the identity and one Krylov iteration solves it.
     """
     (off, fpa, omega2, cdamp, phi, _phi_obs, stiff, cres, spos, prof, reg, _rf, work) = args
     ws = krylov_workspace(system.layout.size, system.n_modes, system.n_contacts)
@@ -534,7 +534,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
             jac_count[0] = 0
             try:
                 r = cy.step(grid[k], "normal", None)
-            except KeyError as exc:  # unknown IDA return code (shared/ida-notes.md §4.3)
+            except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
                 raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
                                     f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
             except _JacobianBudget:
@@ -571,7 +571,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
                 raise stall_failure("ida", grid[k - 1], f"more than {budget} steps",
                                     regime.describe())
             if r.status < 0:
-                # r.y keeps IDA's last accepted state (shared/ida-notes.md §4.4)
+                # r.y keeps IDA's last accepted state
                 near = _closest_contact(grid[k - 1], r.y, K, ev_args)
                 raise SolverFailure(
                     "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "

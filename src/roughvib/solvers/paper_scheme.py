@@ -1,4 +1,4 @@
-"""The paper's time-stepping scheme (Feldmann 2012, physics.md §1.5(j) and §2.5), as a baseline.
+"""The paper's time-stepping scheme (Feldmann 2012; docs/theory.md), as a baseline.
 
 Per step of length h: backward Euler for the block's vertical and tangential motion, the
 contact forces F_k = s_k H(d_k) d_k with the Heaviside H kept *inside* a Newton-Raphson
@@ -8,7 +8,7 @@ discrete convolution of the contact-force history with the sampled plate impulse
     w_i(t_{n+1}) = sum_{m=1}^{n+1} sum_j h g_ij(m h) F_j(t_{n+1-m}) ,   g_ij(0) = 0 .
 
 Because g(0) = 0 the plate reacts one step late: the scheme is explicit in the plate, which is
-why it is only stable while s h / Z_inf << 1 (physics.md §2.5). The history sum costs
+why it is only stable while s h / Z_inf << 1 (docs/theory.md). The history sum costs
 O(n K^2) per step, so O(N^2 K^2) per run: this is the formulation that the modal states of the
 DAE replace. The plate acceleration at the observation point is the second central difference
 of the plate displacement there, from the same convolution (``impulse_responses``): this keeps

@@ -4,7 +4,7 @@ on the same scene.
 
 For each run: wall and CPU time, steps and residual evaluations, and errors against the
 reference over the same whole-period window: (a) third-octave band level error of block and
-plate acceleration, largest |dB| over 100 Hz–20 kHz and over 20–50 kHz; (b) relative rms error
+plate acceleration, largest ``|dB|`` over 100 Hz–20 kHz and over 20–50 kHz; (b) relative rms error
 of the tangential velocity; (c) event-time error (stick, slip, lift-off, touch-down matched one
 to one; unmatched counted); (d) the run's own energy-audit residual. Runs are started from
 cheap to expensive, round-robin over the methods, while the time budget lasts; a run that

@@ -360,7 +360,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
         [third-octave, narrow band].
     noise_rms : float, optional
         rms [m/s^2] of a simulated white accelerometer noise added to the block (drawn as a
-        further thin line); physics.md §7 suggests 1e-3.
+        further thin line); 1e-3 is an estimate of the paper's.
     resolution : float
         Narrow-band bin spacing [Hz].
 
@@ -464,6 +464,7 @@ def _whole(fn: Callable, **kw) -> Callable[[Result], Figure]:
     return draw
 
 
+#: figure name -> drawing function (``roughvib plot --figure NAME`` and the run report)
 FIGURES: dict[str, Callable[[Result], Figure]] = {
     "velocity": _whole(plot_velocity),
     "friction-velocity": _whole(plot_friction_velocity_pair),

@@ -320,7 +320,7 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     Parameters
     ----------
     result_dir : str or Path
-        Directory written by ``roughvib run`` / :meth:`Result.save`.
+        Directory written by ``roughvib run`` / :meth:`Result.save <roughvib.results.Result.save>`.
     out : str or Path, optional
         HTML file (default ``result_dir/report.html``).
     dpi : int

@@ -45,7 +45,7 @@ def scan_range(scene: Scene) -> tuple[float, float, str]:
     * ``prescribed``: min and max of velocity t + amplitude sin(omega t) over the output
       duration;
     * ``force`` with a target rms velocity: +-sqrt(2) v_rms / omega (harmonic motion,
-      physics.md §5.4);
+      docs/theory.md);
     * ``force`` with only T0: 0 ... 2 T0 / (m omega^2), the frictionless block started at rest
       (an upper bound);
     * no motion: (0, 0).

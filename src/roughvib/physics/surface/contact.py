@@ -1,4 +1,4 @@
-"""Statistical normal contact stiffness of the block on the plate (physics.md §4).
+"""Statistical normal contact stiffness of the block on the plate (docs/theory.md).
 
 This module owns the contact sub-program: summit statistics from spectral moments
 (Nayak / McCool), the Greenwood-Williamson (GW) and Greenwood-Tripp (GT) models solved at the
@@ -18,18 +18,18 @@ GW, one equivalent rough surface (density eta, radius R, summit std sigma_s) on 
 GT, two rough surfaces each with summit density eta and radius beta, composite std sigma.
 Derived from two paraboloids of radius beta at lateral offset r, Hertz with the effective
 radius beta/2 (so E* is the usual 1/E* = sum (1 - nu_i^2)/E_i, which makes the constant
-agree with physics.md §4.1)::
+agree with Greenwood-Williamson's)::
 
     P   = (16 sqrt(2) pi / 15) (eta beta sigma)^2 sqrt(sigma / beta) E* A_n F_5/2(h)
     k   = (5/2) (P / sigma) F_3/2(h) / F_5/2(h)
     n_c = 4 pi eta^2 beta sigma A_n F_1(h) ,   A_r = pi^2 (eta beta sigma)^2 A_n F_2(h)
 
 The equivalent GW surface of two surfaces with comparable summits has 1/R = 1/beta + 1/beta
-(physics.md §4.1), so GT is fed beta = 2 R, eta = eta_s, sigma = sigma_s. With that mapping
+(docs/theory.md), so GT is fed beta = 2 R, eta = eta_s, sigma = sigma_s. With that mapping
 the two models agree within 1 % in stiffness and micro-contact count for the default surface;
 with beta = R (reading "beta is the summit radius" literally) GT is 4.8-4.9 % softer.
 
-For Gaussian summits F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi) (D the parabolic
+For Gaussian summits ``F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi)`` (D the parabolic
 cylinder function); an exponential summit distribution (standardised: phi*(s) = exp(-(s+1)),
 s >= -1) gives F_n = Gamma(n+1) exp(-(h+1)) and exactly k = P / sigma_s.
 """
@@ -135,7 +135,7 @@ class SummitParameters:
 
 
 def summit_parameters(m0: float, m2: float, m4: float) -> SummitParameters:
-    """Summit density, radius and height spread from profile spectral moments (physics.md §4.1).
+    """Summit density, radius and height spread from profile spectral moments (docs/theory.md).
 
     Parameters
     ----------
@@ -181,7 +181,7 @@ def effective_modulus(e1: float, nu1: float, e2: float | None = None,
 
 
 def velocity_factor(v_rms: float) -> float:
-    """The paper's velocity ("elevation") factor of the contact stiffness (physics.md §4.2-3).
+    """The paper's velocity ("elevation") factor of the contact stiffness (docs/theory.md).
 
     (v_rms / 0.01 m/s)^log10(0.33): 1 at 10 mm/s, 0.33 at 100 mm/s.
 
@@ -290,7 +290,7 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
 
 @dataclass(frozen=True)
 class ContactStiffness:
-    """Statistical contact at the static load (physics.md §4).
+    """Statistical contact at the static load (docs/theory.md).
 
     Attributes
     ----------
@@ -379,9 +379,9 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     given; the others from the profile spectral moments of the raw surface (McCool,
     :func:`summit_parameters`). The moments default to the model PSD of ``[roughness]`` (its
     band, roll-off and Hurst exponent) at the rms ``roughness.raw_rms``: the areal PSD when
-    ``reduce_3d`` is set (that surface is generated), the profile PSD of physics.md §5.1
-    otherwise (this reproduces the worked numbers of physics.md §4.2). Both surfaces are steel
-    of the plate's E and nu; A_n = block length x width.
+    ``reduce_3d`` is set (that surface is generated), the profile PSD of :func:`.band_psd`
+    otherwise (this gives the values of docs/theory.md, 3.1e6 and 7.4e6 N/m). Both surfaces
+    are steel of the plate's E and nu; A_n = block length x width.
 
     Parameters
     ----------

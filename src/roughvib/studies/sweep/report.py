@@ -49,7 +49,7 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     Parameters
     ----------
     directory : path
-        Sweep directory written by :func:`run_sweep`.
+        Sweep directory written by :func:`.run_sweep`.
 
     Returns
     -------
@@ -156,5 +156,5 @@ def sweep_report(directory: str | os.PathLike) -> Path:
              f"{len(table)} cases, {len(ok)} succeeded, {len(table) - len(ok)} failed or "
              f"missing. Tables: `sweep.csv`, `sweep.nc`; fits: `report/fits.csv`.").strip()
     _replace_file(rep / "report.md", render_markdown(title, intro, blocks))
-    _replace_file(rep / "report.html", render_html(title, intro, blocks))
+    _replace_file(rep / "report.html", render_html(title, intro, blocks, directory=rep))
     return rep / "report.md"

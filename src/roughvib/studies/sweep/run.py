@@ -337,7 +337,7 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
     Parameters
     ----------
     sweep : str, path, Sweep or dict
-        See :func:`load_sweep`.
+        See :func:`.load_sweep`.
     out : path
         Sweep directory; created if needed. With a remote scheduler it must be on a filesystem
         the workers share, under the same path.
