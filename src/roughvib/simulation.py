@@ -239,6 +239,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "model": {"modes": system.n_modes, "contacts": system.n_contacts,
                   "states": system.layout.size,
                   "contact_stiffness_total": float(np.sum(system.stiff)),
+                  "contact": system.contact,
                   "initially_closed_contacts": int(np.sum(raw.y_initial[
                       system.layout.slice("contact.force")] > 0)),
                   "profile": system.profile.stats},
