@@ -1,6 +1,9 @@
-"""``contact.stiffness = "auto"`` end to end: the surface module's stiffness and contact points
-are the ones the solver uses, and the stiffness enters the dynamics (closed-form base-excited
-oscillator)."""
+"""The contact module end to end (``contact.points``, ``contact.stiffness`` and
+``block.vertical_damping`` = "auto", the built-in paper scene): the surface module's count,
+stiffness and contact points are the ones the solver uses and records, and the stiffness enters
+the dynamics (closed-form base-excited oscillator)."""
+
+import json
 
 import numpy as np
 import pytest
@@ -9,16 +12,24 @@ import roughvib
 from roughvib.api import simulate
 from roughvib.physics.surface.contact import contact_stiffness
 from roughvib.physics.surface.roughness import build_profile, profile_statistics, select_contacts
+from roughvib.views.report import write_report
 
 
 def _scene(name="paper", **over):
-    base = {"output.progress": False, "contact.stiffness": "auto"}
+    base = {"output.progress": False}
     base.update(over)
     return roughvib.load_scene(name, base)
 
 
-def test_paper_scene_with_auto_stiffness_uses_the_module_stiffness_and_contact_points():
-    scene = _scene(**{"output.duration": 0.004, "plate.max_frequency": 3000.0})
+@pytest.mark.parametrize("method", ["ida", "adaptive-modal"])
+def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffness(method,
+                                                                                 tmp_path):
+    """The built-in paper scene (points, stiffness and r1 "auto") end to end with both
+    event-driven solvers: the model uses the module's count, points and stiffness, and
+    summary.json and the run report record them."""
+    scene = _scene(**{"output.duration": 0.004, "plate.max_frequency": 3000.0,
+                      "solver.method": method})
+    assert scene.contact.points == "auto" and scene.block.vertical_damping == "auto"
     cs = contact_stiffness(scene)
     # the statistical value differs from the paper's hand-set 3.1e6 N/m, so the test can fail
     assert abs(cs.s_total / 3.1e6 - 1) > 1e-3
@@ -26,18 +37,31 @@ def test_paper_scene_with_auto_stiffness_uses_the_module_stiffness_and_contact_p
     assert r.ok, r.summary["message"]
     model = r.summary["model"]
     assert model["contact_stiffness_total"] == pytest.approx(cs.s_total, rel=1e-12)
+    assert model["contacts"] == cs.points == max(1, round(cs.micro_contacts))
+    assert model["contact"]["points_source"] == "auto"
+    assert model["contact"]["micro_contacts"] == pytest.approx(cs.micro_contacts, rel=1e-12)
+    # r1 "auto": 5 % of critical damping at the rigid-plate contact resonance
+    assert model["contact"]["vertical_damping"] == pytest.approx(
+        2 * 0.05 * np.sqrt(cs.s_total * scene.block.mass), rel=1e-12)
     info = r.summary["calibration"]["contact_stiffness"]
     assert info["model"] == "gw" and info["summit_source"] == "moments"
-    assert info["micro_contacts"] == pytest.approx(cs.micro_contacts, rel=1e-12)
 
     profile = build_profile(scene.roughness, scene.block, scene.base_dir)
-    expect = select_contacts(profile, scene.contact.points, scene.block.length,
+    expect = select_contacts(profile, cs.points, scene.block.length,
                              scene.contact.min_separation)
     np.testing.assert_array_equal(r.dataset["contact_profile_position"].values,
                                   np.asarray(expect, dtype=float))
     # the static contact forces carry the block: sum = m g at the start (rigid-body statics)
     f0 = r.dataset["contact_force"].values[0]
     assert f0.sum() == pytest.approx(scene.block.mass * 9.81, rel=1e-6)
+
+    r.save(tmp_path / "run")
+    saved = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert saved["model"]["contact"]["points"] == cs.points
+    assert saved["model"]["contact"]["stiffness_total"] == pytest.approx(cs.s_total)
+    html = write_report(tmp_path / "run").read_text()
+    assert "contact points from" in html and "micro-contacts (statistical model)" in html
+    assert f"{cs.s_total:.6g}" in html and f"{cs.micro_contacts:.6g}" in html
 
 
 @pytest.mark.parametrize("model", ["gw", "gt"])
@@ -51,6 +75,7 @@ def test_auto_stiffness_sets_the_rigid_plate_response(model):
                       "roughness.wavelength": lam, "excitation.kind": "prescribed",
                       "excitation.velocity": V, "excitation.amplitude": 0.0,
                       "excitation.target_rms_velocity": "none", "output.duration": 0.07,
+                      "contact.velocity_factor": False, "block.vertical_damping": 83.0,
                       "solver.rtol": 1e-8, "solver.atol": 1e-16})
     s = contact_stiffness(scene).s_total
     m, r1 = scene.block.mass, scene.block.vertical_damping
