@@ -160,6 +160,30 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
     return metrics
 
 
+def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
+    """The scene with the contact module's results written in as numbers (count, stiffness
+    with the velocity factor applied, r1), so that the saved scene.toml repeats the run even
+    after the velocity target was replaced by the calibrated force amplitude."""
+    c, b = scene.contact, scene.block
+    if not any(isinstance(v, str) for v in (c.points, c.stiffness, b.vertical_damping)):
+        return scene
+    info = system.contact
+    stat = system.calibration.get("contact_stiffness", {})
+    if isinstance(c.points, str):
+        comments["contact.points"] = (f"contact module: {info['micro_contacts']:.4g} "
+                                      f"micro-contacts ({stat.get('model')})")
+    if isinstance(c.stiffness, str):
+        comments["contact.stiffness"] = (
+            f"contact module ({stat.get('model')}), velocity factor "
+            f"{stat.get('velocity_factor', 1.0):.4g} applied")
+    if isinstance(b.vertical_damping, str):
+        comments["block.vertical_damping"] = (f"{b.vertical_damping_ratio} of critical at the "
+                                              f"contact resonance")
+    scene = replace_section(scene, "contact", points=int(info["points"]),
+                            stiffness=float(info["stiffness_total"]), velocity_factor=False)
+    return replace_section(scene, "block", vertical_damping=float(info["vertical_damping"]))
+
+
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
              checkpoint_dir: str | os.PathLike | None = None,
@@ -223,6 +247,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         if exc.target_rms_velocity is not None:
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+    resolved = _resolve_contact(resolved, system, comments)
     scene_toml = scene_to_toml(resolved, comments=comments)
 
     by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
