@@ -232,7 +232,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
     tangential = exc.kind == "force"
 
     profile = build_profile(scene.roughness, blk, Path(scene.base_dir))
-    # contact points and s_total, as given or from the statistical contact (physics.md §4);
+    # contact points and s_total, as given or from the statistical contact (docs/theory.md);
     # a measured profile brings its own moments, synthetic ones use the model PSD
     cl = contact_layout(scene, profile)
     spos, s_total, K = cl.positions, cl.stiffness_total, cl.n
