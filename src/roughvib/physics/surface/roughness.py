@@ -815,12 +815,8 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
         ``path``, ``format``, ``units`` and ``spacing`` (text only).
     block : Block
         Width (crop of a map).
-    base_dir : str or Path
-        Directory relative paths are resolved against.
-    min_length : float, optional
-        Required covered length (n - 1) dx [m].
-    min_length_reason : str
-        What ``min_length`` is made of, for the error message.
+    base_dir, min_length, min_length_reason
+        As for :func:`read_profile_file`.
 
     Returns
     -------
