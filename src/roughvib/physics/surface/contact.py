@@ -406,7 +406,8 @@ def _scene_v_rms(scene: Scene) -> float:
                          "excitation.amplitude must be non-zero, got 0 m/s rms")
     if exc.target_rms_velocity is None:
         raise SceneError("contact.velocity_factor needs excitation.target_rms_velocity [m/s] "
-                         f"(the factor scales with the rms velocity), got force_amplitude = "
+                         f"(the factor scales with the rms velocity; or set "
+                         f"contact.velocity_factor = false), got force_amplitude = "
                          f"{exc.force_amplitude} N only")
     return float(exc.target_rms_velocity)
 
