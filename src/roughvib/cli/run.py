@@ -6,7 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from roughvib.analysis.levels import single_draw_note
 from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, Terminated, parse_sets
 
 __all__ = ["add_parsers", "cmd_run", "cmd_scenes"]
@@ -17,6 +16,8 @@ def _fmt_db(x: float | None) -> str:
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
+    from roughvib.analysis.levels import single_draw_note
+
     m = summary.get("metrics", {})
     s = summary.get("solver", {})
     a = summary.get("energy_audit", {})
