@@ -49,6 +49,10 @@ class ModelValidityWarning(UserWarning):
     issues it before its expensive work and lists it in ``summary["warnings"]``."""
 
 
+#: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
+MAX_CONTACTS = 200
+
+
 # --------------------------------------------------------------------------------------------
 # validation helpers
 # --------------------------------------------------------------------------------------------
@@ -182,26 +186,37 @@ class Block:
         Block mass m [kg]. Paper: 0.221 or 0.543.
     length, width : float
         Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
-    vertical_damping : float
+    vertical_damping : float or "auto"
         Viscous damper r1 on the absolute vertical block velocity [N s/m] (docs/theory.md).
+        ``"auto"``: r1 = 2 zeta sqrt(s_total m), the damping ratio ``vertical_damping_ratio``
+        at the rigid-plate contact resonance of the stiffness actually used.
     tangential_damping : float
         Viscous damper r2 on the absolute tangential block velocity [N s/m].
+    vertical_damping_ratio : float
+        zeta of ``vertical_damping = "auto"`` [-].
     """
 
     mass: float = 0.221
     length: float = 0.04
     width: float = 0.04
-    vertical_damping: float = 83.0
+    vertical_damping: float | str = 83.0
     tangential_damping: float = 0.5
+    vertical_damping_ratio: float = 0.05
 
     def __post_init__(self) -> None:
         _set(self, "mass", _positive("block.mass", self.mass, "kg"))
         _set(self, "length", _positive("block.length", self.length, "m"))
         _set(self, "width", _positive("block.width", self.width, "m"))
-        _set(self, "vertical_damping",
-             _nonneg("block.vertical_damping", self.vertical_damping, "N s/m"))
+        if isinstance(self.vertical_damping, str):
+            _choice("block.vertical_damping", self.vertical_damping, ("auto",))
+        else:
+            _set(self, "vertical_damping",
+                 _nonneg("block.vertical_damping", self.vertical_damping, "N s/m"))
         _set(self, "tangential_damping",
              _nonneg("block.tangential_damping", self.tangential_damping, "N s/m"))
+        _set(self, "vertical_damping_ratio",
+             _range("block.vertical_damping_ratio", self.vertical_damping_ratio, 0.0, 1.0, "",
+                    hi_open=True))
 
 
 @dataclass(frozen=True)
@@ -294,15 +309,21 @@ class Contact:
 
     Attributes
     ----------
-    points : int
-        Number of contact springs N_c (the N highest profile maxima under the block).
+    points : int or "auto"
+        Number of contact springs N_c (the N highest profile maxima under the block);
+        ``"auto"``: the expected number of micro-contacts of the statistical contact model at
+        the static load m g, rounded, at least 1 (docs/theory.md, "Contact module").
     stiffness : float or "auto"
         Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
         from the surface statistics (Greenwood-Williamson / Greenwood-Tripp,
         roughvib.physics.surface).
+    selection : {"separated", "highest"}
+        Which profile maxima become contact points: ``separated`` (default), the highest
+        maxima at least ``min_separation`` apart; ``highest``, the paper's literal rule, the
+        N highest maxima with no separation constraint.
     min_separation : float
         Minimum distance between two chosen maxima [m] (so two maxima of one asperity are not
-        both taken).
+        both taken); our choice, used by ``selection = "separated"``.
     model : {"gw", "gt"}
         Statistical contact model used when ``stiffness = "auto"``.
     summit_density, summit_radius, summit_std : float or None
@@ -314,7 +335,7 @@ class Contact:
         Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
     """
 
-    points: int = 10
+    points: int | str = 10
     stiffness: float | str = 3.1e6
     min_separation: float = 0.2e-3
     model: str = "gw"
@@ -323,9 +344,13 @@ class Contact:
     summit_std: float | None = None
     hardness: float = 3e9
     velocity_factor: bool = False
+    selection: str = "separated"
 
     def __post_init__(self) -> None:
-        _set(self, "points", _integer("contact.points", self.points, 1, 200))
+        if isinstance(self.points, str):
+            _choice("contact.points", self.points, ("auto",))
+        else:
+            _set(self, "points", _integer("contact.points", self.points, 1, MAX_CONTACTS))
         if isinstance(self.stiffness, str):
             _choice("contact.stiffness", self.stiffness, ("auto",))
         else:
@@ -340,6 +365,8 @@ class Contact:
         _set(self, "summit_std", _opt_positive("contact.summit_std", self.summit_std, "m"))
         _set(self, "hardness", _positive("contact.hardness", self.hardness, "Pa"))
         _set(self, "velocity_factor", _boolean("contact.velocity_factor", self.velocity_factor))
+        _set(self, "selection", _choice("contact.selection", self.selection,
+                                        ("separated", "highest")))
 
 
 @dataclass(frozen=True)
@@ -382,9 +409,15 @@ class Roughness:
     filter : {"highpass", "block-lowpass", "none"}
         Functional filter over the block length (docs/theory.md).
     path : str
-        ``file``: path of a text/CSV profile (relative paths are relative to the scene file).
+        ``file``: path of a profile file (relative paths are relative to the scene file).
     units : {"m", "um", "nm"}
-        ``file``: height unit of the file (and of the x column, if given).
+        ``file``, text format: height unit of the file (and of the x column, if given).
+    format : {"auto", "text", "topography"}
+        ``file``: ``text`` is the plain-text/CSV reader; ``topography`` reads instrument
+        formats (ISO 25178-71 SDF, X3P, Digital Surf .sur, Zygo .datx, ...) through the
+        optional SurfaceTopography package (``pip install roughvib[topography]``); the x axis
+        of the map is the sliding direction and units come from the file. ``auto``: by the
+        file suffix (instrument suffixes -> topography, anything else -> text).
     """
 
     kind: str = "synthetic"
@@ -405,6 +438,7 @@ class Roughness:
     filter: str = "highpass"
     path: str = ""
     units: str = "m"
+    format: str = "auto"
 
     def __post_init__(self) -> None:
         p = "roughness"
@@ -434,6 +468,8 @@ class Roughness:
         if not isinstance(self.path, str):
             raise SceneError(f"{p}.path must be a string (file path), got {_fmt(self.path)}")
         _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))
+        _set(self, "format", _choice(f"{p}.format", self.format,
+                                     ("auto", "text", "topography")))
         if self.shortest_wavelength >= self.longest_wavelength:
             raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
                              f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")

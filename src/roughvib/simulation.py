@@ -192,6 +192,30 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
     return metrics
 
 
+def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
+    """The scene with the contact module's results written in as numbers (count, stiffness
+    with the velocity factor applied, r1), so that the saved scene.toml repeats the run even
+    after the velocity target was replaced by the calibrated force amplitude."""
+    c, b = scene.contact, scene.block
+    if not any(isinstance(v, str) for v in (c.points, c.stiffness, b.vertical_damping)):
+        return scene
+    info = system.contact
+    stat = system.calibration.get("contact_stiffness", {})
+    if isinstance(c.points, str):
+        comments["contact.points"] = (f"contact module: {info['micro_contacts']:.4g} "
+                                      f"micro-contacts ({stat.get('model')})")
+    if isinstance(c.stiffness, str):
+        comments["contact.stiffness"] = (
+            f"contact module ({stat.get('model')}), velocity factor "
+            f"{stat.get('velocity_factor', 1.0):.4g} applied")
+    if isinstance(b.vertical_damping, str):
+        comments["block.vertical_damping"] = (f"{b.vertical_damping_ratio} of critical at the "
+                                              f"contact resonance")
+    scene = replace_section(scene, "contact", points=int(info["points"]),
+                            stiffness=float(info["stiffness_total"]), velocity_factor=False)
+    return replace_section(scene, "block", vertical_damping=float(info["vertical_damping"]))
+
+
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
              checkpoint_dir: str | os.PathLike | None = None,
@@ -255,6 +279,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         if exc.target_rms_velocity is not None:
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+    resolved = _resolve_contact(resolved, system, comments)
     scene_toml = scene_to_toml(resolved, comments=comments)
     _add_regimes(ds, system, events)
     ds.attrs.update(_provenance(resolved, scene_toml))
@@ -273,6 +298,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "model": {"modes": system.n_modes, "contacts": system.n_contacts,
                   "states": system.layout.size,
                   "contact_stiffness_total": float(np.sum(system.stiff)),
+                  "contact": system.contact,
                   "initially_closed_contacts": int(np.sum(raw.y_initial[
                       system.layout.slice("contact.force")] > 0)),
                   "profile": system.profile.stats},

@@ -12,9 +12,9 @@ from roughvib.solvers.fixed_step import modal_propagators
 @pytest.fixture(scope="module", params=[True, False], ids=["cres", "no-cres"])
 def reference(request):
     over = {**SMOOTH, "plate.residual_compliance": request.param}
-    return over, simulate(roughvib.load_scene("paper", {**over, "solver.rtol": 1e-11,
-                                                        "solver.atol": 1e-18,
-                                                        "solver.atol_acceleration": 1e-12}))
+    return over, simulate(roughvib.load_scene("paper-handset", {**over, "solver.rtol": 1e-11,
+                                                                "solver.atol": 1e-18,
+                                                                "solver.atol_acceleration": 1e-12}))
 
 
 @pytest.mark.parametrize("method,order", [("exact-modal", 2), ("newmark", 2), ("paper", 1)])
@@ -27,8 +27,8 @@ def test_fixed_step_converges_at_theoretical_order(reference, method, order):
         a_ref = reference.dataset[var].values
         errs = []
         for h in hs:
-            r = simulate(roughvib.load_scene("paper", {**over, "solver.method": method,
-                                                       "solver.step": h}))
+            r = simulate(roughvib.load_scene("paper-handset", {**over, "solver.method": method,
+                                                               "solver.step": h}))
             assert r.ok
             errs.append(np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref)))
         slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
@@ -59,9 +59,9 @@ def test_fixed_step_paper_scene_agrees_with_ida():
     base = {"output.duration": 0.03, "plate.max_frequency": 5e3, "output.progress": False,
             "output.transient": 0.0, "excitation.force_amplitude": 0.915,
             "excitation.target_rms_velocity": "none"}
-    ida = simulate(roughvib.load_scene("paper", base))
-    fx = simulate(roughvib.load_scene("paper", {**base, "solver.method": "exact-modal",
-                                                "solver.step": 2.5e-6}))
+    ida = simulate(roughvib.load_scene("paper-handset", base))
+    fx = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "exact-modal",
+                                                        "solver.step": 2.5e-6}))
     for key in ("block_tangential_velocity_rms", "block_vertical_acceleration_rms",
                 "plate_vertical_acceleration_rms"):
         assert fx.summary["metrics"][key] == pytest.approx(ida.summary["metrics"][key],
@@ -76,24 +76,25 @@ def test_fixed_step_paper_scene_agrees_with_ida():
 
 def test_fixed_step_rejects_coulomb_and_bad_step():
     with pytest.raises(roughvib.SceneError, match="needs friction.law = 'coulomb'"):
-        simulate(roughvib.load_scene("paper", {"solver.method": "moreau",
-                                               "output.duration": 0.001}))
+        simulate(roughvib.load_scene("paper-handset", {"solver.method": "moreau",
+                                                       "output.duration": 0.001}))
     with pytest.raises(roughvib.SceneError, match="supports friction.law = 'feldmann' only"):
-        simulate(roughvib.load_scene("paper", {"solver.method": "newmark",
-                                               "friction.law": "coulomb",
-                                               "output.duration": 0.001}))
+        simulate(roughvib.load_scene("paper-handset", {"solver.method": "newmark",
+                                                       "friction.law": "coulomb",
+                                                       "output.duration": 0.001}))
     with pytest.raises(roughvib.SceneError, match="solver.step must divide output.step"):
-        simulate(roughvib.load_scene("paper", {"solver.method": "newmark", "solver.step": 3e-6,
-                                               "output.duration": 0.001}))
+        simulate(roughvib.load_scene("paper-handset", {"solver.method": "newmark",
+                                                       "solver.step": 3e-6,
+                                                       "output.duration": 0.001}))
 
 
 def test_paper_scheme_agrees_with_ida_and_has_no_energy_audit():
     base = {"output.duration": 0.02, "plate.max_frequency": 3e3, "output.progress": False,
             "output.transient": 0.0, "excitation.force_amplitude": 0.915,
             "excitation.target_rms_velocity": "none", "plate.residual_compliance": False}
-    ida = simulate(roughvib.load_scene("paper", base))
-    pap = simulate(roughvib.load_scene("paper", {**base, "solver.method": "paper",
-                                                 "solver.step": 2.5e-6}))
+    ida = simulate(roughvib.load_scene("paper-handset", base))
+    pap = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "paper",
+                                                         "solver.step": 2.5e-6}))
     assert pap.ok
     for key in ("block_tangential_velocity_rms", "block_vertical_acceleration_rms"):
         assert pap.summary["metrics"][key] == pytest.approx(ida.summary["metrics"][key],
@@ -110,13 +111,13 @@ def test_moreau_converges_at_first_order_on_non_stop_sliding():
             "excitation.target_rms_velocity": "none", "output.duration": 0.1,
             "output.step": 1e-4, "output.progress": False,
             "friction.switching_hysteresis": 0.0, "friction.dwell_time": 0.0}
-    ref = simulate(roughvib.load_scene("paper", {**base, "solver.rtol": 1e-10}))
+    ref = simulate(roughvib.load_scene("paper-handset", {**base, "solver.rtol": 1e-10}))
     v_ref = ref.dataset["block_tangential_velocity"].values
     hs = [1e-4 / 2**k for k in range(1, 5)]
     errs = []
     for h in hs:
-        r = simulate(roughvib.load_scene("paper", {**base, "solver.method": "moreau",
-                                                   "solver.step": h}))
+        r = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "moreau",
+                                                           "solver.step": h}))
         assert r.ok
         errs.append(np.max(np.abs(r.dataset["block_tangential_velocity"].values - v_ref)))
     slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]

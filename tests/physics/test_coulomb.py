@@ -20,7 +20,7 @@ def _scene(**over):
             "excitation.target_rms_velocity": "none", "output.progress": False,
             "output.transient": 0.0}
     base.update(over)
-    return roughvib.load_scene("paper", base)
+    return roughvib.load_scene("paper-handset", base)
 
 
 def _closed_form_phases(T0, mu_st, mu_sl, r2, t_end):
@@ -230,7 +230,10 @@ def test_feldmann_and_coulomb_agree_on_paper_scenes(name, force):
     Tangential quantities do not need the plate's top-mode accuracy, hence the looser modal
     tolerance (it changes no tangential metric by more than 0.1 %).
     """
+    # a given T0 has no velocity target for the contact module's velocity factor; at
+    # 10 mm/s the factor is 1, so switching it off leaves the scene's contact unchanged
     common = {"excitation.force_amplitude": force, "excitation.target_rms_velocity": "none",
+              "contact.velocity_factor": False,
               "solver.atol_acceleration": 1e-5, "output.progress": False}
     fe = simulate(roughvib.load_scene(name, common)).summary["metrics"]
     rc = simulate(roughvib.load_scene(name, {**common, "friction.law": "coulomb",

@@ -26,7 +26,7 @@ RTOL = 1e-6
 EVENT_DRIVEN = ["ida", "adaptive-modal"]
 
 
-def _run(name="paper", **over):
+def _run(name="paper-handset", **over):
     base = {"output.progress": False, "solver.rtol": RTOL}
     base.update(over)
     return simulate(roughvib.load_scene(name, base))

@@ -18,7 +18,7 @@ G = GRAVITY
 EVENT_DRIVEN = ["ida", "adaptive-modal"]
 
 
-def _run(name="paper", **over):
+def _run(name="paper-handset", **over):
     base = {"output.progress": False}
     base.update(over)
     return simulate(roughvib.load_scene(name, base))

@@ -13,7 +13,7 @@ from roughvib.solvers.ida import _sparsity
 
 
 def _small_scene(**kw):
-    return roughvib.load_scene("paper", {**SMALL_SCENE, **kw})
+    return roughvib.load_scene("paper-handset", {**SMALL_SCENE, **kw})
 
 
 def _fd_jacobian(system, t, y, yp, cj, reg, rf):

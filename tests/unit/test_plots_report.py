@@ -250,7 +250,7 @@ def test_stiffness_guard_and_contact_input_stroke(run):
     loop, k, guard = fd.tangential_stiffness(result, v_guard=1e-5)
     assert guard == 1e-5
     assert np.all(np.isnan(k[np.abs(loop.velocity) < 1e-5]))
-    cs = fd.contact_input_spectra(result, contact=1)
+    cs = fd.contact_input_spectra(result, contact=0)
     x = result.dataset["block_tangential_displacement"].values[fd.analysis_window(result)]
     assert cs.stroke == pytest.approx(np.ptp(x))
     # the contact's spectrum has no bin between 0 and about 2 pi / stroke

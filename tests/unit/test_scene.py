@@ -7,14 +7,24 @@ import pytest
 from roughvib.scene import SceneError, builtin_scenes, load_scene, scene_from_dict, scene_to_toml
 
 
-def test_empty_file_is_the_paper_scene(tmp_path):
+def test_empty_file_is_the_handset_paper_scene_and_paper_adds_the_contact_module(tmp_path):
     f = tmp_path / "empty.toml"
     f.write_text("")
     empty = load_scene(f)
-    paper = load_scene("paper")
+    handset = load_scene("paper-handset")
     for sec in ("block", "plate", "contact", "roughness", "friction", "excitation", "solver",
                 "output"):
-        assert getattr(empty, sec) == getattr(paper, sec)
+        assert getattr(empty, sec) == getattr(handset, sec)
+    # the built-in paper scene differs only in the contact module's keys
+    paper = load_scene("paper")
+    module = {"block.vertical_damping": "auto", "contact.points": "auto",
+              "contact.stiffness": "auto", "contact.velocity_factor": True}
+    assert paper.with_overrides({"name": "paper-handset",
+                                 "description": handset.description}) != handset
+    assert load_scene("paper-handset", module).contact == paper.contact
+    assert load_scene("paper-handset", module).block == paper.block
+    for sec in ("plate", "roughness", "friction", "excitation", "solver", "output"):
+        assert getattr(paper, sec) == getattr(handset, sec)
 
 
 def test_builtin_scenes_listed_with_descriptions():
@@ -30,7 +40,8 @@ def test_paper_defaults_follow_physics_brief():
     s = load_scene("paper")
     assert s.block.mass == 0.221
     assert s.plate.length == 0.30 and s.plate.width == 0.26 and s.plate.thickness == 0.003
-    assert s.contact.points == 10
+    assert s.contact.points == "auto" and s.contact.stiffness == "auto"
+    assert load_scene("paper-handset").contact.points == 10
     assert s.excitation.frequency == 7.0
     assert s.excitation.target_rms_velocity == 0.01
     assert s.output.step == 1e-5

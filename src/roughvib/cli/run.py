@@ -16,6 +16,8 @@ def _fmt_db(x: float | None) -> str:
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
+    from roughvib.analysis.levels import single_draw_note
+
     m = summary.get("metrics", {})
     s = summary.get("solver", {})
     a = summary.get("energy_audit", {})
@@ -42,6 +44,14 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
             f"normal force     mean {m.get('normal_force_mean', float('nan')):.5g} N, "
             f"min {m.get('normal_force_min', float('nan')):.4g} N",
         ]
+        if (note := single_draw_note(summary)) is not None:
+            lines.insert(-1, f"levels           {note}")
+    if (c := summary.get("model", {}).get("contact")):
+        nc = c.get("micro_contacts")
+        lines.append(f"contact          {c['points']} points ({c['points_source']}"
+                     + (f", {nc:.3g} micro-contacts" if nc is not None else "")
+                     + f"), s_total {c['stiffness_total']:.4g} N/m ({c['stiffness_source']}), "
+                     f"r1 {c['vertical_damping']:.4g} N s/m")
     ev = summary.get("events_by_kind", {})
     lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
                                         or "none"))
@@ -70,11 +80,43 @@ def _failure_files(summary: dict, out_dir: Path) -> str:
     return ", ".join(parts)
 
 
+def _run_ensemble(args: argparse.Namespace) -> int:
+    """``roughvib run SCENE --seeds N``: the scene over roughness seeds 1..N as a sweep, then
+    its report with the ensemble's mean and spread."""
+    from roughvib.studies.sweep.ensemble import ensemble_tables, seed_sweep
+    from roughvib.studies.sweep.report import sweep_report
+    from roughvib.studies.sweep.run import run_sweep
+
+    if args.resume:
+        raise InputError("--seeds runs an ensemble of new runs; give no --resume with it")
+    spec = seed_sweep(args.scene or "paper", args.seeds, parse_sets(args.set))
+    out = Path(args.out) if args.out else Path("runs") / spec.name
+    try:
+        run = run_sweep(spec, out, workers=args.workers, progress=not args.no_progress,
+                        log=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    except KeyboardInterrupt:
+        print(f"roughvib: ensemble interrupted; completed draws are kept in {out}/cases, run "
+              f"the same command again to resume", file=sys.stderr)
+        return 130
+    report = sweep_report(run.directory)
+    ens = ensemble_tables(run.directory)
+    if not args.quiet:
+        print(f"{spec.name}: {len(run.table) - run.failed} of {len(run.table)} draws succeeded "
+              f"-> {run.directory}")
+        for _, r in (ens.levels.iterrows() if ens is not None else ()):
+            print(f"  {r['level']:<5} level  mean {r['mean']:6.1f} dB, std {r['std']:4.2f} dB, "
+                  f"range {r['min']:.1f} .. {r['max']:.1f} dB re 1e-6 m/s^2 ({r['n']} draws)")
+        print(f"  report: {report} (and report.html)")
+    return EXIT_OK if run.failed == 0 else EXIT_SOLVER
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
+    if args.seeds is not None:
+        return _run_ensemble(args)
     if args.resume:
         if args.scene is not None or args.set or args.out:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
@@ -149,7 +191,9 @@ def add_parsers(sub) -> None:
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
                "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
-               "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n")
+               "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n"
+               "  roughvib run paper --seeds 10        # ensemble: 10 roughness draws, mean "
+               "and spread\n")
     r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
@@ -166,6 +210,13 @@ def add_parsers(sub) -> None:
                         "alone is always replaced as a whole)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="do not print the summary")
+    r.add_argument("--seeds", type=int, metavar="N",
+                   help="run the ensemble of roughness.seed = 1..N instead of one draw (a "
+                        "sweep: DIR/cases/<case>/ per seed, resumable) and report the mean "
+                        "and spread of the levels and band spectra in DIR/report/ (default "
+                        "DIR: runs/<scene name>-seeds)")
+    r.add_argument("--workers", type=int, metavar="N",
+                   help="with --seeds: worker processes (default: all cores)")
     r.set_defaults(func=cmd_run)
 
     s = sub.add_parser("scenes", formatter_class=fmt, help="list the built-in scenes",

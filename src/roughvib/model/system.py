@@ -21,8 +21,9 @@ from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import calibrate_force_amplitude
 from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
+from roughvib.physics.surface.contact import contact_layout
 from roughvib.physics.surface.interp import build_coefficients
-from roughvib.physics.surface.roughness import Profile, build_profile, select_contacts
+from roughvib.physics.surface.roughness import Profile, build_profile
 from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
 
 # Regime is re-exported from .regimes
@@ -55,6 +56,8 @@ class System:
     prof: np.ndarray
     work: np.ndarray = field(repr=False)
     warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
+    #: how the contact was resolved: points, stiffness, their sources, selection, r1
+    contact: dict = field(default_factory=dict)
 
     # ---- sizes -----------------------------------------------------------------------
     @property
@@ -250,17 +253,6 @@ def _profile_height(system: System, s: float) -> float:
     return profile_eval(system.prof, system.fp[kn.FP_S0], system.fp[kn.FP_DX], s)[0]
 
 
-def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
-    st = scene.contact.stiffness
-    if isinstance(st, str):  # "auto": statistical contact model (docs/theory.md)
-        from roughvib.physics.surface.contact import contact_stiffness
-
-        # a measured profile brings its own moments; synthetic ones use the model PSD
-        cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
-        return float(cs.s_total), cs.as_dict()
-    return float(st), {}
-
-
 #: above this rms slope of the input profile the run is refused: the contact springs act
 #: vertically and friction along the mean surface, which is the small-slope limit; at an rms
 #: slope of 1 a typical flank is at 45 degrees and the model does not describe the contact
@@ -378,19 +370,22 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         :func:`estimate_travel`).
     """
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
-    K = scene.contact.points
     tangential = exc.kind == "force"
 
     profile = build_profile(scene.roughness, blk, Path(scene.base_dir))
     notes = check_profile(scene, profile) + validity_warnings(scene)
-    spos = np.asarray(select_contacts(profile, K, blk.length, scene.contact.min_separation),
-                      dtype=float)
+    # contact points and s_total, as given or from the statistical contact (docs/theory.md);
+    # a measured profile brings its own moments, synthetic ones use the model PSD
+    cl = contact_layout(scene, profile)
+    spos, s_total, K = cl.positions, cl.stiffness_total, cl.n
+    stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
     if travel is not None:
         _check_travel(scene, profile, spos, travel)
     for note in notes:
         warnings.warn(note, ModelValidityWarning, stacklevel=2)
-    s_total, stiff_info = _contact_stiffness_total(scene, profile)
     stiff = np.full(K, s_total / K)
+    r1 = (2.0 * blk.vertical_damping_ratio * math.sqrt(s_total * blk.mass)
+          if isinstance(blk.vertical_damping, str) else float(blk.vertical_damping))
     x0, y0 = plt.block_position
     contact_xy = np.column_stack([x0 + (spos - profile.s_centre), np.full(K, y0)])
 
@@ -445,7 +440,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass
     fp[kn.FP_GRAV] = GRAVITY
-    fp[kn.FP_R1] = blk.vertical_damping
+    fp[kn.FP_R1] = r1
     fp[kn.FP_R2] = blk.tangential_damping
     fp[kn.FP_T0] = T0
     fp[kn.FP_OMEGA] = exc.omega
@@ -471,6 +466,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
         work=np.zeros(5 * K + 8), warnings=notes,
+        contact={**cl.as_dict(), "vertical_damping": r1},
     )
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from roughvib.analysis.levels import single_draw_note
 from roughvib.views.html import esc, figure, figure_data_uri, frame_table, kv_table, num, page
 
 __all__ = ["build_report", "write_report"]
@@ -72,15 +73,22 @@ def _levels_section(summary: dict) -> str:
         ("normal force min", m.get("normal_force_min"), "N"),
         ("closed contacts, mean", m.get("active_contacts_mean"), "-"),
     ]
-    return kv_table(rows)
+    note = single_draw_note(summary)
+    return kv_table(rows) + (f"<p class='note'>{esc(note)}</p>" if note else "")
 
 
 def _model_section(summary: dict) -> str:
     mo = summary.get("model", {})
     prof = mo.get("profile", {})
+    c = mo.get("contact", {})
     rows = [("plate modes", mo.get("modes"), "-"), ("contacts", mo.get("contacts"), "-"),
+            ("contact points from", c.get("points_source"), "-"),
+            ("micro-contacts (statistical model)", c.get("micro_contacts"), "-"),
+            ("contact selection", c.get("selection"), "-"),
             ("states", mo.get("states"), "-"),
             ("total contact stiffness", mo.get("contact_stiffness_total"), "N/m"),
+            ("contact stiffness from", c.get("stiffness_source"), "-"),
+            ("vertical damping r1", c.get("vertical_damping"), "N s/m"),
             ("initially closed contacts", mo.get("initially_closed_contacts"), "-"),
             ("profile rms", prof.get("rms"), "m"),
             ("profile rms slope", prof.get("rms_slope"), "-"),

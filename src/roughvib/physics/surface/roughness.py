@@ -15,8 +15,10 @@ scene section and the uniform-grid height profile z(s) (positive up) the solver 
   PSD :func:`areal_psd`, span-averaged across the block width (docs/theory.md,
   :func:`synthesize_span_averages`); the reduction (about -23 dB over 40 mm) is the physics,
   so the result is not rescaled;
-* ``file``: a measured profile (:func:`read_profile_file`): one column of heights, two columns
-  (x, z) or a matrix of parallel traces, which is span-averaged like the synthetic surface.
+* ``file``: a measured profile (:func:`read_measured`): a text file (:func:`read_profile_file`:
+  one column of heights, two columns (x, z) or a matrix of parallel traces) or an instrument
+  file (SDF, X3P, .sur, .datx, ... through the optional SurfaceTopography package); a matrix
+  of traces or a map is span-averaged like the synthetic surface.
 
 The functional filter over the block length (docs/theory.md, :func:`functional_filter`) is
 ``highpass`` 1 - sinc(kL/2) (reading 2, default), ``block-lowpass`` sinc(kL/2) (reading 1,
@@ -52,6 +54,7 @@ __all__ = [
     "cbrt2_positions",
     "functional_filter",
     "profile_statistics",
+    "read_measured",
     "read_profile_file",
     "select_contacts",
     "span_average",
@@ -800,6 +803,64 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
                            last_line=lines[-1], sha256=hashlib.sha256(raw).hexdigest())
 
 
+def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,
+                  min_length: float | None = None,
+                  min_length_reason: str = "") -> MeasuredProfile:
+    """Read the measured profile of a ``roughness.kind = "file"`` scene, text or instrument.
+
+    Plain text goes to :func:`read_profile_file`; instrument formats (``roughness.format``,
+    or by suffix for ``"auto"``) are read through SurfaceTopography
+    (:func:`roughvib.physics.surface.topography.read_topography_map`): the file's x axis is
+    the sliding direction, its units and pixel sizes are used, and of a map wider than the
+    block only the traces within ``block.width`` about the map's centre line are kept (the
+    block averages only over its own width). A map becomes a trace matrix with its y
+    positions, exactly like a text file with a ``# y:`` line.
+
+    Parameters
+    ----------
+    roughness : Roughness
+        ``path``, ``format``, ``units`` and ``spacing`` (text only).
+    block : Block
+        Width (crop of a map).
+    base_dir, min_length, min_length_reason
+        As for :func:`read_profile_file`.
+
+    Returns
+    -------
+    MeasuredProfile
+        ``layout`` "map" for an instrument map (one trace: "heights"); ``last_line`` 0.
+
+    Raises
+    ------
+    SceneError
+        As the readers; a file too short for ``min_length``.
+    """
+    from roughvib.physics.surface.topography import read_topography_map, uses_topography
+
+    r = roughness
+    if not uses_topography(r.path, r.format):
+        return read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
+                                 min_length=min_length, min_length_reason=min_length_reason)
+    p = Path(r.path) if Path(r.path).is_absolute() else Path(base_dir) / r.path
+    tm = read_topography_map(r.path, base_dir=base_dir)
+    z, y = tm.z, None
+    if z.ndim == 2:
+        y_all = (np.arange(z.shape[1]) - (z.shape[1] - 1) / 2.0) * tm.dy
+        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-9)
+        z, y = z[:, keep], y_all[keep]
+        if z.shape[1] == 1:
+            z, y = z[:, 0], None
+    n = z.shape[0]
+    if min_length is not None and (n - 1) * tm.dx < min_length:
+        why = f" ({min_length_reason})" if min_length_reason else ""
+        raise SceneError(f"roughness.path {p}: too few points along x (the sliding direction) "
+                         f"for the stroke plus the block length: need a length >= "
+                         f"{min_length:.6g} m{why}, got {n} points x {tm.dx:.6g} m = "
+                         f"{(n - 1) * tm.dx:.6g} m")
+    return MeasuredProfile(z=z, dx=float(tm.dx), y=y, layout="map" if z.ndim == 2 else "heights",
+                           path=p, last_line=0)
+
+
 # --------------------------------------------------------------------------------------------
 # build the profile
 # --------------------------------------------------------------------------------------------
@@ -852,8 +913,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     stats: dict = {"kind": r.kind}
     periodic = False
     if r.kind == "file":
-        meas = read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
-                                 min_length=min_len, min_length_reason=reason)
+        meas = read_measured(r, block, base_dir, min_length=min_len, min_length_reason=reason)
         dx = meas.dx
         stats.update(path=str(meas.path), layout=meas.layout, sha256=meas.sha256)
         if meas.z.ndim == 2:

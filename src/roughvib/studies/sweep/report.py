@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from roughvib.studies.sweep.ensemble import ensemble_blocks, ensemble_tables
 from roughvib.studies.sweep.spec import SUCCESS, _replace_file
 from roughvib.studies.sweep.tables import _fit
 from roughvib.views.sweep_report import render_html, render_markdown, study_figure
@@ -133,6 +134,9 @@ def sweep_report(directory: str | os.PathLike) -> Path:
         blocks.append(("p", "No velocity, load or roughness key varies over two or more "
                             "successful cases; nothing to fit."))
     pd.DataFrame(fit_rows).to_csv(rep / "fits.csv", index=False, float_format="%.6g")
+
+    if (ens := ensemble_tables(d)) is not None:
+        blocks += ensemble_blocks(ens, rep)
 
     failed = table[table["status"] != SUCCESS]
     if len(failed):
