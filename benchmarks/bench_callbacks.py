@@ -573,8 +573,8 @@ def main() -> None:
     wall0 = pc()
     _SUN = _Sundials()
 
-    scene = roughvib.load_scene("paper", {"output.progress": False,
-                                          "output.duration": a.duration})
+    scene = roughvib.load_scene("paper-handset", {"output.progress": False,
+                                                  "output.duration": a.duration})
     warm = assemble(scene.with_overrides({"output.duration": 0.002}))
     solve_ida(warm, progress=False)  # numba warm-up (compiles/loads every kernel)
     system = assemble(scene)

@@ -26,8 +26,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--duration", type=float, default=0.02)
     a = p.parse_args()
-    scene = roughvib.load_scene("paper", {"output.duration": a.duration,
-                                          "output.progress": False})
+    scene = roughvib.load_scene("paper-handset", {"output.duration": a.duration,
+                                                  "output.progress": False})
 
     def run(over: dict):
         r = roughvib.simulate(scene.with_overrides(over))

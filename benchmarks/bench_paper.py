@@ -22,7 +22,7 @@ import roughvib
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scene", default="paper")
+    p.add_argument("--scene", default="paper-handset")
     p.add_argument("--duration", type=float, default=0.36)
     p.add_argument("--rtol", type=float, default=1e-6)
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")

@@ -119,7 +119,7 @@ def main() -> None:
     p.add_argument("--budget", type=float, default=120.0, help="wall seconds per run")
     p.add_argument("--error", type=float, default=1e-3, help="matched error level")
     a = p.parse_args()
-    scene = roughvib.load_scene("paper", {**SCENE, "output.duration": a.duration})
+    scene = roughvib.load_scene("paper-handset", {**SCENE, "output.duration": a.duration})
     _ida(scene.with_overrides({"output.duration": 0.001}), 1e-6)  # JIT warm-up
     ref, _, n_ev, _ = _ida(scene, 1e-10)
     assert n_ev == 0, "the reduced scene must stay in contact (no events) for the peers"

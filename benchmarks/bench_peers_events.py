@@ -497,8 +497,8 @@ def main() -> None:
     if unknown:
         p.error(f"unknown methods {unknown}; known: {', '.join(LADDERS)}")
     T0 = time.perf_counter()
-    scene = roughvib.load_scene("paper", {**SCENES[a.scene], "output.duration": a.duration,
-                                          "output.progress": False})
+    scene = roughvib.load_scene("paper-handset", {**SCENES[a.scene], "output.duration": a.duration,
+                                                  "output.progress": False})
     # JIT warm-up of every roughvib path used below
     short = {"output.duration": 2e-4}
     _roughvib(scene, short)

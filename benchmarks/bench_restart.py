@@ -33,7 +33,7 @@ def _run(scene):
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scene", default="paper")
+    p.add_argument("--scene", default="paper-handset")
     p.add_argument("--duration", type=float, default=0.05)
     p.add_argument("--intervals", default="0,1e-3,2e-4,1e-4",
                    help="comma list of forced-restart intervals [s] (0: none)")

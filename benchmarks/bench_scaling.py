@@ -24,7 +24,7 @@ CASE = r"""
 import json, resource, sys, time
 import roughvib
 over = json.loads(sys.argv[1])
-scene = roughvib.load_scene("paper", {**over, "output.progress": False})
+scene = roughvib.load_scene("paper-handset", {**over, "output.progress": False})
 roughvib.simulate(scene.with_overrides({"output.duration": 0.002}))  # JIT warm-up
 t0 = time.perf_counter()
 r = roughvib.simulate(scene)

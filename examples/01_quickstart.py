@@ -1,6 +1,9 @@
-"""Quickstart: run a short paper scene, look at the result, save it.
+"""
+Quickstart: a short run
+=======================
 
-Run with ``python examples/01_quickstart.py [OUT_DIR]``; the test suite runs it too.
+Run a shortened paper scene, look at the result, save it. Run with
+``python examples/01_quickstart.py [OUT_DIR]``; the test suite runs it too.
 """
 
 import sys

@@ -1,12 +1,16 @@
-"""Make the figures of docs/paper-comparison.md from the runs listed there.
+"""Make the figures of docs/paper-comparison.md from the ensembles listed there.
 
-Usage (from the repository root, after the ``roughvib run`` commands of that page)::
+Usage (from the repository root, after ``python docs/figures/paper_ensembles.py run``)::
 
-    python docs/figures/make_figures.py            # reads runs/, writes docs/figures/*.png
+    python docs/figures/make_figures.py            # reads runs/ens/, writes docs/figures/*.png
     python docs/figures/make_figures.py --runs DIR --out DIR
 
-Every figure is drawn by the library's own plot functions (roughvib.views.figures) at 100 dpi. A run
-that is missing is reported and its figures are skipped.
+The single-run figures show the draw with roughness.seed = 1 of each ensemble (the same as
+`roughvib plot runs/ens/ENSEMBLE/cases/<seed=1 case> --figure NAME --out FILE`), drawn by the
+library's own plot functions (roughvib.views.figures) at 100 dpi; the velocity sweep shows
+every seed; the trend figures show the ensembles' band spectra (mean, ±1 std, min/max over
+the seeds, roughvib.views.ensemble). A run that is missing is reported and its figures are
+skipped.
 """
 
 from __future__ import annotations
@@ -15,39 +19,61 @@ import argparse
 import sys
 from pathlib import Path
 
+import pandas as pd
+
 import roughvib
 from roughvib.views import figures as plots
 
-# single-run figures: file -> (run, figure name); the same as
-# `roughvib plot runs/RUN --figure NAME --out docs/figures/FILE`
+# single-run figures: file -> (ensemble, figure name)
 SINGLE = {
-    "velocity-10mms.png": ("paper", "velocity"),
-    "velocity-100mms.png": ("paper-100mms", "velocity"),
-    "friction-velocity-10mms.png": ("paper", "friction-velocity"),
-    "friction-displacement-10mms.png": ("paper", "friction-displacement"),
-    "acceleration-10mms.png": ("paper", "acceleration"),
-    "acceleration-100mms.png": ("paper-100mms", "acceleration"),
+    "velocity-10mms.png": ("paper-10", "velocity"),
+    "velocity-100mms.png": ("paper-100", "velocity"),
+    "friction-velocity-10mms.png": ("paper-10", "friction-velocity"),
+    "friction-displacement-10mms.png": ("paper-10", "friction-displacement"),
+    "acceleration-10mms.png": ("paper-10", "acceleration"),
+    "acceleration-100mms.png": ("paper-100", "acceleration"),
 }
-NOISE_RMS = 1e-3  # simulated accelerometer floor on the block [m/s^2 rms], physics.md §7
+NOISE_RMS = 1e-3  # simulated accelerometer floor on the block [m/s^2 rms], docs/theory.md
+
+
+def _cases(root: Path, ensemble: str) -> list[Path]:
+    """Case directories of an ensemble's successful draws, by seed."""
+    d = root / ensemble
+    try:
+        t = pd.read_csv(d / "sweep.csv")
+    except OSError:
+        return []
+    t = t[t["status"] == "success"].sort_values("roughness.seed")
+    return [d / "cases" / c for c in t["case"]]
 
 
 def main(argv: list[str] | None = None) -> int:
+    from roughvib.studies.sweep.ensemble import ensemble_tables
+    from roughvib.views.ensemble import ensemble_figure
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", default="runs", help="directory holding the runs")
+    ap.add_argument("--runs", default="runs/ens", help="directory holding the ensembles")
     ap.add_argument("--out", default=str(Path(__file__).parent), help="output directory")
     a = ap.parse_args(argv)
     runs, out = Path(a.runs), Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    cache: dict[str, roughvib.Result | None] = {}
+    cache: dict[Path, roughvib.Result | None] = {}
 
-    def get(name: str):
-        if name not in cache:
+    def load(path: Path):
+        if path not in cache:
             try:
-                cache[name] = roughvib.load_result(runs / name)
+                cache[path] = roughvib.load_result(path)
             except (FileNotFoundError, ValueError) as exc:
-                print(f"skip: {name}: {exc}", file=sys.stderr)
-                cache[name] = None
-        return cache[name]
+                print(f"skip: {path}: {exc}", file=sys.stderr)
+                cache[path] = None
+        return cache[path]
+
+    def get(ensemble: str):
+        cases = _cases(runs, ensemble)
+        if not cases:
+            print(f"skip: {ensemble}: no successful draw in {runs / ensemble}", file=sys.stderr)
+            return None
+        return load(cases[0])
 
     def save(fig, fname: str) -> None:
         plots.save_figure(fig, out / fname, dpi=100)
@@ -59,12 +85,12 @@ def main(argv: list[str] | None = None) -> int:
         if r is not None:
             save(plots.FIGURES[fig_name](r), fname)
 
-    for run, tag in (("paper", "10mms"), ("paper-100mms", "100mms")):
+    for run, tag in (("paper-10", "10mms"), ("paper-100", "100mms")):
         r = get(run)
         if r is not None:
             save(plots.plot_spectra(r, noise_rms=NOISE_RMS)[0].figure, f"spectra-{tag}.png")
 
-    pair = [get("paper"), get("paper-100mms")]
+    pair = [get("paper-10"), get("paper-100")]
     if all(pair):
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
         for ax, r, tag in zip(axes, pair, ("(a) 10 mm/s", "(b) 100 mm/s"), strict=True):
@@ -73,24 +99,20 @@ def main(argv: list[str] | None = None) -> int:
                          fontsize=9)
         save(fig, "wavenumber.png")
 
-    sweep = [get(n) for n in ("v10", "v20", "v40", "paper-100mms")]
-    if all(sweep):
+    sweep = [load(c) for e in ("paper-10", "paper-20", "paper-40", "paper-100")
+             for c in _cases(runs, e)]
+    if sweep and all(sweep):
         save(plots.plot_velocity_sweep(sweep).figure, "velocity-sweep.png")
 
-    for tag, names, labels in (
-            ("10mms", ("paper", "paper-heavy", "paper-rough", "paper-rms2"),
-             ("paper", "heavy (0.543 kg, 7.4e6 N/m)", "rough (2x rms, s/2)", "2x rms only")),
-            ("100mms", ("paper-100mms", "paper-heavy-100mms", "paper-rough-100mms",
-                        "paper-100mms-soft"),
-             ("paper-100mms", "heavy", "rough (2x rms, s/2)", "soft contact (0.33 s)"))):
-        rs = [(get(n), lab) for n, lab in zip(names, labels, strict=True)]
-        rs = [(r, lab) for r, lab in rs if r is not None]
-        if len(rs) >= 2:
-            fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-            for ax, q in zip(axes, ("block", "plate"), strict=True):
-                plots.plot_band_comparison([r for r, _ in rs], [lab for _, lab in rs], ax=ax,
-                                           quantity=q)
-            save(fig, f"trends-{tag}.png")
+    for tag, names in (("10mms", ("paper-10", "heavy-10", "rough-10")),
+                       ("100mms", ("paper-100", "heavy-100", "rough-100"))):
+        parts = []
+        for name in names:
+            ens = ensemble_tables(runs / name) if (runs / name / "sweep.csv").exists() else None
+            if ens is not None and len(ens.bands):
+                parts.append(ens.bands.assign(group=name))
+        if len(parts) >= 2:
+            print(ensemble_figure(pd.concat(parts), out / f"trends-{tag}.png"))
     return 0
 
 

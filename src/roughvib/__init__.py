@@ -32,3 +32,8 @@ def __getattr__(name):
 
         return getattr(results, name)
     raise AttributeError(f"module 'roughvib' has no attribute {name!r}")
+
+
+def __dir__():
+    # the lazily imported names are part of the public API: list them too
+    return sorted(set(globals()) | set(__all__))

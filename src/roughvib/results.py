@@ -1,26 +1,28 @@
 """The result contract shared by every solver: time series, event log, summary; netCDF I/O.
 
 A :class:`Result` holds an :class:`xarray.Dataset` on the uniform output grid (every variable
-with a ``units`` attribute; vertical quantities positive downward, physics.md §1.4), the event
+with a ``units`` attribute; vertical quantities positive downward, docs/theory.md), the event
 log as a :class:`pandas.DataFrame`, and a JSON-able summary (solver statistics, calibrated
 T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 
 ``result.nc``  the Dataset (h5netcdf engine)
 ``events.csv`` the event log
-``summary.json`` statistics and metrics
+``summary.json`` statistics and metrics, the run id and the size and SHA-256 of every other file
 ``scene.toml`` the fully resolved scene (repeatable run)
 
-atomically: everything is written into a temporary sibling directory and moved into place
-only when complete, so an interrupted save never leaves a half-written ``result.nc``.
+atomically for the run as a whole: everything is written into a staging directory next to the
+output directory and renamed into place when complete (:mod:`roughvib.rundir` has the rules of
+what a run may touch). ``load_result`` checks each file against the list in ``summary.json``
+and refuses a directory that mixes files of different runs.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
-import shutil
-import tempfile
+import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +31,12 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-__all__ = ["EVENT_COLUMNS", "Result", "VARIABLES", "load_result"]
+from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
+from roughvib.rundir import RunDirectory
+from roughvib.solvers.checkpoint import CHECKPOINT_NAME
+
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
+           "VARIABLES", "check_run_files", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -45,6 +52,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "friction_coefficient": ("1", "friction force / normal force"),
     "contact_force": ("N", "normal force per contact spring"),
     "roughness_input": ("m", "roughness displacement input per contact (positive down)"),
+    "contact_closed": ("1", "contact closed (1) or open, lifted off (0), from the event log"),
+    "stick": ("1", "block in a stick phase (1) or sliding (0), from the event log"),
 }
 
 EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
@@ -70,7 +79,7 @@ def _jsonable(obj: Any) -> Any:
 
 @dataclass
 class Result:
-    """Outcome of :func:`roughvib.simulate`.
+    """Outcome of :func:`roughvib.simulate <roughvib.simulation.simulate>`.
 
     Attributes
     ----------
@@ -107,46 +116,140 @@ class Result:
     def __getitem__(self, name: str) -> xr.DataArray:
         return self.dataset[name]
 
-    def save(self, directory: str | os.PathLike) -> Path:
+    def save(self, directory: str | os.PathLike | RunDirectory, *,
+             overwrite: bool = False) -> Path:
         """Write result.nc, events.csv, summary.json and scene.toml into ``directory``.
 
-        The files are written to a temporary directory next to it and moved into place when
-        complete. A failed run (status != success) writes summary.json, scene.toml, the event
-        log and, if any output rows were filled, ``partial.nc`` (the time series up to the
-        failure; never ``result.nc``, so nothing takes it for a complete run; read it with
-        ``load_result(directory, partial=True)``).
+        The run appears as a whole or not at all: the files are written into a staging
+        directory next to ``directory`` and renamed into place when complete, replacing an
+        earlier roughvib run there as a whole (see :mod:`roughvib.rundir`). A failed run
+        (status != success) writes summary.json, scene.toml, the event log and, if any output
+        rows were filled, ``partial.nc`` (the time series up to the failure; never
+        ``result.nc``, so nothing takes it for a complete run; read it with
+        ``load_result(directory, partial=True)``), and keeps a checkpoint in ``directory``.
+        A checkpoint there refuses the save unless this result's own run wrote it
+        (``simulate(..., checkpoint_dir=directory)`` or ``resume(directory)``).
+
+        Parameters
+        ----------
+        directory : path or RunDirectory
+            The output directory, or one already opened (and locked) by the caller.
+        overwrite : bool
+            Accept a directory holding files roughvib did not write (they are kept).
+
+        Returns
+        -------
+        Path
+            ``directory``.
+
+        Raises
+        ------
+        roughvib.rundir.OutputError
+            The directory cannot be used (a file, not writable, locked by another run, holding
+            an unfinished run's checkpoint or, without ``overwrite``, other files).
         """
-        out = Path(directory)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+        own = not isinstance(directory, RunDirectory)
+        if own:  # the run's own checkpoints in that directory do not refuse it
+            cp_dir = self.extra.get("checkpoint_dir")
+            mine = cp_dir is not None and os.path.realpath(cp_dir) == os.path.realpath(directory)
+            rd = RunDirectory(directory, overwrite=overwrite, resume=mine)
+        else:
+            rd = directory
+        if own:
+            rd.open()
         try:
-            names = ["summary.json", "scene.toml"]
-            (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2))
-            (tmp / "scene.toml").write_text(self.scene_toml)
-            nc = "result.nc" if self.ok else "partial.nc"
-            if self.ok or self.dataset.sizes.get("time", 0) > 0:
-                ds = self.dataset.copy()
-                ds.attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
-                            for k, v in ds.attrs.items()}
-                if not self.ok:
-                    ds.attrs.update(status=self.status,
-                                    message=str(self.summary.get("message", "")))
-                ds.to_netcdf(tmp / nc, engine="h5netcdf")
-                names.append(nc)
-            if self.ok or len(self.events):
-                ev = self.events.copy()
-                ev["contact"] = ev["contact"].astype("Int64")
-                ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
-                names.append("events.csv")
-            out.mkdir(parents=True, exist_ok=True)
-            for stale in ("result.nc", "partial.nc", "events.csv"):
-                if stale not in names and (out / stale).exists():
-                    (out / stale).unlink()
-            for name in names:
-                os.replace(tmp / name, out / name)
+            self.write_files(rd.stage)
+            rd.publish(keep=() if self.ok else (CHECKPOINT_NAME,))
         finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-        return out
+            if own:
+                rd.close()
+        return Path(rd.given)
+
+    def write_files(self, directory: str | os.PathLike) -> list[str]:
+        """Write the run's files into the existing directory ``directory``, ``summary.json``
+        last, and record a new run id and the list of files in :attr:`summary`.
+
+        This is the writing half of :meth:`save`, without its staging and renaming: use it
+        only on a fresh directory that is renamed into place afterwards.
+
+        Returns
+        -------
+        list of str
+            The names written.
+        """
+        tmp = Path(directory)
+        run_id = secrets.token_hex(8)
+        names = ["scene.toml"]
+        (tmp / "scene.toml").write_text(self.scene_toml, encoding="utf-8")
+        nc = "result.nc" if self.ok else "partial.nc"
+        if self.ok or self.dataset.sizes.get("time", 0) > 0:
+            ds = self.dataset.copy()
+            ds.attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
+                        for k, v in ds.attrs.items()}
+            if not self.ok:
+                ds.attrs.update(status=self.status,
+                                message=str(self.summary.get("message", "")))
+            ds.attrs["run_id"] = run_id
+            ds.to_netcdf(tmp / nc, engine="h5netcdf")
+            names.append(nc)
+        if self.ok or len(self.events):
+            ev = self.events.copy()
+            ev["contact"] = ev["contact"].astype("Int64")
+            ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
+            names.append("events.csv")
+        self.summary["run_id"] = run_id
+        self.summary["files"] = {n: _file_info(tmp / n) for n in names}
+        (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2),
+                                          encoding="utf-8")
+        return [*names, "summary.json"]
+
+
+class MixedRunError(ValueError):
+    """A run directory whose files do not all belong to the run of its summary.json."""
+
+
+def _file_info(path: Path) -> dict[str, Any]:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        while chunk := fh.read(1 << 20):
+            h.update(chunk)
+    return {"bytes": path.stat().st_size, "sha256": h.hexdigest()}
+
+
+def check_run_files(directory: str | os.PathLike, summary: dict, *, hashes: bool = True
+                    ) -> None:
+    """Check that every file ``summary["files"]`` lists is there and is the one the run wrote.
+
+    Parameters
+    ----------
+    directory : path
+        The run directory.
+    summary : dict
+        Its summary (a summary written before the list existed passes unchecked).
+    hashes : bool
+        Compare SHA-256 digests too (else sizes only, which is cheap).
+
+    Raises
+    ------
+    MixedRunError
+        One line naming the directory, the file and the run.
+    """
+    files = summary.get("files")
+    if not isinstance(files, dict):
+        return
+    d = Path(directory)
+    run = summary.get("run_id", "?")
+    for name, info in files.items():
+        path = d / name
+        if not path.is_file():
+            raise MixedRunError(f"{d}: {name} of run {run} is missing: the directory is "
+                                f"incomplete (a killed save, or a file removed by hand)")
+        size = path.stat().st_size
+        if size != info.get("bytes") or (hashes and _file_info(path)["sha256"]
+                                         != info.get("sha256")):
+            raise MixedRunError(f"{d}: {name} is not the file run {run} wrote (summary.json "
+                                f"lists another size or SHA-256): the directory mixes files of "
+                                f"different runs, or {name} was changed after saving")
 
 
 def events_frame(records: list) -> pd.DataFrame:
@@ -159,7 +262,7 @@ def events_frame(records: list) -> pd.DataFrame:
 
 
 def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Result:
-    """Read a result directory written by :meth:`Result.save`.
+    """Read a result directory written by :meth:`Result.save <roughvib.results.Result.save>`.
 
     Parameters
     ----------
@@ -172,6 +275,9 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
     ------
     FileNotFoundError, ValueError
         Missing files, or a directory from an incompatible format version.
+    MixedRunError
+        A file listed in ``summary.json`` is missing or is not the one the run wrote (a
+        directory left half-replaced, or edited after saving).
     """
     d = Path(directory)
     summary_path = d / "summary.json"
@@ -182,6 +288,7 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
     if fv != FORMAT_VERSION:
         raise ValueError(f"{d}: result format version {fv} is not supported (this roughvib "
                          f"reads version {FORMAT_VERSION})")
+    check_run_files(d, summary)
     scene_toml = (d / "scene.toml").read_text() if (d / "scene.toml").exists() else ""
     ok = summary.get("status") == "success"
     if not ok and not (partial and (d / "partial.nc").exists()):
@@ -189,6 +296,5 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
     ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
     if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
         return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ev = pd.read_csv(d / "events.csv")
-    ev["contact"] = ev["contact"].astype("Int64")
+    ev = pd.read_csv(d / "events.csv", dtype={"contact": "Int64"})
     return Result(ds, ev, summary, scene_toml)

@@ -1,7 +1,7 @@
 """Scene description: frozen, validated dataclasses in SI units, TOML load/save.
 
 This module owns the *contract* of a scene file. Every value has a default taken from the
-paper scene of ``physics.md`` §7, so an empty TOML file is the paper scene. A bad value raises
+paper scene (docs/theory.md), so an empty TOML file is the paper scene. A bad value raises
 :class:`SceneError` (a ``ValueError``) whose message names the field path, the rule, the unit
 and the value, e.g. ``plate.thickness must be > 0 m, got -0.003``.
 
@@ -24,6 +24,7 @@ __all__ = [
     "Contact",
     "Excitation",
     "Friction",
+    "ModelValidityWarning",
     "Output",
     "Plate",
     "Roughness",
@@ -36,12 +37,23 @@ __all__ = [
     "Solver",
     "builtin_scenes",
     "load_scene",
+    "read_toml_file",
     "scene_to_toml",
+    "validity_warnings",
 ]
 
 
 class SceneError(ValueError):
     """A scene value is invalid; the message is one line naming field, rule, unit and value."""
+
+
+class ModelValidityWarning(UserWarning):
+    """A scene value is legal but outside the range where the model is valid (one line); a run
+    issues it before its expensive work and lists it in ``summary["warnings"]``."""
+
+
+#: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
+MAX_CONTACTS = 200
 
 
 # --------------------------------------------------------------------------------------------
@@ -52,6 +64,9 @@ class SceneError(ValueError):
 def _fmt(value: Any) -> str:
     if isinstance(value, str):
         return repr(value)
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**16:
+        digits = str(abs(value))  # a huge integer (1 followed by 400 zeros): keep the line short
+        return f"{'-' if value < 0 else ''}{digits[0]}.{digits[1:4]}e+{len(digits) - 1}"
     return str(value)
 
 
@@ -62,7 +77,10 @@ def _u(unit: str) -> str:
 def _number(path: str, value: Any, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise SceneError(f"{path} must be a number{_u(unit)}, got {_fmt(value)}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}") from None
     if not math.isfinite(value):
         raise SceneError(f"{path} must be a finite number{_u(unit)}, got {_fmt(value)}")
     return value
@@ -93,14 +111,18 @@ def _range(path: str, value: Any, lo: float, hi: float, unit: str, *, lo_open=Fa
     return v
 
 
+#: the largest integer a scene key takes (int64: kernels and seeds store integers as int64)
+_INT_MAX = 2**63 - 1
+
+
 def _integer(path: str, value: Any, lo: int, hi: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
             raise SceneError(f"{path} must be an integer, got {_fmt(value)}")
-    if value < lo or (hi is not None and value > hi):
-        rule = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+    if value < lo or value > (_INT_MAX if hi is None else hi):
+        rule = f">= {lo} (at most 2**63 - 1)" if hi is None else f"in [{lo}, {hi}]"
         raise SceneError(f"{path} must be an integer {rule}, got {_fmt(value)}")
     return value
 
@@ -132,6 +154,26 @@ def _opt_positive(path: str, value: Any, unit: str) -> float | None:
     return None if value is None else _positive(path, value, unit)
 
 
+#: longest scene name [characters]; it names the output directory runs/<name>, next to which a
+#: run keeps a temporary directory and a lock file with a few more characters
+NAME_MAX = 100
+_NAME_FORBIDDEN = set('/\\:*?"<>|')
+
+
+def _file_name(path: str, value: Any) -> str:
+    """A plain file name: what ``runs/<name>`` may be without leaving ``runs/``."""
+    if not isinstance(value, str):
+        raise SceneError(f"{path} must be a string, got {_fmt(value)}")
+    rule = (f"{path} must be a plain file name (1 to {NAME_MAX} characters, no leading '.', "
+            f"no path separator, none of : * ? \" < > |, no control character)")
+    if len(value) > NAME_MAX:
+        raise SceneError(f"{rule}, got {len(value)} characters ({value[:20]!r}...)")
+    if not value or value.startswith(".") or value != value.strip() or \
+            any(c in _NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127 for c in value):
+        raise SceneError(f"{rule}, got {value!r}")
+    return value
+
+
 # --------------------------------------------------------------------------------------------
 # sections
 # --------------------------------------------------------------------------------------------
@@ -147,26 +189,37 @@ class Block:
         Block mass m [kg]. Paper: 0.221 or 0.543.
     length, width : float
         Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
-    vertical_damping : float
-        Viscous damper r1 on the absolute vertical block velocity [N s/m] (physics.md §1.5(f)).
+    vertical_damping : float or "auto"
+        Viscous damper r1 on the absolute vertical block velocity [N s/m] (docs/theory.md).
+        ``"auto"``: r1 = 2 zeta sqrt(s_total m), the damping ratio ``vertical_damping_ratio``
+        at the rigid-plate contact resonance of the stiffness actually used.
     tangential_damping : float
         Viscous damper r2 on the absolute tangential block velocity [N s/m].
+    vertical_damping_ratio : float
+        zeta of ``vertical_damping = "auto"`` [-].
     """
 
     mass: float = 0.221
     length: float = 0.04
     width: float = 0.04
-    vertical_damping: float = 83.0
+    vertical_damping: float | str = 83.0
     tangential_damping: float = 0.5
+    vertical_damping_ratio: float = 0.05
 
     def __post_init__(self) -> None:
         _set(self, "mass", _positive("block.mass", self.mass, "kg"))
         _set(self, "length", _positive("block.length", self.length, "m"))
         _set(self, "width", _positive("block.width", self.width, "m"))
-        _set(self, "vertical_damping",
-             _nonneg("block.vertical_damping", self.vertical_damping, "N s/m"))
+        if isinstance(self.vertical_damping, str):
+            _choice("block.vertical_damping", self.vertical_damping, ("auto",))
+        else:
+            _set(self, "vertical_damping",
+                 _nonneg("block.vertical_damping", self.vertical_damping, "N s/m"))
         _set(self, "tangential_damping",
              _nonneg("block.tangential_damping", self.tangential_damping, "N s/m"))
+        _set(self, "vertical_damping_ratio",
+             _range("block.vertical_damping_ratio", self.vertical_damping_ratio, 0.0, 1.0, "",
+                    hi_open=True))
 
 
 @dataclass(frozen=True)
@@ -194,7 +247,7 @@ class Plate:
     observation_position : tuple of float
         Plate coordinates of the plate accelerometer [m]; keep it away from the contacts.
     residual_compliance : bool
-        Add the static compliance of the truncated modes at the contacts (physics.md §2.4).
+        Add the static compliance of the truncated modes at the contacts (docs/theory.md).
     """
 
     kind: str = "modal"
@@ -259,15 +312,21 @@ class Contact:
 
     Attributes
     ----------
-    points : int
-        Number of contact springs N_c (the N highest profile maxima under the block).
+    points : int or "auto"
+        Number of contact springs N_c (the N highest profile maxima under the block);
+        ``"auto"``: the expected number of micro-contacts of the statistical contact model at
+        the static load m g, rounded, at least 1 (docs/theory.md, "Contact module").
     stiffness : float or "auto"
         Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
         from the surface statistics (Greenwood-Williamson / Greenwood-Tripp,
         roughvib.physics.surface).
+    selection : {"separated", "highest"}
+        Which profile maxima become contact points: ``separated`` (default), the highest
+        maxima at least ``min_separation`` apart; ``highest``, the paper's literal rule, the
+        N highest maxima with no separation constraint.
     min_separation : float
         Minimum distance between two chosen maxima [m] (so two maxima of one asperity are not
-        both taken).
+        both taken); our choice, used by ``selection = "separated"``.
     model : {"gw", "gt"}
         Statistical contact model used when ``stiffness = "auto"``.
     summit_density, summit_radius, summit_std : float or None
@@ -279,7 +338,7 @@ class Contact:
         Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
     """
 
-    points: int = 10
+    points: int | str = 10
     stiffness: float | str = 3.1e6
     min_separation: float = 0.2e-3
     model: str = "gw"
@@ -288,9 +347,13 @@ class Contact:
     summit_std: float | None = None
     hardness: float = 3e9
     velocity_factor: bool = False
+    selection: str = "separated"
 
     def __post_init__(self) -> None:
-        _set(self, "points", _integer("contact.points", self.points, 1, 200))
+        if isinstance(self.points, str):
+            _choice("contact.points", self.points, ("auto",))
+        else:
+            _set(self, "points", _integer("contact.points", self.points, 1, MAX_CONTACTS))
         if isinstance(self.stiffness, str):
             _choice("contact.stiffness", self.stiffness, ("auto",))
         else:
@@ -305,6 +368,8 @@ class Contact:
         _set(self, "summit_std", _opt_positive("contact.summit_std", self.summit_std, "m"))
         _set(self, "hardness", _positive("contact.hardness", self.hardness, "Pa"))
         _set(self, "velocity_factor", _boolean("contact.velocity_factor", self.velocity_factor))
+        _set(self, "selection", _choice("contact.selection", self.selection,
+                                        ("separated", "highest")))
 
 
 @dataclass(frozen=True)
@@ -340,16 +405,22 @@ class Roughness:
         by span-averaging across the block width (then ``rms`` is not used).
     trace_layout : {"uniform", "cbrt2"}
         ``reduce_3d``: where the averaged traces lie across the width. ``uniform`` (default):
-        a pitch of ``spacing``, the continuous width average of physics.md §5.2 (about
+        a pitch of ``spacing``, the continuous width average of docs/theory.md (about
         -23 dB for the default surface). ``cbrt2``: the paper's separations growing by
         2^(1/3) from one edge, averaged with trapezoidal weights (about -10 dB; the paper
         used that layout for a coherence integral, see docs/theory.md).
     filter : {"highpass", "block-lowpass", "none"}
-        Functional filter over the block length (physics.md §5.3).
+        Functional filter over the block length (docs/theory.md).
     path : str
-        ``file``: path of a text/CSV profile (relative paths are relative to the scene file).
+        ``file``: path of a profile file (relative paths are relative to the scene file).
     units : {"m", "um", "nm"}
-        ``file``: height unit of the file (and of the x column, if given).
+        ``file``, text format: height unit of the file (and of the x column, if given).
+    format : {"auto", "text", "topography"}
+        ``file``: ``text`` is the plain-text/CSV reader; ``topography`` reads instrument
+        formats (ISO 25178-71 SDF, X3P, Digital Surf .sur, Zygo .datx, ...) through the
+        optional SurfaceTopography package (``pip install roughvib[topography]``); the x axis
+        of the map is the sliding direction and units come from the file. ``auto``: by the
+        file suffix (instrument suffixes -> topography, anything else -> text).
     """
 
     kind: str = "synthetic"
@@ -370,6 +441,7 @@ class Roughness:
     filter: str = "highpass"
     path: str = ""
     units: str = "m"
+    format: str = "auto"
 
     def __post_init__(self) -> None:
         p = "roughness"
@@ -399,6 +471,8 @@ class Roughness:
         if not isinstance(self.path, str):
             raise SceneError(f"{p}.path must be a string (file path), got {_fmt(self.path)}")
         _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))
+        _set(self, "format", _choice(f"{p}.format", self.format,
+                                     ("auto", "text", "topography")))
         if self.shortest_wavelength >= self.longest_wavelength:
             raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
                              f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")
@@ -417,10 +491,10 @@ class Friction:
     Attributes
     ----------
     law : {"feldmann", "coulomb"}
-        ``feldmann``: the paper's Eq. 10 with the latched hysteresis of physics.md §1.5(g)
+        ``feldmann``: the paper's Eq. 10 with the latched hysteresis of docs/theory.md
         (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
         Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
-        zero and the friction force is an algebraic unknown (physics.md §3.4 A).
+        zero and the friction force is an algebraic unknown (docs/theory.md).
     mu_slip, mu_stick : float
         Quasi-static kinetic and static coefficients [-].
     a1, a2 : float
@@ -431,17 +505,27 @@ class Friction:
         epsilon_v: the latch flips once the velocity has moved back from its running extremum
         by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
     stick_velocity : float
-        |v| below this counts as stick for phase logging and the stick fraction [m/s].
+        ``|v|`` below this counts as stick for phase logging and the stick fraction [m/s].
     stribeck_velocity : float or None
-        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-|v| / v_s) with
+        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-``|v|`` / v_s) with
         this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
     switching_hysteresis : float
-        ``coulomb``: break-away needs |friction| > mu_stick F_N (1 + this) [-], so normal-force
-        ripple does not chatter the stick/slip boundary. Each time it holds the block in
-        stick is counted.
+        ``coulomb``: break-away needs ``|friction|`` > mu_stick F_N (1 + this) [-]. 0
+        (default): the exact law, break-away when ``|friction|`` reaches mu_stick F_N. A value
+        > 0 is an opt-in guard that changes the law everywhere: each time it holds the block in
+        stick is logged (``hysteresis_hold``) and counted.
     dwell_time : float
-        ``coulomb``: minimum time in stick before break-away is allowed [s]; each time it
-        holds the block is counted.
+        ``coulomb``: minimum time in stick before break-away is allowed [s]. 0 (default): off.
+        Like the hysteresis an opt-in guard; each hold is logged (``dwell_hold``) and counted.
+    chatter_switches : int
+        ``coulomb``: chatter guard. A stick phase that begins when more than this many
+        stick/slip switches lie within the last ``chatter_window`` is held for
+        ``chatter_window`` (logged as ``chatter_guard``, counted as ``guard_chatter``;
+        break-away attempts during the hold as ``dwell_hold``). It acts only on such
+        chatter, never on ordinary stick-slip; 0 turns it off (then the event-storm guard
+        ``solver.max_events`` is the only limit).
+    chatter_window : float
+        ``coulomb``: window of the chatter guard and the length of its hold [s].
     """
 
     law: str = "feldmann"
@@ -453,8 +537,10 @@ class Friction:
     latch_velocity: float = 1e-4
     stick_velocity: float = 5e-4
     stribeck_velocity: float | None = None
-    switching_hysteresis: float = 0.01
-    dwell_time: float = 1e-5
+    switching_hysteresis: float = 0.0
+    dwell_time: float = 0.0
+    chatter_switches: int = 20
+    chatter_window: float = 1e-3
 
     def __post_init__(self) -> None:
         p = "friction"
@@ -464,6 +550,10 @@ class Friction:
         _set(self, "switching_hysteresis",
              _range(f"{p}.switching_hysteresis", self.switching_hysteresis, 0.0, 1.0, ""))
         _set(self, "dwell_time", _nonneg(f"{p}.dwell_time", self.dwell_time, "s"))
+        _set(self, "chatter_switches",
+             _integer(f"{p}.chatter_switches", self.chatter_switches, 0))
+        _set(self, "chatter_window",
+             _positive(f"{p}.chatter_window", self.chatter_window, "s"))
         _set(self, "mu_slip", _nonneg(f"{p}.mu_slip", self.mu_slip, ""))
         _set(self, "mu_stick", _nonneg(f"{p}.mu_stick", self.mu_stick, ""))
         _set(self, "a1", _nonneg(f"{p}.a1", self.a1, "s/m"))
@@ -584,6 +674,8 @@ ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
     "moreau": {"reference": {"step": 1e-6}, "standard": {"step": 1e-5}, "draft": {"step": 2e-5}},
 }
 _TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "atol_acceleration_relative", "step")
+#: the methods that write checkpoints (``output.checkpoint_interval``)
+CHECKPOINTED = ("ida", "adaptive-modal")
 
 
 @dataclass(frozen=True)
@@ -629,7 +721,9 @@ class Solver:
         block and plate, L, and the run uses ``atol_acceleration`` = this x max(L, 1e-6
         m/s^2). Quiet scenes get a tight tolerance, loud ones a loose one, so that the bands
         the accuracy contract checks (within 80 dB of the strongest) are resolved alike.
-        ``None``: from the preset.
+        ``None``: from the preset. The event-driven solvers refuse ``atol`` and
+        ``atol_acceleration`` below the round-off floors of the scene (docs/robustness.md;
+        they grow with the static load m g).
     max_order : int
         Highest BDF order (1..5). Default 2: orders >= 3 are not A-stable and were measured
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
@@ -748,8 +842,9 @@ class Output:
         each checkpoint is ``OUT/checkpoint.pkl`` (replaced atomically); ``roughvib run
         --resume OUT`` continues from it with results identical to an uninterrupted run of
         the same scene. IDA is restarted at every checkpoint (about 20 extra steps), so a run
-        with checkpoints differs from one without them within the solver tolerance.
-        ``solver.method = "ida"`` only.
+        with checkpoints differs from one without them within the solver tolerance;
+        adaptive-modal runs with and without checkpoints are identical.
+        ``solver.method = "ida"`` or ``"adaptive-modal"``.
     """
 
     duration: float = 3.0 / 7.0
@@ -781,6 +876,15 @@ class Scene:
     """A complete, validated simulation scene (SI units throughout).
 
     Build one with :func:`load_scene`; change a copy with :meth:`with_overrides`.
+
+    Attributes
+    ----------
+    name : str
+        Names the run; ``roughvib run`` writes to ``runs/<name>`` unless ``--out`` is given, so
+        it must be a plain file name: 1 to 100 characters, no leading ``.``, no leading or
+        trailing blank, no ``/`` or ``\\``, none of ``: * ? " < > |`` and no control character.
+    description : str
+        One line about the scene.
     """
 
     name: str = "paper"
@@ -796,8 +900,7 @@ class Scene:
     base_dir: str = field(default=".", compare=False)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str):
-            raise SceneError(f"name must be a string, got {_fmt(self.name)}")
+        _file_name("name", self.name)
         if not isinstance(self.description, str):
             raise SceneError(f"description must be a string, got {_fmt(self.description)}")
         bx, by = self.plate.block_position
@@ -806,9 +909,11 @@ class Scene:
                 by + hw >= self.plate.width:
             raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
-        if self.output.checkpoint_interval > 0 and self.solver.method not in ("ida", "auto"):
-            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' (only "
-                             f"IDA runs are checkpointed), got {self.solver.method!r}")
+        if (self.output.checkpoint_interval > 0
+                and self.solver.method not in CHECKPOINTED + ("auto",)):
+            raise SceneError(f"output.checkpoint_interval needs solver.method = 'auto', 'ida' "
+                             f"or 'adaptive-modal' (the event-driven solvers are checkpointed), "
+                             f"got {self.solver.method!r}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:
@@ -830,14 +935,13 @@ class Scene:
 
         ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
         docs/accuracy.md) unless the scene needs what only ``ida`` offers: the set-valued
-        Coulomb law, overdamped plate modes (``plate.loss_factor >= 2``) or checkpoints.
+        Coulomb law or overdamped plate modes (``plate.loss_factor >= 2``).
         """
         s = self.solver
         if s.method != "auto":
             return s.resolved()
         needs_ida = (self.friction.law == "coulomb"
-                     or (self.plate.kind == "modal" and self.plate.loss_factor >= 2.0)
-                     or self.output.checkpoint_interval > 0)
+                     or (self.plate.kind == "modal" and self.plate.loss_factor >= 2.0))
         return s.resolved("ida" if needs_ida else "adaptive-modal")
 
     @property
@@ -982,15 +1086,35 @@ def builtin_scenes() -> dict[str, str]:
     return out
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
+def read_toml_file(path: Path, what: str = "scene file") -> dict[str, Any]:
+    """Read a TOML file as UTF-8 (a leading byte-order mark is accepted and dropped).
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        What the file is, for the message (``"scene file"``, ``"sweep file"``).
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, bytes that are not UTF-8 (the line and the byte are named), or
+        invalid TOML; one line.
+    """
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
-        raise SceneError(f"scene file {path} cannot be read: {exc.strerror}") from None
+        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{what} {path} must be UTF-8 text (save it as UTF-8), got byte "
+                         f"0x{raw[exc.start]:02x} on line {line}") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"scene file {path} is not valid TOML: {exc}") from None
+        raise SceneError(f"{what} {path} is not valid TOML: {exc}") from None
 
 
 def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | None = None,
@@ -1035,12 +1159,76 @@ def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | 
         if not path.exists():
             raise SceneError(f"scene {str(source)!r} is neither a built-in scene "
                              f"({', '.join(builtins)}) nor an existing file")
-        data = _read_toml(path)
+        data = read_toml_file(path)
         base = path.resolve().parent
     scene = scene_from_dict(data, base_dir=base)
     if overrides or kw:
         scene = scene.with_overrides(overrides, **kw)
     return scene
+
+
+#: a plate thicker than this fraction of its smaller side is no thin (Kirchhoff) plate
+THIN_PLATE_RATIO = 0.1
+#: thin-plate theory holds for bending wavelengths longer than this many plate thicknesses
+BENDING_WAVELENGTH_THICKNESSES = 6.0
+
+
+def validity_warnings(scene: Scene) -> list[str]:
+    """Legal scene values outside the model's validity, as one-line messages.
+
+    * a plate thicker than 1/10 of its smaller side: Kirchhoff (thin-plate) theory does not
+      hold;
+    * plate modes whose bending wavelength is shorter than 6 plate thicknesses: thin-plate
+      theory, which neglects shear and rotary inertia, overestimates their frequencies;
+    * ``output.transient`` not shorter than ``output.duration``: the metrics include the
+      run-in;
+    * an analysis window (after the run-in) shorter than one excitation period: the rms
+      values are no cycle averages, and a calibrated target velocity is missed.
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    list of str
+        Empty when nothing applies.
+    """
+    out = []
+    plt = scene.plate
+    side = min(plt.length, plt.width)
+    if plt.kind == "modal":
+        if plt.thickness > THIN_PLATE_RATIO * side:
+            out.append(f"plate.thickness {plt.thickness} m is more than {THIN_PLATE_RATIO:g} x "
+                       f"the plate's smaller side ({side} m): Kirchhoff (thin-plate) theory "
+                       f"does not hold, so the plate modes are not those of this plate")
+        else:
+            # bending wavenumber k = 2 pi / (6 h) at omega = k^2 sqrt(B / m'')
+            k = 2 * math.pi / (BENDING_WAVELENGTH_THICKNESSES * plt.thickness)
+            f6 = k**2 * math.sqrt(plt.bending_stiffness / plt.mass_per_area) / (2 * math.pi)
+            if f6 < plt.max_frequency:
+                out.append(f"plate modes above {f6:.4g} Hz have bending wavelengths shorter than "
+                           f"{BENDING_WAVELENGTH_THICKNESSES:g} x plate.thickness "
+                           f"({plt.thickness} m): thin-plate theory overestimates their "
+                           f"frequencies (no shear, no rotary inertia); lower "
+                           f"plate.max_frequency to {f6:.4g} Hz or read those bands with care, "
+                           f"got {plt.max_frequency} Hz")
+    out_ = scene.output
+    exc = scene.excitation
+    window = out_.duration - out_.transient
+    if window <= 0:
+        out.append(f"output.transient ({out_.transient:.6g} s) is not shorter than "
+                   f"output.duration ({out_.duration:.6g} s): the metrics are taken over the "
+                   f"whole record, run-in included")
+        window = out_.duration
+    periodic = exc.frequency > 0 and (exc.kind == "force" or exc.amplitude > 0)
+    if periodic and window < scene.period:
+        target = (" and miss excitation.target_rms_velocity, which is calibrated for whole "
+                  "cycles") if exc.kind == "force" and exc.target_rms_velocity else ""
+        out.append(f"the analysis window ({window:.6g} s) is shorter than one excitation period "
+                   f"({scene.period:.6g} s): the rms values and levels average over part of a "
+                   f"cycle{target}; make output.duration - output.transient at least one period")
+    return out
 
 
 def replace_section(scene: Scene, section: str, **changes: Any) -> Scene:

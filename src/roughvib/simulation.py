@@ -14,6 +14,7 @@ import time
 import tomllib
 from dataclasses import replace
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -21,7 +22,7 @@ import xarray as xr
 from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
-from roughvib.model.system import System, assemble
+from roughvib.model.system import System, assemble, estimate_travel
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
 from roughvib.scene import (
     FIXED_STEP_METHODS,
@@ -32,7 +33,7 @@ from roughvib.scene import (
     scene_from_dict,
     scene_to_toml,
 )
-from roughvib.solvers.checkpoint import Checkpoint, read_checkpoint
+from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
 from roughvib.solvers.ida import RawSolution, solve_ida
 
 __all__ = ["checkpoint_scene", "energy_audit", "resume", "simulate", "verification_scene",
@@ -50,7 +51,7 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
     Returns
     -------
     dict
-        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of |terms|).
+        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of ``|terms|``).
     """
     terms = {n: float(raw.y_final[system.layout.index(f"energy.{n}")]) for n in ENERGY_TERMS}
     e0 = system.stored_energy(raw.y_initial)
@@ -69,25 +70,6 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
         if np.isfinite(residual) else float("nan"),
         "t_end": raw.t_final,
     }
-
-
-def _estimate_travel(scene: Scene) -> float:
-    exc = scene.excitation
-    if exc.kind == "prescribed":
-        return abs(exc.velocity) * scene.output.duration + exc.amplitude
-    if exc.target_rms_velocity is not None and exc.frequency > 0:
-        return 2.0 * math.sqrt(2.0) * exc.target_rms_velocity / exc.omega * 1.5
-    return 0.0
-
-
-def _check_travel(system: System, travel: float) -> None:
-    prof = system.profile
-    lo = prof.s0
-    hi = prof.s0 + (prof.z.size - 1) * prof.dx
-    if system.contact_s.min() - travel < lo or system.contact_s.max() + travel > hi:
-        raise SceneError(
-            f"roughness.trace_length must cover the contacts' travel of about ±{travel:.3g} m "
-            f"beyond the block window, got {system.scene.roughness.trace_length} m")
 
 
 def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
@@ -131,6 +113,56 @@ def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
     return ds
 
 
+def _add_regimes(ds: xr.Dataset, system: System, events) -> None:
+    """``contact_closed(time, contact)`` and ``stick(time)`` from the event log, on the grid."""
+    from roughvib.analysis.events import regime_series
+    from roughvib.model.regimes import initial_regime
+
+    _, closed0 = system.static_equilibrium()  # the start of every solver
+    start = initial_regime(closed0, system.fp, system.tangential, system.coulomb)
+    closed, stick = regime_series(events, ds["time"].values, closed0,
+                                  start.stick and system.tangential)
+    ds["contact_closed"] = (("time", "contact"), closed)
+    ds["stick"] = ("time", stick)
+    for name, meanings in (("contact_closed", "open closed"), ("stick", "slip stick")):
+        units, long = VARIABLES[name]
+        ds[name].attrs.update(units=units, long_name=long, flag_values=np.array([0, 1], np.int8),
+                              flag_meanings=meanings)
+    if not system.tangential:
+        ds["stick"].attrs["comment"] = "prescribed tangential motion: the block never sticks"
+
+
+def _attr(value):
+    """A scene value as a netCDF attribute (numbers and strings as they are)."""
+    if isinstance(value, bool) or value is None:
+        return str(value).lower() if value is not None else "none"
+    if isinstance(value, int | float | str):
+        return value
+    return repr(value)
+
+
+def _provenance(scene: Scene, scene_toml: str) -> dict:
+    """What a reader of result.nc needs to know how the run was made (dataset attributes)."""
+    import dataclasses
+    from importlib import metadata
+
+    from roughvib._version import __version__
+
+    def version(dist: str) -> str:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return "not installed"
+
+    attrs = {"roughvib_version": __version__,
+             "software": ", ".join(f"{d} {version(d)}" for d in
+                                   ("numpy", "scipy", "numba", "scikit-sundae", "xarray"))}
+    for f in dataclasses.fields(scene.solver):  # every field, also ones added later
+        attrs[f"solver_{f.name}"] = _attr(getattr(scene.solver, f.name))
+    attrs["scene_toml"] = scene_toml
+    return attrs
+
+
 def _metrics(system: System, ds: xr.Dataset) -> dict:
     scene = system.scene
     t = ds["time"].values
@@ -164,6 +196,30 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
     return metrics
 
 
+def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
+    """The scene with the contact module's results written in as numbers (count, stiffness
+    with the velocity factor applied, r1), so that the saved scene.toml repeats the run even
+    after the velocity target was replaced by the calibrated force amplitude."""
+    c, b = scene.contact, scene.block
+    if not any(isinstance(v, str) for v in (c.points, c.stiffness, b.vertical_damping)):
+        return scene
+    info = system.contact
+    stat = system.calibration.get("contact_stiffness", {})
+    if isinstance(c.points, str):
+        comments["contact.points"] = (f"contact module: {info['micro_contacts']:.4g} "
+                                      f"micro-contacts ({stat.get('model')})")
+    if isinstance(c.stiffness, str):
+        comments["contact.stiffness"] = (
+            f"contact module ({stat.get('model')}), velocity factor "
+            f"{stat.get('velocity_factor', 1.0):.4g} applied")
+    if isinstance(b.vertical_damping, str):
+        comments["block.vertical_damping"] = (f"{b.vertical_damping_ratio} of critical at the "
+                                              f"contact resonance")
+    scene = replace_section(scene, "contact", points=int(info["points"]),
+                            stiffness=float(info["stiffness_total"]), velocity_factor=False)
+    return replace_section(scene, "block", vertical_damping=float(info["vertical_damping"]))
+
+
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
              checkpoint_dir: str | os.PathLike | None = None, verify: bool = False,
@@ -173,7 +229,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     Parameters
     ----------
     scene : Scene
-        From :func:`roughvib.load_scene`.
+        From :func:`roughvib.load_scene <roughvib.scene.load_scene>`.
     progress : bool, optional
         Progress bar on stderr (default: ``scene.output.progress``).
     force_amplitude : float, optional
@@ -201,8 +257,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     >>> result.to_dataset()["block_vertical_acceleration"]   # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude)
-    _check_travel(system, _estimate_travel(scene))
+    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
     t_pre = time.perf_counter() - t0
     pilot = None
     if (scene.solver.atol_acceleration is None and _resume_from is None
@@ -224,7 +279,10 @@ def simulate(scene: Scene, *, progress: bool | None = None,
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
     comments.update(_solver_comments(scene.solver, solver))
+    resolved = _resolve_contact(resolved, system, comments)
     scene_toml = scene_to_toml(resolved, comments=comments)
+    _add_regimes(ds, system, events)
+    ds.attrs.update(_provenance(resolved, scene_toml))
 
     by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
     summary = {
@@ -244,12 +302,14 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "model": {"modes": system.n_modes, "contacts": system.n_contacts,
                   "states": system.layout.size,
                   "contact_stiffness_total": float(np.sum(system.stiff)),
+                  "contact": system.contact,
                   "initially_closed_contacts": int(np.sum(raw.y_initial[
                       system.layout.slice("contact.force")] > 0)),
                   "profile": system.profile.stats},
         "events_by_kind": by_kind,
         "metrics": _metrics(system, ds) if raw.status == "success" else {},
         "energy_audit": audit,
+        "warnings": list(system.warnings),
     }
     if raw.status != "success":
         summary["last_events"] = events.tail(20).to_dict(orient="records")
@@ -262,7 +322,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
-    result = Result(ds, events, summary, scene_toml, extra={"system": system})
+    result = Result(ds, events, summary, scene_toml,
+                    extra={"system": system, "checkpoint_dir": checkpoint_dir})
     if verify and result.ok:
         verify_result(result, scene, progress=progress)
     return result
@@ -324,7 +385,8 @@ def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> Raw
     if method == "adaptive-modal":
         from roughvib.solvers.adaptive_modal import solve_adaptive_modal
 
-        return solve_adaptive_modal(system, progress=progress)
+        return solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                                    resume=resume)
     if method == "paper":
         from roughvib.solvers.paper_scheme import solve_paper_scheme
 
@@ -463,8 +525,9 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
     Raises
     ------
     SceneError
-        No checkpoint, a checkpoint of another format version, or one that does not fit the
-        scene it carries.
+        No checkpoint, a checkpoint of another format version, one that does not fit the
+        scene it carries, or an input of the run (a roughness file) that changed since the
+        checkpoint was written.
     """
     cp = read_checkpoint(directory)
     return simulate(_scene_of_checkpoint(cp, directory), progress=progress,
@@ -487,4 +550,6 @@ def _scene_of_checkpoint(cp: Checkpoint, directory) -> Scene:
         data = tomllib.loads(cp.scene_toml)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
-    return scene_from_dict(data, base_dir=cp.base_dir)
+    scene = scene_from_dict(data, base_dir=cp.base_dir)
+    check_inputs(cp, scene, Path(directory) / CHECKPOINT_NAME)
+    return scene

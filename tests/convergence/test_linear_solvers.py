@@ -16,7 +16,7 @@ def _run(linear_solver, rtol, **extra):
             "solver.linear_solver": linear_solver, "solver.rtol": rtol,
             "solver.atol_acceleration": rtol * 1e-2}
     over.update(extra)
-    return roughvib.simulate(roughvib.load_scene("paper", over))
+    return roughvib.simulate(roughvib.load_scene("paper-handset", over))
 
 
 @pytest.mark.parametrize("extra", [{}, {"friction.law": "coulomb", "output.duration": 0.04}])

@@ -1,6 +1,9 @@
-"""``contact.stiffness = "auto"`` end to end: the surface module's stiffness and contact points
-are the ones the solver uses, and the stiffness enters the dynamics (closed-form base-excited
-oscillator)."""
+"""The contact module end to end (``contact.points``, ``contact.stiffness`` and
+``block.vertical_damping`` = "auto", the built-in paper scene): the surface module's count,
+stiffness and contact points are the ones the solver uses and records, and the stiffness enters
+the dynamics (closed-form base-excited oscillator)."""
+
+import json
 
 import numpy as np
 import pytest
@@ -9,16 +12,24 @@ import roughvib
 from roughvib.api import simulate
 from roughvib.physics.surface.contact import contact_stiffness
 from roughvib.physics.surface.roughness import build_profile, profile_statistics, select_contacts
+from roughvib.views.report import write_report
 
 
 def _scene(name="paper", **over):
-    base = {"output.progress": False, "contact.stiffness": "auto"}
+    base = {"output.progress": False}
     base.update(over)
     return roughvib.load_scene(name, base)
 
 
-def test_paper_scene_with_auto_stiffness_uses_the_module_stiffness_and_contact_points():
-    scene = _scene(**{"output.duration": 0.004, "plate.max_frequency": 3000.0})
+@pytest.mark.parametrize("method", ["ida", "adaptive-modal"])
+def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffness(method,
+                                                                                 tmp_path):
+    """The built-in paper scene (points, stiffness and r1 "auto") end to end with both
+    event-driven solvers: the model uses the module's count, points and stiffness, and
+    summary.json and the run report record them."""
+    scene = _scene(**{"output.duration": 0.004, "plate.max_frequency": 3000.0,
+                      "solver.method": method})
+    assert scene.contact.points == "auto" and scene.block.vertical_damping == "auto"
     cs = contact_stiffness(scene)
     # the statistical value differs from the paper's hand-set 3.1e6 N/m, so the test can fail
     assert abs(cs.s_total / 3.1e6 - 1) > 1e-3
@@ -26,18 +37,34 @@ def test_paper_scene_with_auto_stiffness_uses_the_module_stiffness_and_contact_p
     assert r.ok, r.summary["message"]
     model = r.summary["model"]
     assert model["contact_stiffness_total"] == pytest.approx(cs.s_total, rel=1e-12)
+    assert model["contacts"] == cs.points == max(1, round(cs.micro_contacts))
+    assert model["contact"]["points_source"] == "auto"
+    assert model["contact"]["micro_contacts"] == pytest.approx(cs.micro_contacts, rel=1e-12)
+    # r1 "auto": 5 % of critical damping at the rigid-plate contact resonance
+    assert model["contact"]["vertical_damping"] == pytest.approx(
+        2 * 0.05 * np.sqrt(cs.s_total * scene.block.mass), rel=1e-12)
     info = r.summary["calibration"]["contact_stiffness"]
     assert info["model"] == "gw" and info["summit_source"] == "moments"
-    assert info["micro_contacts"] == pytest.approx(cs.micro_contacts, rel=1e-12)
 
     profile = build_profile(scene.roughness, scene.block, scene.base_dir)
-    expect = select_contacts(profile, scene.contact.points, scene.block.length,
+    expect = select_contacts(profile, cs.points, scene.block.length,
                              scene.contact.min_separation)
     np.testing.assert_array_equal(r.dataset["contact_profile_position"].values,
                                   np.asarray(expect, dtype=float))
     # the static contact forces carry the block: sum = m g at the start (rigid-body statics)
     f0 = r.dataset["contact_force"].values[0]
     assert f0.sum() == pytest.approx(scene.block.mass * 9.81, rel=1e-6)
+
+    r.save(tmp_path / "run")
+    saved = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert saved["model"]["contact"]["points"] == cs.points
+    assert saved["model"]["contact"]["stiffness_total"] == pytest.approx(cs.s_total)
+    html = write_report(tmp_path / "run").read_text()
+    assert "contact points from" in html and "micro-contacts (statistical model)" in html
+    assert f"{cs.s_total:.6g}" in html and f"{cs.micro_contacts:.6g}" in html
+    # a synthetic surface is one draw: the report says so and names the ensemble command
+    assert "one draw of a random surface (roughness.seed = 1)" in html
+    assert "roughvib run paper --seeds 10" in html
 
 
 @pytest.mark.parametrize("model", ["gw", "gt"])
@@ -51,6 +78,7 @@ def test_auto_stiffness_sets_the_rigid_plate_response(model):
                       "roughness.wavelength": lam, "excitation.kind": "prescribed",
                       "excitation.velocity": V, "excitation.amplitude": 0.0,
                       "excitation.target_rms_velocity": "none", "output.duration": 0.07,
+                      "contact.velocity_factor": False, "block.vertical_damping": 83.0,
                       "solver.rtol": 1e-8, "solver.atol": 1e-16})
     s = contact_stiffness(scene).s_total
     m, r1 = scene.block.mass, scene.block.vertical_damping
@@ -92,3 +120,35 @@ def test_measured_profile_brings_its_own_moments(tmp_path):
     assert r.ok, r.summary["message"]
     assert r.summary["model"]["contact_stiffness_total"] == pytest.approx(from_file.s_total,
                                                                           rel=1e-12)
+
+
+def test_velocity_factor_lowers_the_measured_contact_resonance_at_100_mms():
+    """The paper's elevation effect: with the contact module the stiffness at 100 mm/s is 0.33
+    of that at 10 mm/s, so the contact resonance measured in a run (the peak of the
+    block/contact-base transmissibility) moves down by sqrt(0.33) = 0.574.
+
+    Rigid plate, one contact, the block pulled at constant speed over a synthetic profile with
+    wavelengths down to 5 um, so that the input reaches 2 kHz already at 10 mm/s (the default
+    50 um band would end at 200 Hz, below the resonance). The block is then a base-excited
+    oscillator with 5 % damping whose transmissibility peaks 0.25 % below
+    sqrt(s/m)/2 pi; the 25 Hz bins of the estimate allow +-25 Hz.
+    """
+    from roughvib.analysis import figures_data as fd
+
+    peaks, expect = {}, {}
+    for v in (0.01, 0.1):
+        scene = _scene(**{"plate.kind": "rigid", "contact.points": 1,
+                          "excitation.kind": "prescribed", "excitation.velocity": v,
+                          "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
+                          "roughness.shortest_wavelength": 5e-6, "roughness.spacing": 1e-6,
+                          "roughness.trace_length": 0.08, "output.duration": 0.3,
+                          "solver.method": "adaptive-modal"})
+        cs = contact_stiffness(scene)
+        r = simulate(scene)
+        assert r.ok, r.summary["message"]
+        assert r.summary["model"]["contact_stiffness_total"] == pytest.approx(cs.s_total)
+        peaks[v] = fd.contact_resonance(r).transmissibility_peak
+        expect[v] = np.sqrt(cs.s_total / scene.block.mass) / (2 * np.pi)
+        assert peaks[v] == pytest.approx(expect[v], abs=25.0)
+    assert expect[0.1] / expect[0.01] == pytest.approx(np.sqrt(0.33), rel=1e-9)
+    assert peaks[0.1] < 0.7 * peaks[0.01]

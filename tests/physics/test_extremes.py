@@ -9,6 +9,7 @@ or against the same run at a tighter tolerance. docs/robustness.md tabulates the
 """
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -17,13 +18,15 @@ import roughvib
 from roughvib.analysis.compare import band_level_errors, max_abs_db
 from roughvib.analysis.spectra import band_powers, third_octave_bands
 from roughvib.api import simulate
+from roughvib.cli import main
 from roughvib.model.system import GRAVITY
+from roughvib.scene import SceneError
 
 RTOL = 1e-6
 EVENT_DRIVEN = ["ida", "adaptive-modal"]
 
 
-def _run(name="paper", **over):
+def _run(name="paper-handset", **over):
     base = {"output.progress": False, "solver.rtol": RTOL}
     base.update(over)
     return simulate(roughvib.load_scene(name, base))
@@ -317,3 +320,109 @@ def test_ida_failure_message_names_the_contact_closest_to_switching():
     k = int(np.argmin(np.abs(forces)))
     assert f"contact {k} is closest to switching" in text
     assert all("solver." in h for h in _IDA_HINTS.values())
+
+
+# ---- tolerances at the edges, and runs that always end (issue 17) ---------------------------
+
+TIGHT = {"solver.rtol": 1e-10, "solver.atol": 1e-16, "solver.atol_acceleration": 1e-12}
+
+
+def _events_agree(a, b, dt):
+    assert list(a.events["kind"]) == list(b.events["kind"])
+    assert np.max(np.abs(a.events["time"].to_numpy() - b.events["time"].to_numpy())) < dt
+
+
+def test_tight_tolerances_through_lift_off_and_touch_down():
+    """rtol 1e-10, atol 1e-16 m, atol_acceleration 1e-12 m/s^2 on the one-contact lift-off
+    scene (lift-off, touch-down, lift-off in 4 ms). Both used to fail: adaptive-modal's Newton
+    demanded updates below the round-off of its equations (step_underflow at the touch-down),
+    IDA restarted the touch-down with zero force rates and failed its error test down to the
+    minimum step. The two solvers, different discretisations, must agree on the event times
+    far below their 1e-5 s output step, and the audit closes like sqrt(rtol) with impacts."""
+    runs = [_bounce(10e-6, **{"solver.method": m, "output.duration": 0.004, **TIGHT})
+            for m in EVENT_DRIVEN]
+    for r in runs:
+        _invariants(r, max_events=10, energy_factor=0.1 / math.sqrt(TIGHT["solver.rtol"]))
+    assert len(runs[0].events) >= 3
+    _events_agree(*runs, 1e-9)
+
+
+def test_tight_tolerances_on_an_elastic_plate():
+    """The same tolerances with plate modes to 2 kHz up to the first lift-off (adaptive-modal
+    stopped there with newton_failure)."""
+    over = {"plate.kind": "modal", "plate.max_frequency": 2000.0, "output.duration": 6e-4,
+            **TIGHT}
+    runs = [_bounce(10e-6, **{"solver.method": m, **over}) for m in EVENT_DRIVEN]
+    for r in runs:
+        _invariants(r, max_events=10, energy_factor=0.1 / math.sqrt(TIGHT["solver.rtol"]))
+    assert list(runs[0].events["kind"]) == ["lift_off"]
+    _events_agree(*runs, 1e-9)
+
+
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_tolerances_below_their_round_off_floor_are_refused_in_one_line(method):
+    """Below the floors of docs/robustness.md a run cannot meet its tolerance (IDA stalled at
+    a tenth of the atol floor): refused before the run, naming field, rule, unit and value.
+    Here the compression's terms reach 1.9e-5 m (the 10 um sinusoid, the static compression),
+    so solver.atol >= 100 eps x 1.9e-5 m = 4.3e-19 m."""
+    over = {"solver.method": method, "plate.kind": "modal", "plate.max_frequency": 2000.0,
+            "output.duration": 2e-4}
+    with pytest.raises(SceneError) as exc:
+        _bounce(10e-6, **over, **{"solver.atol": 1e-20})
+    msg = str(exc.value)
+    assert "\n" not in msg
+    assert re.fullmatch(r"solver\.atol must be >= 4\.3e-19 m for this scene \(.*\), "
+                        r"got 1e-20 m", msg), msg
+    with pytest.raises(SceneError, match=r"^solver\.atol_acceleration must be >= \S+ m/s\^2 "
+                                         r"for this scene \(.*\), got 1e-17 m/s\^2$"):
+        _bounce(10e-6, **over, **{"solver.atol_acceleration": 1e-17})
+    # just above both floors the run goes through
+    _invariants(_bounce(10e-6, **over, **{"solver.atol": 5e-19,
+                                          "solver.atol_acceleration": 1e-15}))
+
+
+@pytest.mark.parametrize("method,mass", [("ida", 1e15), ("ida", 1e12), ("adaptive-modal", 1e9)])
+def test_huge_masses_are_refused_in_one_line(method, mass, tmp_path, capsys):
+    """The runs of issue 17 that never ended (`roughvib run --set block.mass=1e15 --set
+    output.duration=0.005` sat in one IDA step for 150 s; 1e9 kg needed 93,000 Jacobians for
+    5 ms). Cause: each mode balances w^2 q against its modal force phi F / M, which grows with
+    m g, so round-off in that balance (eps m g / M: 4e-6 m/s^2 at 1e9 kg) exceeds the default
+    acceleration tolerance 1e-8 m/s^2 from about 2e6 kg on; the block's position (3e4 m of
+    static compression at 1e9 kg) likewise swamps the displacement tolerance."""
+    code = main(["run", "--out", str(tmp_path / "run"), "--no-progress", "--quiet",
+                 "--set", f"block.mass={mass:g}", "--set", "output.duration=0.005",
+                 "--set", f"solver.method={method}"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err, err
+    assert "solver.atol_acceleration must be >= " in err and f"block.mass = {mass:g} kg" in err
+
+
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_huge_mass_runs_at_tolerances_above_the_floors(method):
+    """1e9 kg with both tolerances above their floors: an ordinary run (20 steps per output
+    interval at most, against up to 20,000 before), and the block, 2e9 times the plate's modal
+    mass, is not moved by the roughness: the normal force stays m g."""
+    r = _run(**{"solver.method": method, "block.mass": 1e9, "solver.atol": 1e-8,
+                "solver.atol_acceleration": 1e-4, "output.duration": 0.002,
+                "plate.max_frequency": 5000.0})
+    ds = _invariants(r)
+    np.testing.assert_allclose(ds["normal_force"].values, 1e9 * GRAVITY, rtol=1e-6)
+    assert r.summary["solver"]["steps"] < 20 * 200
+
+
+@pytest.mark.parametrize("method", EVENT_DRIVEN)
+def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
+    """The stall guard, the backstop for whatever the floors miss: with the floor check
+    bypassed, 1e15 kg at the default tolerances (nine orders below the acceleration floor)
+    stops as `stalled` within its step budget, with a hint, instead of running for ever."""
+    from roughvib.solvers import adaptive_modal, ida
+    from roughvib.solvers.events import step_budget
+
+    monkeypatch.setattr(ida, "check_tolerances", lambda *a: None)
+    monkeypatch.setattr(adaptive_modal, "check_tolerances", lambda *a: None)
+    r = _run(**{"solver.method": method, "block.mass": 1e15, "output.duration": 0.002,
+                "plate.max_frequency": 2000.0})
+    assert r.status == "stalled", r.summary["message"]
+    msg = r.summary["message"]
+    assert "within one output interval" in msg and "Hint:" in msg and "\n" not in msg
+    assert r.summary["solver"]["steps"] <= step_budget(1e-5)

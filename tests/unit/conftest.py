@@ -15,7 +15,7 @@ from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.system import assemble
 assert numba.config.DISABLE_JIT, "NUMBA_DISABLE_JIT was not honoured"
-s = assemble(roughvib.load_scene("paper", {scene!r}))
+s = assemble(roughvib.load_scene("paper-handset", {scene!r}))
 inp = dict(np.load({inputs!r}))
 out = {{}}
 """

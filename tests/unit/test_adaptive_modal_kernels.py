@@ -96,10 +96,10 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
     """The whole solver in plain Python (NUMBA_DISABLE_JIT=1) gives the compiled result."""
     over = {**SMALL_SCENE, "output.duration": 3e-4, "output.progress": False,
             "solver.method": "adaptive-modal"}
-    compiled = simulate(roughvib.load_scene("paper", over))
+    compiled = simulate(roughvib.load_scene("paper-handset", over))
     assert compiled.ok
     plain = run_without_jit(f"""
-        r = roughvib.simulate(roughvib.load_scene("paper", {over!r}))
+        r = roughvib.simulate(roughvib.load_scene("paper-handset", {over!r}))
         assert r.ok, r.summary["message"]
         out["plate"] = r.dataset["plate_vertical_acceleration"].values
         out["block"] = r.dataset["block_vertical_acceleration"].values
@@ -117,15 +117,8 @@ def test_coulomb_law_is_refused_with_a_one_line_error():
     over = {"solver.method": "adaptive-modal", "friction.law": "coulomb",
             "output.duration": 1e-3, "output.progress": False}
     with pytest.raises(SceneError, match="friction.law"):
-        simulate(roughvib.load_scene("paper", over))
+        simulate(roughvib.load_scene("paper-handset", over))
 
-
-
-def test_checkpoint_interval_is_refused_in_one_line():
-    over = {"solver.method": "adaptive-modal", "output.checkpoint_interval": 1e-3}
-    with pytest.raises(SceneError, match=r"checkpoint_interval needs solver.method = 'ida'.*"
-                                         r"got 'adaptive-modal'"):
-        roughvib.load_scene("paper", over)
 
 
 def test_error_norm_is_rms_over_the_modes_and_max_over_the_rest():

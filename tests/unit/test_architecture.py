@@ -11,11 +11,11 @@ SRC = Path(roughvib.__file__).parent
 # stage of each top-level module or folder; a module may import from its own stage and the
 # ones above it (lower numbers)
 STAGES = {
-    "scene": 0, "scenes": 0, "_version": 0,
+    "scene": 0, "scenes": 0, "_version": 0, "_eventlog": 0, "_progress": 0,
     "physics": 1,  # plate, friction, surface/
     "model": 2,
     "solvers": 3,
-    "results": 4,
+    "results": 4, "rundir": 4,  # a run directory: checks, lock, atomic publish
     "analysis": 5,
     "simulation": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
     "views": 7,  # figures, the HTML builder and the reports

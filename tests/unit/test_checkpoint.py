@@ -3,6 +3,7 @@ and an interrupted run never leaves a half-written result."""
 
 import os
 import pickle
+import random
 import signal
 import subprocess
 import sys
@@ -80,6 +81,42 @@ def test_checkpoint_errors_are_one_line(tmp_path, capsys):
         roughvib.load_scene("paper", {"output.checkpoint_interval": 1e-6})
 
 
+def test_resume_refuses_when_the_profile_file_changed(tmp_path, capsys):
+    # the run reads a profile file; editing it afterwards must not pass unnoticed on resume
+    from roughvib.physics.surface.roughness import build_profile
+
+    base = roughvib.load_scene("paper")
+    f = tmp_path / "profile.txt"
+    np.savetxt(f, build_profile(base.roughness, base.block).z)
+    text = f.read_text()
+    scene = roughvib.load_scene("paper", {**FAST, "roughness.kind": "file",
+                                          "roughness.path": str(f), "output.duration": 0.01,
+                                          "output.checkpoint_interval": 0.005})
+    out = tmp_path / "run"
+    a = simulate(scene, checkpoint_dir=out)  # the API leaves the checkpoint in place
+    assert a.ok
+    recorded = read_checkpoint(out).inputs["roughness_file"]
+    assert recorded == {"path": str(f), "sha256": a.summary["model"]["profile"]["sha256"]}
+    lines = text.splitlines()
+    lines[8000] = "1e-7"  # one sample under the block
+    f.write_text("\n".join(lines) + "\n")
+    with pytest.raises(SceneError, match=r"roughness.path .*profile.txt changed since the "
+                                         r"checkpoint was written \(SHA-256 "):
+        resume(out)
+    capsys.readouterr()
+    assert main(["run", "--resume", str(out), "--no-progress", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "changed since the checkpoint" in err
+    f.unlink()
+    with pytest.raises(SceneError, match="cannot be read .*restore it"):
+        resume(out)
+    f.write_text(text)  # restored: the resumed run is the uninterrupted one
+    b = resume(out)
+    _assert_identical(a, b)
+    b.save(out)  # its own checkpoint does not refuse it, and goes with the saved run
+    assert not (out / CHECKPOINT_NAME).exists() and roughvib.load_result(out).ok
+
+
 def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 
@@ -113,15 +150,65 @@ def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, s
     assert ok.returncode == 0, ok.stderr
     assert not (killed / CHECKPOINT_NAME).exists()  # removed once the result is saved
 
-    straight = tmp_path / "straight"
+    _assert_same_as_straight_run(tmp_path / "straight", killed, sets)
+
+
+def _assert_same_as_straight_run(straight, resumed, sets):
+    """Run ``sets`` uninterrupted into ``straight``; its files must equal ``resumed``'s."""
     assert main(["run", "--out", str(straight), *sets]) == 0
     a = xr.load_dataset(straight / "result.nc", engine="h5netcdf")
-    b = xr.load_dataset(killed / "result.nc", engine="h5netcdf")
+    b = xr.load_dataset(resumed / "result.nc", engine="h5netcdf")
     for v in a.data_vars:
         np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
     pd.testing.assert_frame_equal(pd.read_csv(straight / "events.csv"),
-                                  pd.read_csv(killed / "events.csv"))
-    assert (straight / "scene.toml").read_text() == (killed / "scene.toml").read_text()
+                                  pd.read_csv(resumed / "events.csv"))
+    assert (straight / "scene.toml").read_text() == (resumed / "scene.toml").read_text()
+
+
+def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_path):
+    """adaptive-modal's checkpoints store all the state its step loop carries, so the run
+    that writes them, the run resumed from the last one and a run without checkpoints are
+    bit-identical (unlike IDA, which restarts at a checkpoint)."""
+    scene = roughvib.load_scene("paper", {**FAST, "solver.method": "adaptive-modal",
+                                          "output.duration": 0.03,
+                                          "output.checkpoint_interval": 0.01})
+    a = simulate(scene, checkpoint_dir=tmp_path)
+    assert a.ok and a.summary["solver"]["checkpoints"] == 2
+    assert read_checkpoint(tmp_path).k == 2001
+    b = resume(tmp_path)
+    assert b.summary["solver"]["resumes"] == 1
+    _assert_identical(a, b)
+    c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
+    for v in a.dataset.data_vars:
+        np.testing.assert_array_equal(a.dataset[v].values, c.dataset[v].values, err_msg=v)
+    pd.testing.assert_frame_equal(a.events, c.events)
+    assert a.summary["solver"]["steps"] == c.summary["solver"]["steps"]
+
+
+def test_adaptive_modal_run_killed_at_a_random_time_resumes_identically(tmp_path):
+    """SIGKILL (no handler runs, a checkpoint may be half-written) at a random time after the
+    first checkpoint: the resumed run equals an uninterrupted one bit for bit."""
+    sets = ["--set", "solver.method=adaptive-modal", "--set", "output.duration=0.25",
+            "--set", "output.checkpoint_interval=0.005", "--no-progress", "--quiet"]
+    killed = tmp_path / "killed"
+    proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
+                            text=True)
+    _wait_for(killed / CHECKPOINT_NAME, proc)
+    delay = random.uniform(0.0, 1.0)
+    time.sleep(delay)
+    assert proc.poll() is None, f"the run ended within {delay:.2f} s: nothing to kill"
+    proc.kill()
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    assert not (killed / "result.nc").exists()
+    t_cp = read_checkpoint(killed).t
+    assert 0 < t_cp < 0.25, t_cp
+
+    ok = subprocess.run(_cli("--resume", str(killed), "--no-progress", "--quiet"),
+                        capture_output=True, text=True, timeout=600)
+    assert ok.returncode == 0, (delay, ok.stderr)
+    assert not (killed / CHECKPOINT_NAME).exists()
+    _assert_same_as_straight_run(tmp_path / "straight", killed, sets)
 
 
 def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):

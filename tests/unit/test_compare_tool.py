@@ -9,7 +9,8 @@ from roughvib.cli import main
 
 TINY = ["--set", "output.duration=0.01", "--set", "plate.max_frequency=2000",
         "--set", "excitation.force_amplitude=0.915",
-        "--set", "excitation.target_rms_velocity=none", "--set", "output.transient=0"]
+        "--set", "excitation.target_rms_velocity=none", "--set", "output.transient=0",
+        "--set", "contact.velocity_factor=false"]  # no velocity target to scale with
 
 
 def test_compare_writes_csv_table_and_figure(tmp_path, capsys):

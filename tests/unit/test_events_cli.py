@@ -95,3 +95,20 @@ def test_plot_events_figure(coulomb_run, capsys):
     assert axes[1].get_ylabel() == "normal force [N]"
     assert axes[2].get_xlabel() == "time [s]"
     assert main(["plot", str(coulomb_run), "--figure", "nope"]) == 2
+
+
+def test_stick_series_is_the_coulomb_stick_regime(coulomb_run):
+    """result.nc's stick(time): Coulomb stick holds v at exactly zero, so the flag is v == 0
+    (except at t = 0, where the block starts at rest in slip+: |T0| exceeds the static bound),
+    and it follows the regime strings of the log."""
+    ds = load_result(coulomb_run).dataset
+    stick, v = ds["stick"].values, ds["block_tangential_velocity"].values
+    assert ds["stick"].dtype == np.int8 and ds["stick"].attrs["flag_meanings"] == "slip stick"
+    assert np.array_equal(stick[1:] == 1, v[1:] == 0.0)
+    assert 0.2 < stick.mean() < 0.8
+    ev = pd.read_csv(coulomb_run / "events.csv")
+    # the log opens with the initial phase at t = 0, which the series' first sample shows
+    assert ev["time"].iloc[0] == 0.0 and ev["kind"].iloc[0] in ("stick", "slip")
+    assert (stick[0] == 1) == (ev["kind"].iloc[0] == "stick")
+    assert (stick[0] == 1) == ev["regime_after"].iloc[0].endswith(" stick")
+    assert np.array_equal(ds["contact_closed"].values, np.ones((v.size, 3), np.int8))

@@ -24,7 +24,7 @@ CASES = [
 
 
 def _scene(**kw):
-    return roughvib.load_scene("paper", {**SMALL_SCENE, **kw})
+    return roughvib.load_scene("paper-handset", {**SMALL_SCENE, **kw})
 
 
 def _states(system, trial, rng):

@@ -358,7 +358,9 @@ BAD_FILES = {
     "empty": ("# nothing\n\n   \n", r"holds no data lines"),
     "y-header": ("# y: 0 0.01 0.02\n" + "\n".join("1 2" for _ in range(9000)),
                  r"line 1: '# y:' lists 3 trace positions"),
-    "binary": (b"\xff\xfe\x00\x81" * 100, r"cannot be read as text"),
+    "binary": (b"\xff\xfe\x00\x81" * 100, r"line 1: the file must be UTF-8 text"),
+    "latin-1": (b"# heights in \xb5m\n" + _col(9000).encode(),
+                r"line 1: the file must be UTF-8 text .*got byte 0xb5"),
 }
 
 
@@ -372,6 +374,21 @@ def test_bad_files_give_one_line_errors_naming_file_and_line(tmp_path, case):
     msg = str(exc.value)
     assert msg.startswith(f"roughness.path {path}")
     assert "\n" not in msg
+
+
+def test_a_byte_order_mark_is_dropped_and_never_costs_the_first_sample(tmp_path):
+    # Windows editors write UTF-8 files with a BOM; the first number must still be data (it
+    # used to look like a header line and was skipped)
+    heights = [1e-6 * math.sin(0.1 * i) + 2e-6 * (i == 0) for i in range(9000)]
+    text = "\n".join(repr(h) for h in heights)
+    plain = _write(tmp_path, text, "plain.csv")
+    bom = _write(tmp_path, b"\xef\xbb\xbf" + text.encode(), "bom.csv")
+    a = read_profile_file(plain, "m")
+    b = read_profile_file(bom, "m")
+    assert b.z.shape == (9000,) and b.z[0] == heights[0]
+    np.testing.assert_array_equal(a.z, b.z)
+    # the hash is that of the bytes read (the BOM makes it another file)
+    assert a.sha256 != b.sha256 and len(b.sha256) == 64
 
 
 def test_missing_file(tmp_path):

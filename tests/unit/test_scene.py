@@ -7,14 +7,24 @@ import pytest
 from roughvib.scene import SceneError, builtin_scenes, load_scene, scene_from_dict, scene_to_toml
 
 
-def test_empty_file_is_the_paper_scene(tmp_path):
+def test_empty_file_is_the_handset_paper_scene_and_paper_adds_the_contact_module(tmp_path):
     f = tmp_path / "empty.toml"
     f.write_text("")
     empty = load_scene(f)
-    paper = load_scene("paper")
+    handset = load_scene("paper-handset")
     for sec in ("block", "plate", "contact", "roughness", "friction", "excitation", "solver",
                 "output"):
-        assert getattr(empty, sec) == getattr(paper, sec)
+        assert getattr(empty, sec) == getattr(handset, sec)
+    # the built-in paper scene differs only in the contact module's keys
+    paper = load_scene("paper")
+    module = {"block.vertical_damping": "auto", "contact.points": "auto",
+              "contact.stiffness": "auto", "contact.velocity_factor": True}
+    assert paper.with_overrides({"name": "paper-handset",
+                                 "description": handset.description}) != handset
+    assert load_scene("paper-handset", module).contact == paper.contact
+    assert load_scene("paper-handset", module).block == paper.block
+    for sec in ("plate", "roughness", "friction", "excitation", "solver", "output"):
+        assert getattr(paper, sec) == getattr(handset, sec)
 
 
 def test_builtin_scenes_listed_with_descriptions():
@@ -30,7 +40,8 @@ def test_paper_defaults_follow_physics_brief():
     s = load_scene("paper")
     assert s.block.mass == 0.221
     assert s.plate.length == 0.30 and s.plate.width == 0.26 and s.plate.thickness == 0.003
-    assert s.contact.points == 10
+    assert s.contact.points == "auto" and s.contact.stiffness == "auto"
+    assert load_scene("paper-handset").contact.points == 10
     assert s.excitation.frequency == 7.0
     assert s.excitation.target_rms_velocity == 0.01
     assert s.output.step == 1e-5
@@ -87,3 +98,59 @@ def test_unknown_section_and_type_errors():
 def test_unknown_scene_name():
     with pytest.raises(SceneError, match="neither a built-in scene"):
         load_scene("no-such-scene")
+
+
+@pytest.mark.parametrize("name,fragment", [
+    ("/some/abs/path", "got '/some/abs/path'"),
+    ("../../x", "got '../../x'"),
+    ("", "got ''"),
+    (".", "got '.'"),
+    ("..", "got '..'"),
+    ("a\\b", "got 'a\\\\b'"),
+    ("a\nb", "got 'a\\nb'"),
+    ("x" * 300, "got 300 characters"),
+    (" padded", "got ' padded'"),
+    (7, "name must be a string, got 7"),
+])
+def test_scene_name_must_be_a_plain_file_name(name, fragment):
+    # the name decides the output directory runs/<name>: it must not leave runs/ (or be runs/)
+    with pytest.raises(SceneError) as info:
+        load_scene("paper", {"name": name})
+    msg = str(info.value)
+    assert fragment in msg and "\n" not in msg
+    assert msg.startswith("name must be")
+
+
+def test_plain_names_pass():
+    for name in ("paper", "light block, 50 mm per s", "v=0.02,seed=3-7725088a3a",
+                 "x" * 100, "Stahlplatte-ü"):
+        assert load_scene("paper", {"name": name}).name == name
+
+
+def test_scene_files_must_be_utf8_and_may_carry_a_bom(tmp_path):
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbfname = \"bom\"\n[block]\nmass = 0.3\n")
+    s = load_scene(bom)
+    assert s.name == "bom" and s.block.mass == 0.3
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b"name = \"x\"\ndescription = \"caf\xe9\"\n")
+    with pytest.raises(SceneError) as info:
+        load_scene(latin)
+    assert str(info.value) == (f"scene file {latin} must be UTF-8 text (save it as UTF-8), "
+                               f"got byte 0xe9 on line 2")
+
+
+@pytest.mark.parametrize("key", ["block.mass", "plate.thickness", "roughness.seed",
+                                 "solver.max_events", "contact.points"])
+def test_numbers_beyond_float_or_int64_range_are_one_line_errors(key, tmp_path):
+    huge = int("1" + "0" * 400)
+    with pytest.raises(SceneError) as info:
+        load_scene("paper", {key: huge})
+    msg = str(info.value)
+    assert msg.startswith(key) and msg.endswith("got 1.000e+400") and len(msg) < 200
+    # the same number written in a scene file
+    section, field = key.split(".")
+    f = tmp_path / "huge.toml"
+    f.write_text(f"[{section}]\n{field} = 1{'0' * 400}\n")
+    with pytest.raises(SceneError, match=r"got 1\.000e\+400$"):
+        load_scene(f)

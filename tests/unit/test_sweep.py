@@ -8,24 +8,32 @@ One 2-worker LocalCluster (processes, one thread each) is shared by the module; 
 from __future__ import annotations
 
 import argparse
+import base64
 import json
 import os
+import re
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
 import time
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+from browser import inspect_page
 
 import roughvib
 from roughvib.cli.sweep import add_parsers
 from roughvib.scene import SceneError
 from roughvib.studies import sweep as sw
+from roughvib.studies.sweep import run as sw_run
+from roughvib.studies.sweep.spec import old_case_name
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -96,9 +104,10 @@ def test_grid_is_the_product_in_file_order_and_names_are_stable_and_safe(tmp_pat
     assert [c.index for c in cases] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     names = [c.name for c in cases]
     assert len(set(names)) == 4
-    for n in names:
-        assert all(ch.isalnum() or ch in "._=,+-" for ch in n) and not n.startswith(".")
-    assert names[1].startswith("target_rms_velocity=0.01,seed=2-")
+    for n in names:  # nothing a shell needs quoted, not hidden, not an option
+        assert all(ch.isalnum() or ch in "._+-" for ch in n) and n[0] not in ".-"
+        assert shlex.quote(n) == n
+    assert names[1].startswith("target_rms_velocity-0.01__seed-2__")
     # same file again, nested-table spelling, extended grid: existing names unchanged
     nested = SMALL.replace('"excitation.target_rms_velocity" = [0.01, 0.02]',
                            "excitation.target_rms_velocity = [0.01, 0.02, 0.04]")
@@ -135,13 +144,32 @@ def test_grid_and_case_list_combine_and_case_keys_fill_from_the_base(tmp_path):
     ('base = "nope"\n[grid]\n"roughness.seed" = [1]', "base: scene 'nope' is neither"),
     ('base = "paper"', "a sweep file needs a [grid] table or [[case]] entries"),
     ('[grid\n', "is not valid TOML"),
+    (f'[grid]\n"block.mass" = [0.2, 1{"0" * 400}]',
+     "grid.block.mass must be a number within the range of a 64-bit integer or float, got an "
+     "integer of 401 digits"),
+    (f'[[case]]\n"plate.block_position" = [1{"0" * 400}, 0.1]',
+     "case[0].plate.block_position must be a number within the range"),
+    (f'[set]\n"block.mass" = 1{"0" * 400}\n[grid]\n"roughness.seed" = [1]',
+     "set: block.mass must be a finite number kg, got 1.000e+400"),
+    (b'name = "caf\xe9"\n', "sweep file .* must be UTF-8 text (save it as UTF-8), got byte 0xe9"),
 ])
 def test_bad_sweep_files_raise_one_line_scene_errors(tmp_path, text, fragment):
-    path = _write(tmp_path / "bad.toml", text)
+    path = tmp_path / "bad.toml"
+    if isinstance(text, bytes):
+        path.write_bytes(text)
+        fragment = fragment.replace(".*", str(path))
+    else:
+        _write(path, text)
     with pytest.raises(SceneError) as info:
         sw.load_sweep(path)
     assert fragment in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_sweep_file_with_a_byte_order_mark_is_read(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SMALL.encode())
+    assert sw.load_sweep(path).grid == sw.load_sweep(_write(tmp_path / "s.toml", SMALL)).grid
 
 
 def test_builtin_paper_velocity_sweep():
@@ -184,12 +212,66 @@ def test_scheduler_address_is_passed_to_dask_client(monkeypatch, tmp_path):
 
     monkeypatch.setattr(distributed, "Client", FakeClient)
     monkeypatch.setattr(distributed, "LocalCluster", no_local_cluster)
+    monkeypatch.setattr(sw_run, "_probe", lambda address: None)  # no scheduler at head:8786
     spec = _write(tmp_path / "s.toml", SMALL)
     args = _parser().parse_args(["sweep", str(spec), "--out", str(tmp_path / "out"),
                                  "--scheduler", "tcp://head:8786", "--no-progress"])
     with pytest.raises(_Connected):
         args.func(args)
     assert seen == ["tcp://head:8786"]
+
+
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    args = _parser().parse_args(["sweep", str(_write(tmp_path / "s.toml", SMALL)), "--out",
+                                 str(out), "--scheduler", "tcp://127.0.0.1:1", "--no-progress"])
+    with pytest.raises(SceneError) as info:  # main() prints it as one line, exit status 2
+        args.func(args)
+    assert str(info.value).startswith("--scheduler tcp://127.0.0.1:1: cannot connect (")
+    assert "\n" not in str(info.value) and not out.exists()
+    with pytest.raises(SceneError, match="--scheduler must be an address like tcp://host:8786"):
+        sw.run_sweep(tmp_path / "s.toml", out, scheduler="tcp://127.0.0.1:port")
+
+
+def test_a_second_sweep_into_the_same_directory_is_refused(tmp_path):
+    from roughvib.rundir import DirectoryLock, OutputError
+
+    out = tmp_path / "out"
+    out.mkdir()
+    spec = _write(tmp_path / "s.toml", SMALL)
+    with DirectoryLock(out / ".sweep.lock", str(out), "sweep"):  # as a running sweep holds it
+        with pytest.raises(OutputError) as info:
+            sw.run_sweep(spec, out, workers=1, progress=False)
+        msg = str(info.value)
+        assert msg.startswith(f"{out} is in use by another sweep (pid {os.getpid()} on ")
+        assert "\n" not in msg
+        # the first sweep's token (which its workers check) is untouched
+        assert not (out / ".sweep-token").exists() and not (out / "sweep.json").exists()
+
+
+def test_a_task_never_recomputes_a_complete_case_and_cleans_dead_workers_tmp(tmp_path):
+    # Dask re-runs the tasks of a killed worker, finished ones too: the task must check
+    spec = sw.load_sweep(_write(tmp_path / "s.toml", SMALL))
+    case = spec.cases()[0]
+    cases = tmp_path / "out" / "cases"
+    cases.mkdir(parents=True)
+    (cases.parent / ".sweep-token").write_text("t0")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    tag = sw_run._host_tag()
+    stale = cases / f".{case.name}.tmp-{tag}-{dead.pid}-0123456789ab"
+    alive = cases / f".{case.name}.tmp-{tag}-{os.getppid()}-0123456789ab"
+    for d in (stale, alive):
+        d.mkdir()
+        (d / "summary.json").write_text("{}")
+    first = sw_run._run_case(spec.base, case.name, case.values, str(cases), "t0")
+    assert first["status"] == "success"
+    assert not stale.exists() and alive.exists()  # only the dead process's directory goes
+    before = _stamp(cases / case.name)
+    again = sw_run._run_case(spec.base, case.name, case.values, str(cases), "t0")
+    assert again["message"] == "complete on disk, not recomputed"
+    assert again["wall_time"] == first["wall_time"]
+    assert _stamp(cases / case.name) == before
 
 
 def test_local_cluster_has_single_threaded_workers(monkeypatch, tmp_path):
@@ -322,6 +404,74 @@ def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, clien
     pd.testing.assert_frame_equal(resumed, reference)
 
 
+def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path):
+    # a killed worker loses the results it held; Dask would recompute them (4 of 12 cases
+    # ran twice in the report of issue 18): finished cases must stay untouched on disk
+    import threading
+
+    spec = _write(tmp_path / "small.toml", SMALL)
+    out = tmp_path / "out"
+    box: dict = {}
+    thread = threading.Thread(target=lambda: box.update(
+        run=sw.run_sweep(spec, out, client=client, progress=False)))
+    thread.start()
+    deadline = time.monotonic() + 150
+    while not _completed(out / "cases"):
+        assert thread.is_alive() and time.monotonic() < deadline, "no case completed"
+        time.sleep(0.02)
+    done = _completed(out / "cases")
+    stamps = {c: _stamp(out / "cases" / c) for c in done}
+    pid = json.loads((out / "cases" / sorted(done)[0] / "case.json").read_text())["pid"]
+    os.kill(pid, signal.SIGKILL)  # the worker that ran a finished case
+    thread.join(timeout=300)
+    run = box["run"]
+    assert run.failed == 0 and run.ran == 4
+    assert {c: _stamp(out / "cases" / c) for c in done} == stamps
+    assert not [p.name for p in (out / "cases").iterdir() if p.name.startswith(".")]
+
+
+def test_case_directories_of_the_old_names_are_adopted_not_recomputed(small_run, client,
+                                                                      tmp_path):
+    """A sweep run by roughvib 0.1 named its cases ``key=value,...-hash``; resuming renames
+    them to today's names (recorded in case.json) and runs nothing again."""
+    spec_path, run = small_run
+    spec = sw.load_sweep(spec_path)
+    out = tmp_path / "old"
+    (out / "cases").mkdir(parents=True)
+    olds = {}
+    for case in spec.cases():
+        old = old_case_name(spec.base, case.values, spec.varied_keys)
+        assert "=" in old and "," in old and old.endswith(case.name[-10:])
+        shutil.copytree(run.directory / "cases" / case.name, out / "cases" / old)
+        olds[case.name] = old
+    notes = []
+    again = sw.run_sweep(spec_path, out, client=client, progress=False, log=notes.append)
+    assert (again.skipped, again.ran, again.failed) == (4, 0, 0)
+    assert sorted(p.name for p in (out / "cases").iterdir()) == sorted(olds)
+    for new, old in olds.items():
+        info = json.loads((out / "cases" / new / "case.json").read_text())
+        assert info["renamed_from"] == old and info["name"] == new
+    assert any(n.startswith("renamed 4 case directories of an older roughvib") and
+               "nothing recomputed" in n for n in notes)
+    assert list(again.table["case"]) == [c.name for c in spec.cases()]
+    assert (again.table["status"] == "success").all()
+
+
+def test_busy_dashboard_port_is_one_line_not_a_dask_warning(monkeypatch, tmp_path):
+    def busy_port_cluster(**kw):
+        warnings.warn("Port 8787 is already in use.\nPerhaps you already have a cluster "
+                      "running?\nHosting the HTTP server on port 40001 instead", UserWarning,
+                      stacklevel=1)
+        raise _Connected
+
+    monkeypatch.setattr(distributed, "LocalCluster", busy_port_cluster)
+    with warnings.catch_warnings(record=True) as seen, pytest.raises(_Connected):
+        warnings.simplefilter("always")
+        sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out", workers=1,
+                     progress=False)
+    assert not [w for w in seen if "already in use" in str(w.message)]
+
+
 def test_invalid_case_fails_alone_with_its_message(client, tmp_path, capsys):
     text = f"""
 base = "paper"
@@ -388,7 +538,27 @@ def test_report_fits_db_per_doubling_per_seed(small_run, capsys):
         assert f["ci_low"] < f["db_per_doubling"] < f["ci_high"]
         assert f"{f['db_per_doubling']:.2f}" in md.read_text()
     html = (out / "report" / "report.html").read_text()
-    assert 'src="velocity.png"' in html and "dB per doubling" in html
+    assert "dB per doubling" in html and 'src="velocity.png"' not in html
+    # self-contained like the run report: the study figure is embedded, byte for byte
+    uris = re.findall(r'<img src="data:image/png;base64,([^"]+)"', html)
+    assert [base64.b64decode(u, validate=True) for u in uris] == [png.read_bytes()]
+    assert "](velocity.png)" in md.read_text()  # the Markdown keeps its link to the file
+
+
+def test_report_in_headless_chromium(small_run, tmp_path):
+    out = small_run[1].directory
+    page = out / "report" / "report.html"
+    if not page.exists():
+        sw.sweep_report(out)
+    seen = inspect_page(page, tmp_path)
+    assert seen["ready"] == "complete" and seen["title"].startswith("Sweep report")
+    assert len(seen["images"]) == 1
+    img = seen["images"][0]
+    assert img["decoded"] and img["width"] > 0 and img["height"] > 0, img
+    assert img["inked_pixels"] > 100, img  # not a blank picture
+    assert img["shown_width"] > 0 and img["shown_height"] > 0, img
+    assert seen["links"] and all(link["href"].startswith("#") and link["resolves"]
+                                 and link["shown"] for link in seen["links"]), seen["links"]
 
 
 def test_report_of_a_directory_that_is_no_sweep_is_a_one_line_error(tmp_path):

@@ -1,7 +1,7 @@
 """Error metrics between a run and a reference run (work-precision studies).
 
 * :func:`band_levels`, :func:`band_level_errors` — third-octave band levels of two signals and
-  their differences [dB], reduced to the largest |dB| over a frequency range by
+  their differences [dB], reduced to the largest ``|dB|`` over a frequency range by
   :func:`max_abs_db` (a band lost by the tested signal is an infinite error);
 * :func:`relative_rms_error` — rms(x - x_ref) / rms(x_ref) on a common grid;
 * :func:`match_events` — one-to-one matching of events of the same kind and contact by time
@@ -103,7 +103,7 @@ def band_level_errors(x: np.ndarray, x_ref: np.ndarray, fs: float, *, fmin: floa
 
 
 def max_abs_db(centres: np.ndarray, diff_db: np.ndarray, f_lo: float, f_hi: float) -> float:
-    """Largest |dB| over bands with centres in [f_lo, f_hi]; inf if a band there was lost
+    """Largest ``|dB|`` over bands with centres in [f_lo, f_hi]; inf if a band there was lost
     (-inf, see :func:`band_level_errors`); NaN if no band is available."""
     sel = (centres >= f_lo * 0.999) & (centres <= f_hi * 1.001) & ~np.isnan(diff_db)
     return float(np.max(np.abs(diff_db[sel]))) if sel.any() else float("nan")
@@ -122,7 +122,7 @@ def match_events(events: pd.DataFrame, reference: pd.DataFrame, *,
                  ) -> tuple[np.ndarray, int]:
     """Match events one-to-one to the reference by kind, contact and time.
 
-    For each (kind, contact) the pairs are taken greedily in order of increasing |dt|, each
+    For each (kind, contact) the pairs are taken greedily in order of increasing ``|dt|``, each
     event used at most once, and only within ``window`` [s].
 
     Returns

@@ -2,8 +2,10 @@
 
 Works on the event table of a :class:`roughvib.results.Result` (or a saved ``events.csv``):
 stick phases run from a ``stick`` event to the next ``slip`` event, lift-offs of contact k from
-``lift_off`` to the next ``touch_down`` of k. A run that starts inside a phase (the block
-starts in stick; a contact starts open) is recognised from the first event of the pair.
+``lift_off`` to the next ``touch_down`` of k. The solvers log the friction phase a run starts in
+as a ``stick`` or ``slip`` event at its start, so a stick phase from t = 0 has its own start
+event and counts as a phase. A log without that event (a contact that starts open, a log
+written before it was added) is recognised from the first event of the pair.
 """
 
 from __future__ import annotations
@@ -13,9 +15,10 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "stick_intervals"]
+__all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "regime_series",
+           "stick_intervals"]
 
-GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "event_storm")
+GUARD_KINDS = ("hysteresis_hold", "dwell_hold", "chatter_guard", "event_storm")
 
 
 def _intervals(times_kinds: list[tuple[float, str]], start: str, end: str, t0: float,
@@ -24,8 +27,9 @@ def _intervals(times_kinds: list[tuple[float, str]], start: str, end: str, t0: f
     out = []
     t_open = None
     real = True
-    first = next((k for _, k in times_kinds if k in (start, end)), None)
-    if first == end:  # the run started inside the phase
+    first = next(((t, k) for t, k in times_kinds if k in (start, end)), None)
+    if first is not None and first[1] == end and first[0] > t0:
+        # the run started inside the phase (an end event at t0 says it started outside)
         t_open, real = t0, False
     for t, k in times_kinds:
         if k == start and t_open is None:
@@ -79,7 +83,7 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
         ``stick_phases`` (stick events in the cycle), ``mean_stick_duration`` [s] (of those
         phases, whole length), ``lift_offs_k`` (lift-off events of contact k) and
         ``lift_off_time_k`` [s] (time open within the cycle) for each contact k,
-        ``guard_activations`` (hysteresis and dwell holds, storms).
+        ``guard_activations`` (hysteresis and dwell holds, chatter guards, storms).
     """
     if not math.isfinite(period) or period <= 0:
         edges = np.array([0.0, t_end])
@@ -102,7 +106,10 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
         a, b = float(edges[c]), float(edges[c + 1])
         if b <= a:
             continue
-        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b]
+        # the last cycle also counts the events at the end of the run (a failed run stops
+        # at its last event)
+        b_ev = b if c < edges.size - 2 else float(np.nextafter(b, np.inf))
+        started = [(s, e) for s, e, real in sticks_o if real and a <= s < b_ev]
         row = {
             "cycle": c, "start": a, "end": b,
             "stick_fraction": _overlap(sticks, a, b) / (b - a),
@@ -111,8 +118,53 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
             if started else 0.0,
         }
         for k in range(n_contacts):
-            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k] if real and a <= s < b)
+            row[f"lift_offs_{k}"] = sum(1 for s, _, real in lifts_o[k]
+                                        if real and a <= s < b_ev)
             row[f"lift_off_time_{k}"] = _overlap(lifts[k], a, b)
-        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b)))
+        row["guard_activations"] = int(np.sum((guards >= a) & (guards < b_ev)))
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _step_series(times: np.ndarray, values: np.ndarray, initial: int, grid: np.ndarray
+                 ) -> np.ndarray:
+    """A piecewise-constant state on ``grid``: ``initial``, then ``values[i]`` from
+    ``times[i]`` on (an event at a grid time counts from that sample)."""
+    states = np.concatenate([[initial], values]).astype(np.int8)
+    return states[np.searchsorted(times, grid, side="right")]
+
+
+def regime_series(events: pd.DataFrame, time: np.ndarray, closed0: np.ndarray, stick0: bool
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The contacts' open/closed state and the block's stick flag on a time grid.
+
+    Parameters
+    ----------
+    events : DataFrame
+        Event log (columns time, kind, contact).
+    time : ndarray, shape (n,)
+        Output grid [s].
+    closed0 : ndarray of int, shape (K,)
+        1 where contact k is closed at the start of the run.
+    stick0 : bool
+        Whether the block starts in stick.
+
+    Returns
+    -------
+    closed : ndarray of int8, shape (n, K)
+        1 while contact k is closed, 0 while it is lifted off: ``closed0`` switched by the
+        ``lift_off`` and ``touch_down`` events of contact k.
+    stick : ndarray of int8, shape (n,)
+        1 in a stick phase: ``stick0`` switched by the ``stick`` and ``slip`` events.
+    """
+    ev = events.sort_values("time", kind="stable")
+    t = ev["time"].to_numpy(dtype=float)
+    kind = ev["kind"].to_numpy(dtype=object)
+    contact = ev["contact"].to_numpy(dtype=float, na_value=-1.0)
+    grid = np.asarray(time, dtype=float)
+    closed = np.empty((grid.size, len(closed0)), dtype=np.int8)
+    for k, c0 in enumerate(closed0):
+        sel = (contact == k) & ((kind == "lift_off") | (kind == "touch_down"))
+        closed[:, k] = _step_series(t[sel], kind[sel] == "touch_down", int(c0), grid)
+    sel = (kind == "stick") | (kind == "slip")
+    return closed, _step_series(t[sel], kind[sel] == "stick", int(stick0), grid)

@@ -96,7 +96,7 @@ def _fs(result: Result) -> float:
 def analysis_window(result: Result, *, periods: float | None = None) -> slice:
     """Index window of the analysis: whole excitation periods after the run-in.
 
-    The window is the one the run's summary metrics use (:func:`whole_period_window` with
+    The window is the one the run's summary metrics use (:func:`.whole_period_window` with
     ``output.transient``), so spectra and levels of a figure describe the same samples. A run
     shorter than its run-in is analysed from t = 0, as the summary does.
 
@@ -384,8 +384,8 @@ def acceleration_spectra(result: Result, *, resolution: float = 25.0,
         Narrow-band bin spacing [Hz] (25 Hz: 4000-sample segments at the 1e-5 s grid).
     noise_rms : float, optional
         rms [m/s^2] of white Gaussian noise (0 ... fs/2) added to the block acceleration as the
-        electrical floor of the measuring chain the paper simulates in its Fig. 14 (physics.md
-        §7 suggests 1e-3 m/s^2). The clean block spectrum is kept as well.
+        electrical floor of the measuring chain the paper simulates in its Fig. 14 (1e-3 m/s^2 is
+        an estimate of it, docs/theory.md). The clean block spectrum is kept as well.
     noise_seed : int
         Seed of that noise.
     fmin, fmax : float
@@ -440,7 +440,7 @@ def _contact_base_displacement(result: Result, win: slice) -> np.ndarray:
 
 def transmissibility(result: Result, *, resolution: float = 25.0
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Block/plate transfer across the contact springs: |T(f)| = sqrt(S_zz / S_uu).
+    """Block/plate transfer across the contact springs: ``|T(f)|`` = sqrt(S_zz / S_uu).
 
     ``z`` is the block's vertical displacement and ``u`` the displacement of the surface under
     the closed contacts (plate plus roughness, from the contact forces; see the source). For
@@ -459,7 +459,7 @@ def transmissibility(result: Result, *, resolution: float = 25.0
     f : ndarray, shape (n_f,)
         [Hz]
     T : ndarray, shape (n_f,)
-        |T| [-]; NaN where the base has no power.
+        ``|T|`` [-]; NaN where the base has no power.
     """
     win = analysis_window(result)
     fs = _fs(result)
@@ -485,7 +485,7 @@ class ContactResonance:
         Frequency of the maximum of :func:`transmissibility` between 0.3 and 3 times
         ``spring_mass``.
     transmissibility_max : float or None
-        |T| at that peak [-].
+        ``|T|`` at that peak [-].
     block_maximum, plate_maximum : float
         Centre of the loudest third-octave band of block and plate acceleration.
     crossover : float or None

@@ -1,9 +1,9 @@
 """Scalar levels, analysis windows and friction-loop helpers.
 
 This module owns the one-number reductions of a result: rms and dB levels, the velocity
-exponent of levels over a velocity sweep (physics.md §6.1), the stick fraction, the
-whole-period analysis window, and the global tangential stiffness dT/dx of the friction loop
-(paper Fig. 9b).
+exponent of levels over a velocity sweep (docs/theory.md), the stick fraction, the
+whole-period analysis window, the global tangential stiffness dT/dx of the friction loop
+(paper Fig. 9b), and the note that a synthetic-roughness run's levels are one random draw.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 __all__ = ["VelocityExponent", "global_tangential_stiffness", "level_db", "rms",
-           "stick_fraction", "velocity_exponent", "whole_period_window"]
+           "single_draw_note", "stick_fraction", "velocity_exponent", "whole_period_window"]
 
 _DB_PER_DOUBLING_POWER = 10.0 * math.log10(2.0)      # 3.0103 dB per doubling for n = 1, power
 _DB_PER_DOUBLING_AMPLITUDE = 20.0 * math.log10(2.0)  # 6.0206 dB per doubling for n = 1, amplitude
@@ -38,6 +38,31 @@ def rms(x: ArrayLike) -> float:
     if x.size == 0:
         raise ValueError("rms of an empty signal")
     return float(np.sqrt(np.mean(x * x)))
+
+
+def single_draw_note(summary: dict) -> str | None:
+    """The caveat to print next to the levels of a run on synthetic roughness.
+
+    A synthetic profile is one random draw (``roughness.seed``); the levels of other draws
+    differ by more than the solver error. No spread is invented for a single run: the note
+    names the command that measures it.
+
+    Parameters
+    ----------
+    summary : dict
+        A run's ``summary.json``.
+
+    Returns
+    -------
+    str or None
+        One sentence, or None when the roughness is not random (``none``, ``sinusoid``,
+        ``file``).
+    """
+    prof = summary.get("model", {}).get("profile", {})
+    if prof.get("kind") != "synthetic":
+        return None
+    return (f"one draw of a random surface (roughness.seed = {prof.get('seed')}); "
+            f"seed-to-seed spread: roughvib run {summary.get('scene', 'SCENE')} --seeds 10")
 
 
 def level_db(x_rms: float, ref: float = 1e-6) -> float:
@@ -75,7 +100,7 @@ def velocity_exponent(velocities: ArrayLike, levels_db: ArrayLike, *,
     The slope ``s`` [dB per doubling] is the robust number to compare. The exponent follows
     from it and depends on what is said to scale as v**n:
 
-    * ``basis='power'`` (default, the paper's reading, physics.md §6.1): the mean square
+    * ``basis='power'`` (default, the paper's reading, docs/theory.md): the mean square
       ``a**2 ∝ v**n``, ``L = 10 log10 a**2 + c``, so ``n = s / (10 log10 2) = s / 3.01``; the
       paper's "3 to 3.5" is 9 to 10.5 dB per doubling.
     * ``basis='amplitude'``: ``a ∝ v**n``, ``n = s / (20 log10 2) = s / 6.02`` (half the

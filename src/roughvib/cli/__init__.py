@@ -1,16 +1,20 @@
 """Command-line interface: thin argument parsing around the public API (no physics here).
 
 Exit status: 0 success, 1 solver failure (status and message in summary.json and on
-stderr), 2 bad input (one line naming the field, rule, unit and value; no traceback).
+stderr), 2 bad input (one line naming the field, rule, unit and value; no traceback), 141
+when the reader of the output went away (``roughvib events --json | head``), as for a command
+stopped by SIGPIPE.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
+from roughvib._version import __version__
 from roughvib.cli import compare, report, results, run, surface, sweep
-from roughvib.cli.args import EXIT_INPUT, InputError, Terminated, on_sigterm
+from roughvib.cli.args import EXIT_INPUT, EXIT_PIPE, InputError, Terminated, on_sigterm
 
 __all__ = ["build_parser", "main"]
 
@@ -35,7 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib report runs/paper\n"
                "  roughvib sweep paper-velocity --out runs/velocity\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
-               "(Ctrl-C), 143 terminated (SIGTERM)")
+               "(Ctrl-C), 141 output pipe closed, 143 terminated (SIGTERM)")
+    p.add_argument("--version", action="version", version=f"roughvib {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     run.add_parsers(sub)
     results.add_parsers(sub)
@@ -54,8 +59,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_INPUT
     import signal
+    import warnings
 
-    from roughvib.scene import SceneError
+    from roughvib.scene import ModelValidityWarning, SceneError
+
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, ModelValidityWarning):  # one line, like the errors
+            print(f"roughvib: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
 
     previous = signal.getsignal(signal.SIGTERM)
     try:
@@ -63,7 +77,15 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:  # not the main thread (e.g. called from a worker): leave it alone
         previous = None
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = show
+            warnings.simplefilter("always", ModelValidityWarning)
+            status = args.func(args)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return status
+    except BrokenPipeError:
+        _discard_stdout()
+        return EXIT_PIPE
     except (SceneError, InputError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
@@ -74,6 +96,17 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _discard_stdout() -> None:
+    """After a closed pipe: point stdout at /dev/null, so that Python's final flush at exit
+    does not report the same broken pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # stdout without a descriptor (captured)
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,12 +7,13 @@ from __future__ import annotations
 import tomllib
 from typing import Any
 
-__all__ = ["EXIT_INPUT", "EXIT_OK", "EXIT_SOLVER", "InputError", "Terminated", "on_sigterm",
-           "parse_sets", "parse_value"]
+__all__ = ["EXIT_INPUT", "EXIT_OK", "EXIT_PIPE", "EXIT_SOLVER", "InputError", "Terminated",
+           "failed_run_note", "on_sigterm", "parse_sets", "parse_value"]
 
 EXIT_OK = 0
 EXIT_SOLVER = 1
 EXIT_INPUT = 2
+EXIT_PIPE = 141  # 128 + SIGPIPE: the reader of stdout went away (``| head``)
 
 
 class InputError(Exception):
@@ -25,6 +26,15 @@ class Terminated(KeyboardInterrupt):
 
 def on_sigterm(signum, frame):  # pragma: no cover - exercised through a subprocess
     raise Terminated()
+
+
+def failed_run_note(directory, summary: dict) -> str:
+    """The one line on stderr when a command shows a failed run (events, plot, report)."""
+    t_end = (summary.get("partial_result") or {}).get("t_end")
+    at = f" at t = {t_end:.6g} s" if t_end is not None else ""
+    return (f"roughvib: note: {directory} holds a FAILED run ({summary.get('status', '?')}"
+            f"{at}): showing what was recorded up to the failure (partial.nc, events.csv); "
+            f"summary.json has the message")
 
 
 def parse_value(text: str) -> Any:

@@ -7,6 +7,8 @@ import math
 import sys
 from pathlib import Path
 
+from roughvib.cli.args import failed_run_note
+
 __all__ = ["add_parsers", "cmd_report"]
 
 
@@ -16,7 +18,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     Returns
     -------
     int
-        0 on success (also for the report of a failed run, with a note on stderr), 2 if DIR
+        0 on success (also for the report of a failed run, which shows what the run recorded
+        up to the failure under a banner, with a note on stderr), 2 if DIR
         is not a readable result directory or an option is out of range.
     """
     noise = getattr(args, "noise_floor", None)
@@ -35,21 +38,20 @@ def cmd_report(args: argparse.Namespace) -> int:
     except (FileNotFoundError, ValueError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return 2
-    summary_status = _status_of(args.dir)
-    if summary_status != "success":
-        print(f"note: {args.dir} holds a failed run ({summary_status}); the report shows its "
-              f"status, statistics and last events only", file=sys.stderr)
+    summary = _summary_of(args.dir)
+    if summary.get("status") != "success":
+        print(failed_run_note(args.dir, summary), file=sys.stderr)
     print(path)
     return 0
 
 
-def _status_of(result_dir) -> str:
+def _summary_of(result_dir) -> dict:
     import json
 
     try:
-        return json.loads((Path(result_dir) / "summary.json").read_text()).get("status", "?")
+        return json.loads((Path(result_dir) / "summary.json").read_text())
     except (OSError, ValueError):
-        return "?"
+        return {}
 
 
 def add_parsers(subparsers) -> argparse.ArgumentParser:
@@ -73,7 +75,8 @@ def add_parsers(subparsers) -> argparse.ArgumentParser:
                     "statistics, energy audit, the per-cycle event phase table and every "
                     "figure (velocity, friction-velocity, friction-displacement, acceleration, "
                     "spectra, wavenumber, events) as embedded PNGs. The file opens in a browser "
-                    "without a server.",
+                    "without a server. The report of a failed run opens with a banner and shows "
+                    "what the run recorded up to the failure (partial.nc, events.csv).",
         epilog="examples:\n"
                "  roughvib run --out runs/paper && roughvib report runs/paper\n"
                "  roughvib report runs/paper --noise-floor 1e-3   # block accelerometer floor\n"
@@ -83,7 +86,7 @@ def add_parsers(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--noise-floor", type=float, metavar="RMS",
                    help="add white noise of this rms [m/s^2] to the block acceleration in the "
                         "spectra figure (the paper's simulated measuring-chain floor; "
-                        "physics.md suggests 1e-3)")
+                        "1e-3 is an estimate of it)")
     p.add_argument("--dpi", type=int, default=90, help="resolution of the figures (default 90)")
     p.set_defaults(func=cmd_report)
     return p

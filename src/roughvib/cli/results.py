@@ -8,20 +8,29 @@ import sys
 import tomllib
 from pathlib import Path
 
-from roughvib.cli.args import EXIT_OK, InputError
+from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
+from roughvib.cli.args import EXIT_OK, InputError, failed_run_note
 
 __all__ = ["add_parsers", "cmd_events", "cmd_plot"]
 
 
-def _load(dir_: str):
+def _load(dir_: str, what: str):
+    """The run in ``dir_``. A failed run comes with its partial time series and event log and
+    is announced by one line on stderr; without either, ``what`` (the command's output) names
+    what is missing in the one-line error."""
     from roughvib.results import load_result
 
     try:
-        r = load_result(dir_)
+        r = load_result(dir_, partial=True)
     except (FileNotFoundError, ValueError) as exc:
         raise InputError(str(exc)) from None
-    if not r.ok:
-        raise InputError(f"{dir_} holds a failed run ({r.status}): {r.summary.get('message')}")
+    if r.ok:
+        return r
+    if r.dataset.sizes.get("time", 0) == 0 and (what != "events" or not len(r.events)):
+        raise InputError(f"{dir_} holds a failed run ({r.status}) that stopped before its "
+                         f"first output sample: no {what} to show; summary.json has the "
+                         f"message: {r.summary.get('message')}")
+    print(failed_run_note(dir_, r.summary), file=sys.stderr)
     return r
 
 
@@ -38,18 +47,27 @@ def cmd_events(args: argparse.Namespace) -> int:
 
     from roughvib.analysis.events import phase_table
 
-    r = _load(args.dir)
+    unknown = sorted(set(args.kind or ()) - set(EVENT_KINDS))
+    if unknown:
+        raise InputError(f"--kind must be one of {', '.join(EVENT_KINDS)}, got "
+                         f"{', '.join(map(repr, unknown))}")
+    r = _load(args.dir, "events")
     scene = _scene_of(r)
-    t_end = float(r.dataset["time"].values[-1])
+    ds = r.dataset
+    K = int(ds.sizes["contact"]) if "contact" in ds.sizes else \
+        int(r.summary.get("model", {}).get("contacts", 0))
+    # a failed run may have logged events after its last output sample
+    ends = [float(ds["time"].values[-1])] if ds.sizes.get("time", 0) else []
+    t_end = max(ends + [float(t) for t in r.events["time"]])
     ev = r.events
     if args.kind:
         kinds = set(args.kind)
-        unknown = kinds - set(ev["kind"].unique())
-        if unknown and len(ev):
-            print(f"note: no events of kind {', '.join(sorted(unknown))} (present: "
-                  f"{', '.join(sorted(ev['kind'].unique()))})", file=sys.stderr)
+        missing = kinds - set(ev["kind"].unique())
+        if missing:
+            print(f"note: no events of kind {', '.join(sorted(missing))} (present: "
+                  f"{', '.join(sorted(ev['kind'].unique())) or 'none'})", file=sys.stderr)
         ev = ev[ev["kind"].isin(kinds)]
-    table = phase_table(r.events, t_end, scene.period, int(r.dataset.sizes["contact"]))
+    table = phase_table(r.events, t_end, scene.period, K)
     if args.cycle is not None:
         if args.cycle < 0 or args.cycle >= len(table):
             raise InputError(f"--cycle must be in [0, {len(table) - 1}], got {args.cycle}")
@@ -63,12 +81,14 @@ def cmd_events(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=1))
         return EXIT_OK
     if args.kind:
-        with pd.option_context("display.width", 200, "display.max_rows", args.max_rows,
-                               "display.max_columns", 20):
-            print(ev.drop(columns=["regime_before", "regime_after"]).to_string(index=False)
-                  if len(ev) <= args.max_rows else ev.head(args.max_rows).to_string(index=False))
+        if len(ev):
+            with pd.option_context("display.width", 250, "display.max_columns", 20):
+                print(ev.drop(columns=["regime_before"]).head(args.max_rows)
+                      .to_string(index=False))
+        if len(ev) > args.max_rows:
+            print(f"note: {len(ev) - args.max_rows} more events not listed (--max-rows, or "
+                  f"--json for all)", file=sys.stderr)
         return EXIT_OK
-    K = int(r.dataset.sizes["contact"])
     print(f"{'cycle':>5} {'start s':>8} {'stick':>6} {'sticks':>6} {'mean ms':>8} "
           f"{'lift-offs':>9} {'open ms':>8} {'guards':>6}")
     for _, row in table.iterrows():
@@ -90,7 +110,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.figure not in FIGURES:
         raise InputError(f"--figure must be one of {', '.join(sorted(FIGURES))}, got "
                          f"{args.figure!r}")
-    r = _load(args.dir)
+    r = _load(args.dir, "figure")
     out = Path(args.out) if args.out else Path(args.dir) / "figures" / f"{args.figure}.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     save_figure(FIGURES[args.figure](r), out)
@@ -105,13 +125,16 @@ def add_parsers(sub) -> None:
         "events", formatter_class=fmt, help="phase table and event log of a run",
         description="Per excitation cycle: stick fraction, number and mean duration of stick "
                     "phases, lift-offs and open time per contact, guard activations. "
-                    "--kind lists the events of the given kinds instead.",
+                    "--kind lists the events of the given kinds instead. A failed run shows "
+                    "what it recorded up to the failure, with a note on stderr.",
         epilog="examples:\n  roughvib events runs/paper\n"
                "  roughvib events runs/paper --kind lift_off --kind touch_down --cycle 1\n"
-               "  roughvib events runs/paper --json > phases.json\n")
+               "  roughvib events runs/paper --json > phases.json\n\n"
+               "event kinds:\n" + "".join(f"  {k:<16} {v}\n" for k, v in EVENT_KINDS.items())
+               + "\n" + REGIME_NOTATION + "\n")
     e.add_argument("dir", help="result directory written by 'roughvib run'")
     e.add_argument("--kind", action="append",
-                   help="list events of this kind (repeatable), e.g. stick, slip, lift_off")
+                   help="list events of this kind (repeatable; the kinds are listed below)")
     e.add_argument("--cycle", type=int, help="only this excitation cycle (0-based)")
     e.add_argument("--json", action="store_true", help="machine-readable output")
     e.add_argument("--max-rows", type=int, default=200, help="rows listed with --kind")
@@ -122,7 +145,8 @@ def add_parsers(sub) -> None:
         description="Draw one figure of a saved run. Figures: velocity (Figs. 6/7), "
                     "friction-velocity (3/8), friction-displacement (9), acceleration (10/11), "
                     "spectra (14), wavenumber (5), events (regime timeline over velocity and "
-                    "normal force). 'roughvib report DIR' draws them all into one HTML file.",
+                    "normal force). 'roughvib report DIR' draws them all into one HTML file. "
+                    "A failed run is drawn up to the failure, with a note on stderr.",
         epilog="examples:\n  roughvib plot runs/paper --figure events\n"
                "  roughvib plot runs/paper --figure spectra --out spectra.png\n")
     pl.add_argument("dir", help="result directory written by 'roughvib run'")

@@ -16,6 +16,8 @@ def _fmt_db(x: float | None) -> str:
 
 
 def _print_summary(summary: dict, out_dir: Path) -> None:
+    from roughvib.analysis.levels import single_draw_note
+
     m = summary.get("metrics", {})
     s = summary.get("solver", {})
     a = summary.get("energy_audit", {})
@@ -42,6 +44,14 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
             f"normal force     mean {m.get('normal_force_mean', float('nan')):.5g} N, "
             f"min {m.get('normal_force_min', float('nan')):.4g} N",
         ]
+        if (note := single_draw_note(summary)) is not None:
+            lines.insert(-1, f"levels           {note}")
+    if (c := summary.get("model", {}).get("contact")):
+        nc = c.get("micro_contacts")
+        lines.append(f"contact          {c['points']} points ({c['points_source']}"
+                     + (f", {nc:.3g} micro-contacts" if nc is not None else "")
+                     + f"), s_total {c['stiffness_total']:.4g} N/m ({c['stiffness_source']}), "
+                     f"r1 {c['vertical_damping']:.4g} N s/m")
     ev = summary.get("events_by_kind", {})
     lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
                                         or "none"))
@@ -63,63 +73,124 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     print("\n".join(lines))
 
 
+def _failure_files(summary: dict, out_dir: Path) -> str:
+    """The files a failed run wrote, each with what it holds (only files that exist)."""
+    files = summary.get("files") or {}
+    t_end = (summary.get("partial_result") or {}).get("t_end")
+    parts = [f"{out_dir / 'summary.json'} (status, message, last events)"]
+    if "partial.nc" in files:
+        parts.append(f"{out_dir / 'partial.nc'} (time series up to t = {t_end:.6g} s)")
+    if "events.csv" in files:
+        parts.append(f"{out_dir / 'events.csv'} (event log)")
+    return ", ".join(parts)
+
+
+def _run_ensemble(args: argparse.Namespace) -> int:
+    """``roughvib run SCENE --seeds N``: the scene over roughness seeds 1..N as a sweep, then
+    its report with the ensemble's mean and spread."""
+    from roughvib.studies.sweep.ensemble import ensemble_tables, seed_sweep
+    from roughvib.studies.sweep.report import sweep_report
+    from roughvib.studies.sweep.run import run_sweep
+
+    if args.resume:
+        raise InputError("--seeds runs an ensemble of new runs; give no --resume with it")
+    spec = seed_sweep(args.scene or "paper", args.seeds, parse_sets(args.set))
+    out = Path(args.out) if args.out else Path("runs") / spec.name
+    try:
+        run = run_sweep(spec, out, workers=args.workers, progress=not args.no_progress,
+                        log=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+    except KeyboardInterrupt:
+        print(f"roughvib: ensemble interrupted; completed draws are kept in {out}/cases, run "
+              f"the same command again to resume", file=sys.stderr)
+        return 130
+    report = sweep_report(run.directory)
+    ens = ensemble_tables(run.directory)
+    if not args.quiet:
+        print(f"{spec.name}: {len(run.table) - run.failed} of {len(run.table)} draws succeeded "
+              f"-> {run.directory}")
+        for _, r in (ens.levels.iterrows() if ens is not None else ()):
+            print(f"  {r['level']:<5} level  mean {r['mean']:6.1f} dB, std {r['std']:4.2f} dB, "
+                  f"range {r['min']:.1f} .. {r['max']:.1f} dB re 1e-6 m/s^2 ({r['n']} draws)")
+        print(f"  report: {report} (and report.html)")
+    return EXIT_OK if run.failed == 0 else EXIT_SOLVER
+
+
+def _verify(result, scene, out_dir: Path, args: argparse.Namespace) -> None:
+    """``--verify``: solve the scene a second way, judge the saved run by the accuracy contract
+    and save it again with its ``accuracy`` section."""
+    from roughvib.simulation import verification_scene, verify_result
+
+    _, how = verification_scene(scene)
+    print(f"verifying: solving the scene again with {how}", file=sys.stderr)
+    try:
+        verify_result(result, scene, progress=False if args.no_progress else None)
+    except KeyboardInterrupt:
+        print(f"roughvib: verification interrupted; the run itself is saved in {out_dir}",
+              file=sys.stderr)
+        raise
+    result.save(out_dir, overwrite=args.overwrite)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from roughvib.api import resume, simulate
+    from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
-    from roughvib.simulation import checkpoint_scene, verification_scene, verify_result
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
+    if args.seeds is not None:
+        if args.verify:
+            raise InputError("--verify checks one run; give no --seeds with it (verify a draw "
+                             "of the ensemble with 'roughvib run SCENE --set "
+                             "roughness.seed=N --verify')")
+        return _run_ensemble(args)
     if args.resume:
         if args.scene is not None or args.set or args.out:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
                              "--set or --out with it")
         out_dir = Path(args.resume)
-        scene = checkpoint_scene(out_dir) if args.verify else None
-        runner = lambda: resume(out_dir, progress=False if args.no_progress else None)  # noqa: E731
     else:
         scene = load_scene(args.scene or "paper", parse_sets(args.set))
         if args.no_progress:
             scene = scene.with_overrides({"output.progress": False})
         out_dir = Path(args.out) if args.out else Path("runs") / scene.name
         cp_dir = out_dir if scene.output.checkpoint_interval > 0 else None
-        if cp_dir is not None and (out_dir / CHECKPOINT_NAME).exists():
-            raise InputError(f"{out_dir / CHECKPOINT_NAME} exists: continue it with 'roughvib "
-                             f"run --resume {out_dir}', or remove it to start again")
-        runner = lambda: simulate(scene, checkpoint_dir=cp_dir)  # noqa: E731
+    # the output directory is checked and locked before anything expensive (imports included)
+    rundir = RunDirectory(out_dir, overwrite=args.overwrite, resume=bool(args.resume)).open()
     try:
-        result = runner()
-    except KeyboardInterrupt as exc:
-        cp = out_dir / CHECKPOINT_NAME
-        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        if cp.exists():
-            print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
-                  f"'roughvib run --resume {out_dir}'", file=sys.stderr)
-        else:
-            print(f"roughvib: {what}; nothing was written", file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
-    result.save(out_dir)
-    if result.ok:
-        (out_dir / CHECKPOINT_NAME).unlink(missing_ok=True)
+        if rundir.replaces and not args.resume:
+            print(f"roughvib: note: {out_dir} holds an earlier run; this run replaces it when it "
+                  f"ends", file=sys.stderr)
+        try:
+            from roughvib.api import resume, simulate
+
+            if args.resume:
+                if args.verify:  # read before the run: a finished run removes its checkpoint
+                    from roughvib.simulation import checkpoint_scene
+
+                    scene = checkpoint_scene(out_dir)
+                result = resume(out_dir, progress=False if args.no_progress else None)
+            else:
+                result = simulate(scene, checkpoint_dir=cp_dir)
+        except KeyboardInterrupt as exc:
+            cp = out_dir / CHECKPOINT_NAME
+            what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+            if cp.exists():
+                print(f"roughvib: {what}; the last checkpoint is kept in {cp}: continue with "
+                      f"'roughvib run --resume {out_dir}'", file=sys.stderr)
+            else:
+                print(f"roughvib: {what}; nothing was written", file=sys.stderr)
+            return 143 if isinstance(exc, Terminated) else 130
+        result.save(rundir)
+    finally:
+        rundir.close()
     if args.verify and result.ok:
         # the run is saved first: an interrupted or failed second solve loses nothing
-        _, how = verification_scene(scene)
-        print(f"verifying: solving the scene again with {how}", file=sys.stderr)
-        try:
-            verify_result(result, scene, progress=False if args.no_progress else None)
-        except KeyboardInterrupt:
-            print(f"roughvib: verification interrupted; the run itself is saved in {out_dir}",
-                  file=sys.stderr)
-            raise
-        result.save(out_dir)
+        _verify(result, scene, out_dir, args)
     if not args.quiet:
         _print_summary(result.summary, out_dir)
     if not result.ok:
         print(f"roughvib: run failed ({result.status}): {result.summary.get('message')}",
               file=sys.stderr)
-        t_end = (result.summary.get("partial_result") or {}).get("t_end")
-        if t_end is not None:
-            print(f"roughvib: the time series up to t = {t_end:.6g} s and the event log are in "
-                  f"{out_dir}/partial.nc and events.csv", file=sys.stderr)
+        print(f"roughvib: written: {_failure_files(result.summary, out_dir)}", file=sys.stderr)
         return EXIT_SOLVER
     return EXIT_OK
 
@@ -140,7 +211,11 @@ def add_parsers(sub) -> None:
     r = sub.add_parser(
         "run", formatter_class=fmt, help="run a scene and write its results",
         description="Run a scene (built-in name or TOML file) and write result.nc, "
-                    "events.csv, summary.json and scene.toml into the output directory.",
+                    "events.csv, summary.json and scene.toml into the output directory. The "
+                    "directory is checked before the run; the run appears in it as a whole "
+                    "and never deletes or overwrites files it did not create (an earlier "
+                    "roughvib run there is replaced; other files refuse the run unless "
+                    "--overwrite).",
         epilog="examples:\n"
                "  roughvib run                         # built-in 'paper' scene\n"
                "  roughvib run paper-100mms --out runs/fast\n"
@@ -148,7 +223,10 @@ def add_parsers(sub) -> None:
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
                "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
-               "  roughvib run --verify                # and check it by a second solver\n")
+               "  roughvib run --verify                # and check it by a second solver\n"
+               "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n"
+               "  roughvib run paper --seeds 10        # ensemble: 10 roughness draws, mean "
+               "and spread\n")
     r.add_argument("scene", nargs="?", default=None,
                    help="built-in scene name (see 'roughvib scenes') or a .toml file "
                         "(default: paper)")
@@ -163,8 +241,20 @@ def add_parsers(sub) -> None:
                         "event-driven solver at accuracy 'reference') and write the deviations "
                         "and a verdict against the accuracy contract into summary.json "
                         "('accuracy') and the report; costs a second run")
+    r.add_argument("--overwrite", action="store_true",
+                   help="write into a directory that holds files roughvib did not write: the "
+                        "run's files replace files of the same names, the others are kept "
+                        "(without it such a directory is refused; an earlier roughvib run "
+                        "alone is always replaced as a whole)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.add_argument("--quiet", action="store_true", help="do not print the summary")
+    r.add_argument("--seeds", type=int, metavar="N",
+                   help="run the ensemble of roughness.seed = 1..N instead of one draw (a "
+                        "sweep: DIR/cases/<case>/ per seed, resumable) and report the mean "
+                        "and spread of the levels and band spectra in DIR/report/ (default "
+                        "DIR: runs/<scene name>-seeds)")
+    r.add_argument("--workers", type=int, metavar="N",
+                   help="with --seeds: worker processes (default: all cores)")
     r.set_defaults(func=cmd_run)
 
     s = sub.add_parser("scenes", formatter_class=fmt, help="list the built-in scenes",

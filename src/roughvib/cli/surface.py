@@ -26,6 +26,9 @@ def cmd_surface(args: argparse.Namespace) -> int:
           f"rms slope {prof.get('rms_slope', float('nan')):.3g}")
     print(f"contact stiffness used: {info['stiffness_used_N_per_m']:.4g} N/m "
           f"({info['stiffness_source']})")
+    cp = info["contact"]
+    print(f"contact points used: {cp['points']} ({cp['points_source']}), selection "
+          f"{cp['selection']}")
     if "s_total" in stat:
         print(f"statistical contact ({stat['model']}): s_total {stat['s_total']:.4g} N/m, "
               f"{stat['micro_contacts']:.3g} micro-contacts, plasticity index "
@@ -51,7 +54,7 @@ def add_parsers(sub) -> None:
                     "Greenwood-Williamson/Tripp stiffness, micro-contacts, real area, "
                     "plasticity index, contact resonance) and profile.png, spectrum.png.",
         epilog="examples:\n  roughvib surface paper --out runs/paper-surface\n"
-               "  roughvib surface paper --set contact.stiffness=auto --set contact.model=gt\n"
+               "  roughvib surface paper --set contact.model=gt --set block.mass=0.543\n"
                "  roughvib surface my_scene.toml --set roughness.reduce_3d=true\n")
     su.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
     su.add_argument("--out", metavar="DIR", help="output directory (default: "

@@ -2,22 +2,22 @@
 
 Kernels see raw float64/int64 arrays only (never a dataclass). They run unchanged with
 ``NUMBA_DISABLE_JIT=1``. All share one argument tail, built once by
-:func:`roughvib.model.system.assemble` and documented here:
+:func:`roughvib.model.system.assemble` and documented here::
 
-``off``  int64 [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL] (``StateLayout.offsets``)
-``fp``   float64 scalars, indices ``FP_*`` below
-``omega2`` (R,) squared modal angular frequencies [rad^2/s^2]
-``cdamp``  (R,) 2 zeta_r omega_r [1/s]
-``phi``    (R, K) mode shapes at the contacts [-]
-``phi_obs`` (R,) mode shapes at the observation point [-]
-``stiff``  (K,) contact spring stiffness [N/m]
-``cres``   (K, K) residual compliance of the truncated modes [m/N]
-``spos``   (K,) profile coordinates of the contacts at x = 0 [m]
-``prof``   (ncell, deg+1) profile interpolant (roughvib.physics.surface.interp)
-``reg``    int64 regime [b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]; b is the
-         friction-law branch (feldmann) or the slip direction +1/-1, 0 = stick (coulomb)
-``rf``     float64 regime data [v_ext (latch's running velocity extremum), dwell end time]
-``work``   float64 scratch, length >= 5 K
+    off     int64 [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL] (StateLayout.offsets)
+    fp      float64 scalars, indices FP_* below
+    omega2  (R,) squared modal angular frequencies [rad^2/s^2]
+    cdamp   (R,) 2 zeta_r omega_r [1/s]
+    phi     (R, K) mode shapes at the contacts [-]
+    phi_obs (R,) mode shapes at the observation point [-]
+    stiff   (K,) contact spring stiffness [N/m]
+    cres    (K, K) residual compliance of the truncated modes [m/N]
+    spos    (K,) profile coordinates of the contacts at x = 0 [m]
+    prof    (ncell, deg+1) profile interpolant (roughvib.physics.surface.interp)
+    reg     int64 regime [b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]; b is the
+            friction-law branch (feldmann) or the slip direction +1/-1, 0 = stick (coulomb)
+    rf      float64 regime data [v_ext (latch's running velocity extremum), dwell end time]
+    work    float64 scratch, length >= 5 K
 
 The residual is ``res = yp - f(y)`` for differential rows, so ``yp = -res(t, y, 0)`` gives the
 consistent derivative. Closed contact k: ``F_k / s_k - (z - w_k + h(s_k + x)) = 0`` with the
@@ -464,8 +464,9 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     compression (touch-down at 0). Feldmann law: ``ev[K]`` friction branch b * X,
     ``ev[K+1]`` latch margin eps - s (v - v_ext), ``ev[K+2]`` phase margin (slip:
     v^2 - v_st^2, stick: v_st^2 - v^2). Coulomb law, stick: ``ev[K]`` break-away margin
-    mu_stick F_N (1 + eps_h) - |lambda|, ``ev[K+1]`` the same without hysteresis (counts the
-    hysteresis holds), ``ev[K+2]`` dwell timer t_dwell_end - t; slip b: ``ev[K]`` = b v.
+    mu_stick F_N (1 + eps_h) - ``|lambda|``, ``ev[K+1]`` the same without hysteresis (counts the
+    hysteresis holds; constant 1 when eps_h = 0), ``ev[K+2]`` dwell timer t_dwell_end - t;
+    slip b: ``ev[K]`` = b v.
     All are watched for downward crossings only; prescribed motion disables the last three
     (constant 1).
     """
@@ -486,7 +487,8 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
                 fsum += y[iF + k]
             lam = abs(y[iL])
             ev[K] = fp[FP_MU_STICK] * fsum * (1.0 + fp[FP_HYST]) - lam
-            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam
+            # the bare threshold counts the holds of a hysteresis; without one it is ev[K]
+            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam if fp[FP_HYST] > 0.0 else 1.0
             ev[K + 2] = rf[1] - t
         else:
             ev[K] = b * vx

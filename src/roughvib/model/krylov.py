@@ -1,7 +1,7 @@
 """Numba kernels for IDA's Krylov path: the exact block-elimination preconditioner and J v.
 
 IDA's Newton matrix is ``J = dF/dy + cj dF/dyp`` of the residual in
-:mod:`roughvib.model.kernels`. Its structure (the "arrow" of shared/ida-notes.md §3):
+:mod:`roughvib.model.kernels`. Its structure (an "arrow"):
 
 * a 2x2 block per plate mode (q_r, dq_r), coupled to the rest only through the K contact
   forces (column ``-phi_rk / M``);
@@ -20,7 +20,7 @@ The modal part of the Schur matrix, ``P_kj = sum_r phi_rk phi_rj / (M d_r)`` wit
 ``d_r = omega_r^2 + cj (cj + 2 zeta_r omega_r)``, depends on cj only and is cached until cj
 changes. Cost per call O(R K) (+ O(R K^2) when cj changed, + O(K^3)), no allocation.
 
-:func:`jac_times_vec` forms J v from the analytic Jacobian values of
+:func:`jac_vec` forms J v from the analytic Jacobian values of
 :func:`roughvib.model.kernels.jacobian_values` (COO order of ``jacobian_pattern``), so the
 sparse-direct and the Krylov paths share one Jacobian; the unit tests check
 ``precond_solve(J v) == v`` in every regime.

@@ -10,7 +10,7 @@ zero, bare threshold, dwell timer).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,11 +37,14 @@ class Regime:
     v_ext : float
         feldmann: running velocity extremum tracked by the latch [m/s].
     stick : bool
-        Stick phase (feldmann: |v| < friction.stick_velocity, for logging; coulomb: the regime).
+        Stick phase (feldmann: ``|v|`` < friction.stick_velocity, for logging; coulomb: the regime).
     dwell_end : float
         coulomb: break-away is held until this time [s] (``NO_DWELL`` when inactive).
     coulomb : bool
         Which law the regime belongs to.
+    switch_times : list of float
+        coulomb: times of the recent stick/slip switches [s], for the chatter guard (only
+        those within its window are kept).
     """
 
     closed: np.ndarray
@@ -51,6 +54,7 @@ class Regime:
     stick: bool = True
     dwell_end: float = NO_DWELL
     coulomb: bool = False
+    switch_times: list = field(default_factory=list)
 
     def pack(self, reg: np.ndarray, rf: np.ndarray) -> None:
         """Write into the kernels' ``reg``/``rf`` arrays."""
@@ -85,7 +89,7 @@ def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
     """Regime at t = 0: the static contact set, block at rest.
 
     feldmann: latch s = -1 (accelerating branch), branch from sign(s v_h) (or of T0 when
-    v_h = 0), stick phase. coulomb: stick unless |T0| exceeds the break-away bound with the
+    v_h = 0), stick phase. coulomb: stick unless ``|T0|`` exceeds the break-away bound with the
     static normal force m g, then slip in the direction of T0.
     """
     reg = Regime(closed=closed.astype(np.int64), coulomb=coulomb)
@@ -106,9 +110,13 @@ def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
 
 
 def switch(regime: Regime, idx: int, t: float, y: np.ndarray, fp: np.ndarray,
-           n_contacts: int, i_vx: int, i_force: slice, dwell_time: float
-           ) -> list[Transition]:
+           n_contacts: int, i_vx: int, i_force: slice, dwell_time: float,
+           chatter_switches: int = 0, chatter_window: float = 0.0) -> list[Transition]:
     """Apply the transition for root ``idx`` fired at time ``t`` with state ``y`` (in place).
+
+    ``dwell_time`` [s] holds every stick phase of the Coulomb law (0: off). The chatter guard
+    holds a stick phase for ``chatter_window`` [s] only when it begins with more than
+    ``chatter_switches`` stick/slip switches within the last ``chatter_window`` (0: off).
 
     Returns the transitions to log (possibly none: a guard held the regime).
     """
@@ -139,28 +147,43 @@ def switch(regime: Regime, idx: int, t: float, y: np.ndarray, fp: np.ndarray,
         if j != 0:
             return []
         # velocity zero in slip: stick if the static bound holds, else slip the other way
+        chatter = _count_switch(regime, t, chatter_switches, chatter_window)
         if abs(texc) <= mu_st * fsum:
             regime.branch = 0
             regime.stick = True
             regime.dwell_end = t + dwell_time if dwell_time > 0 else NO_DWELL
+            if chatter:
+                regime.dwell_end = max(regime.dwell_end, t + chatter_window)
+                return [Transition("stick", -1),
+                        Transition("chatter_guard", -1, guard="chatter")]
             return [Transition("stick", -1)]
         regime.branch = int(math.copysign(1, texc))
         return [Transition("slip", -1, guard="")]
     if j == 0:  # break-away margin
         if regime.dwell_end != NO_DWELL and t < regime.dwell_end:
             return [Transition("dwell_hold", -1, guard="dwell")]
-        return _break_away(regime, texc)
+        return _break_away(regime, texc, t)
     if j == 1:  # bare threshold crossed while the hysteresis still holds
         return [Transition("hysteresis_hold", -1, guard="hysteresis")]
     # dwell timer expired: break away now if the bound is already exceeded
     regime.dwell_end = NO_DWELL
     lam = texc - fp[kn.FP_R2] * vx
     if abs(lam) > mu_st * fsum * (1 + fp[kn.FP_HYST]):
-        return _break_away(regime, lam)
+        return _break_away(regime, lam, t)
     return []
 
 
-def _break_away(regime: Regime, direction: float) -> list[Transition]:
+def _count_switch(regime: Regime, t: float, n_max: int, window: float) -> bool:
+    """Record a stick/slip switch at ``t``; True when more than ``n_max`` (> 0) lie within
+    the last ``window`` [s] (chatter)."""
+    times = [s for s in regime.switch_times if s > t - window] if n_max > 0 else []
+    times.append(t)
+    regime.switch_times = times
+    return n_max > 0 and len(times) > n_max
+
+
+def _break_away(regime: Regime, direction: float, t: float) -> list[Transition]:
+    regime.switch_times.append(t)
     regime.branch = int(math.copysign(1, direction))
     regime.stick = False
     regime.dwell_end = NO_DWELL

@@ -1,4 +1,4 @@
-"""Assemble a scene into a :class:`System`: flat kernel arrays, regimes, consistent states.
+"""Assemble a scene into a :class:`.System`: flat kernel arrays, regimes, consistent states.
 
 ``assemble(scene)`` runs the preprocessing once (roughness profile, contact points, plate
 modes, residual compliance, T0 calibration) and packs everything the numba kernels need.
@@ -10,6 +10,7 @@ derivatives after a regime switch, and the stored energy for the energy audit.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -20,11 +21,14 @@ from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import calibrate_force_amplitude
 from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
+from roughvib.physics.surface.contact import contact_layout
 from roughvib.physics.surface.interp import build_coefficients
-from roughvib.physics.surface.roughness import Profile, build_profile, select_contacts
-from roughvib.scene import Scene, SceneError
+from roughvib.physics.surface.roughness import Profile, build_profile
+from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
 
-__all__ = ["GRAVITY", "Regime", "System", "assemble"]  # Regime re-exported from .regimes
+# Regime is re-exported from .regimes
+__all__ = ["GRAVITY", "MAX_RMS_SLOPE", "MAX_RMS_TO_BLOCK", "Regime", "System", "WARN_RMS_SLOPE",
+           "WARN_RMS_TO_BLOCK", "assemble", "check_profile", "estimate_travel"]
 
 GRAVITY = 9.81  # m/s^2, the paper's value (F_stat = m g)
 
@@ -51,6 +55,9 @@ class System:
     cres: np.ndarray
     prof: np.ndarray
     work: np.ndarray = field(repr=False)
+    warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
+    #: how the contact was resolved: points, stiffness, their sources, selection, r1
+    contact: dict = field(default_factory=dict)
 
     # ---- sizes -----------------------------------------------------------------------
     @property
@@ -75,6 +82,7 @@ class System:
                 self.work)
 
     def new_regime_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Zeroed regime arrays ``(reg, rf)`` of the kernels' argument tail (int64, float64)."""
         return np.zeros(kn.REG_CLOSED + self.n_contacts, dtype=np.int64), np.zeros(2)
 
     @property
@@ -84,9 +92,14 @@ class System:
 
     # ---- algebra ---------------------------------------------------------------------
     def static_compliance_matrix(self) -> np.ndarray:
-        """G = Phi^T diag(1/(M w^2)) Phi + C_res: static plate compliance at the contacts [m/N]."""
+        """G = Phi^T diag(1/(M w^2)) Phi + C_res: static plate compliance at the contacts [m/N].
+
+        With no mode kept (a modal plate whose first mode lies above ``plate.max_frequency``)
+        G is C_res alone: the whole static compliance, or zero without residual compliance
+        and for a rigid plate.
+        """
         if self.n_modes == 0:
-            return np.zeros((self.n_contacts, self.n_contacts))
+            return self.cres.copy()
         inv = 1.0 / (self.fp[kn.FP_MMODAL] * self.omega2)
         return (self.phi * inv[:, None]).T @ self.phi + self.cres
 
@@ -103,18 +116,41 @@ class System:
         kn.compressions(t, yy, self.off, self.fp, self.phi, self.cres, self.contact_s,
                         self.prof, self.work)
         rhs = self.work[:k_all].copy()  # compression with F = 0 in the residual term
-        F = np.zeros(k_all)
+        return self._solve_closed(closed, rhs)
+
+    def _solve_closed(self, closed: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """x with (diag(1/s) + C_res) x = rhs on the closed contacts, 0 on the open ones."""
+        x = np.zeros(self.n_contacts)
         idx = np.flatnonzero(closed)
         if idx.size:
             A = self.cres[np.ix_(idx, idx)] + np.diag(1.0 / self.stiff[idx])
-            F[idx] = np.linalg.solve(A, rhs[idx])
-        return F
+            x[idx] = np.linalg.solve(A, rhs[idx])
+        return x
+
+    def force_rates(self, t: float, y: np.ndarray, closed: np.ndarray) -> np.ndarray:
+        """Time derivatives of the contact forces [N/s] that keep the contact law.
+
+        On the closed contacts F = s (z - w + h(s_k + x)) with w = phi^T q + C_res F, so
+        ``(diag(1/s) + C_res) dF/dt = z' - phi^T q' + h'(s_k + x) x'``; 0 on the open ones.
+        """
+        k_all = self.n_contacts
+        lay = self.layout
+        kn.compressions(t, y, self.off, self.fp, self.phi, self.cres, self.contact_s,
+                        self.prof, self.work)
+        _, vx = kn.tangential_kinematics(t, y, self.off, self.fp)
+        rate = y[lay.index("block.vz")] + self.work[k_all:2 * k_all] * vx
+        if self.n_modes:
+            rate = rate - self.phi.T @ y[lay.slice("plate.dq")]
+        return self._solve_closed(closed, rate)
 
     def consistent(self, t: float, y: np.ndarray, reg: np.ndarray, rf: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
         """Consistent (y, yp) for the regime in ``reg``: algebraic forces, then yp = f(y).
 
         In the Coulomb stick regime the tangential velocity is set to exactly zero first.
+        The contact forces' yp are their rates (:meth:`force_rates`): IDA's first step after a
+        restart predicts the forces from them, and a zero rate at a touch-down failed its
+        error test down to the minimum step at tight tolerances (atol <= 1e-16 m).
         """
         y = np.array(y, dtype=float)
         y[self.layout.slice("contact.force")] = self.contact_forces(
@@ -128,6 +164,7 @@ class System:
         kn.residual(t, y, np.zeros_like(y), res, *self.kernel_args(reg, rf))
         yp = -res
         yp[self.layout.algebraic_indices] = 0.0
+        yp[self.layout.slice("contact.force")] = self.force_rates(t, y, reg[kn.REG_CLOSED:])
         return y, yp
 
     def static_equilibrium(self, x0: float = 0.0, max_iter: int = 200
@@ -216,40 +253,144 @@ def _profile_height(system: System, s: float) -> float:
     return profile_eval(system.prof, system.fp[kn.FP_S0], system.fp[kn.FP_DX], s)[0]
 
 
-def _contact_stiffness_total(scene: Scene, profile: Profile) -> tuple[float, dict]:
-    st = scene.contact.stiffness
-    if isinstance(st, str):  # "auto": statistical contact model (physics.md §4)
-        from roughvib.physics.surface.contact import contact_stiffness
+#: above this rms slope of the input profile the run is refused: the contact springs act
+#: vertically and friction along the mean surface, which is the small-slope limit; at an rms
+#: slope of 1 a typical flank is at 45 degrees and the model does not describe the contact
+MAX_RMS_SLOPE = 1.0
+#: above this rms slope a run warns: the neglected terms are of the order of the slope (10 %)
+WARN_RMS_SLOPE = 0.1
+#: above this fraction of the block's smaller side the rms roughness is refused: the block is
+#: rigid, cannot pitch or roll, and rests on heights that are small against its size
+MAX_RMS_TO_BLOCK = 1e-2
+#: above this fraction a run warns (surface heights then approach waviness, not roughness)
+WARN_RMS_TO_BLOCK = 1e-3
 
-        # a measured profile brings its own moments; synthetic ones use the model PSD
-        cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
-        return float(cs.s_total), cs.as_dict()
-    return float(st), {}
+
+def _roughness_key(scene: Scene) -> str:
+    r = scene.roughness
+    if r.kind == "file":
+        return f"roughness.path {r.path!r} (units = {r.units!r})"
+    if r.kind == "sinusoid":
+        return f"roughness.amplitude {r.amplitude} m (wavelength {r.wavelength} m)"
+    if r.reduce_3d:
+        return f"roughness.raw_rms {r.raw_rms} m"
+    return f"roughness.rms {r.rms} m"
 
 
-def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
+def check_profile(scene: Scene, profile: Profile) -> list[str]:
+    """Plausibility of the input profile: refuse what the model cannot represent, warn where a
+    legal profile lies outside the model's validity.
+
+    Parameters
+    ----------
+    scene : Scene
+    profile : Profile
+        The input profile of the scene (``stats`` with ``rms`` [m] and ``rms_slope`` [-]).
+
+    Returns
+    -------
+    list of str
+        Warnings (one line each).
+
+    Raises
+    ------
+    SceneError
+        rms slope above :data:`MAX_RMS_SLOPE`, or rms height above :data:`MAX_RMS_TO_BLOCK`
+        of the block's smaller side (a profile in micrometres declared as metres fails both).
+    """
+    rms = float(profile.stats.get("rms", 0.0))
+    slope = float(profile.stats.get("rms_slope", 0.0))
+    side = min(scene.block.length, scene.block.width)
+    key = _roughness_key(scene)
+    hint = "; are the file's heights in um or nm?" if scene.roughness.kind == "file" else ""
+    if slope > MAX_RMS_SLOPE:
+        raise SceneError(f"{key} gives an input profile with rms slope {slope:.3g}, the model "
+                         f"needs at most {MAX_RMS_SLOPE:g} (vertical contact springs and "
+                         f"friction along the mean surface hold for small slopes only){hint}")
+    if rms > MAX_RMS_TO_BLOCK * side:
+        raise SceneError(f"{key} gives an input profile of {rms:.3g} m rms, the model needs at "
+                         f"most {MAX_RMS_TO_BLOCK:g} x the block's smaller side ({side} m) (a "
+                         f"rigid block that cannot pitch or roll, on heights small against "
+                         f"its size){hint}")
+    out = []
+    if slope > WARN_RMS_SLOPE:
+        out.append(f"{key} gives an input profile with rms slope {slope:.3g}, above "
+                   f"{WARN_RMS_SLOPE:g}: the small-slope contact model neglects terms of the "
+                   f"order of the slope")
+    if rms > WARN_RMS_TO_BLOCK * side:
+        out.append(f"{key} gives an input profile of {rms:.3g} m rms, above "
+                   f"{WARN_RMS_TO_BLOCK:g} x the block's smaller side ({side} m): heights "
+                   f"approach waviness, which a rigid block without pitch and roll does not "
+                   f"follow")
+    return out
+
+
+def estimate_travel(scene: Scene) -> float:
+    """Tangential travel of the contacts beyond their rest positions [m], estimated before
+    the run (for a calibrated force: 1.5 x the sinusoidal displacement amplitude of the target
+    velocity)."""
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        return abs(exc.velocity) * scene.output.duration + exc.amplitude
+    if exc.target_rms_velocity is not None and exc.frequency > 0:
+        return 2.0 * math.sqrt(2.0) * exc.target_rms_velocity / exc.omega * 1.5
+    return 0.0
+
+
+def _check_travel(scene: Scene, profile: Profile, contact_s: np.ndarray, travel: float) -> None:
+    lo = profile.s0
+    hi = profile.s0 + (profile.z.size - 1) * profile.dx
+    if contact_s.min() - travel < lo or contact_s.max() + travel > hi:
+        r = scene.roughness
+        if r.kind == "file":
+            raise SceneError(f"roughness.path {r.path!r} must cover the contacts' travel of "
+                             f"about ±{travel:.3g} m beyond the block window, got a profile of "
+                             f"{hi - lo:.6g} m")
+        raise SceneError(
+            f"roughness.trace_length must cover the contacts' travel of about ±{travel:.3g} m "
+            f"beyond the block window, got {r.trace_length} m")
+
+
+def assemble(scene: Scene, *, force_amplitude: float | None = None,
+             travel: float | None = None) -> System:
     """Turn a validated scene into a :class:`System` (preprocessing happens here, once).
+
+    Every check of the input runs before the expensive steps (plate modes, residual
+    compliance, T0 calibration): the profile's plausibility (:func:`check_profile`), the
+    validity warnings (issued as :class:`~roughvib.scene.ModelValidityWarning` and kept in
+    ``System.warnings``) and, with ``travel``, the coverage of the profile.
+
+    The system's ``scene`` carries the resolved solver section (:meth:`Scene.resolved_solver`:
+    a concrete method, tolerances and step from the accuracy preset unless given), which is
+    what the solvers read.
 
     Parameters
     ----------
     scene : Scene
     force_amplitude : float, optional
         Use this T0 [N] instead of the scene's value or calibration.
-
-    The system's ``scene`` carries the resolved solver section (:meth:`Scene.resolved_solver`:
-    a concrete method, tolerances and step from the accuracy preset unless given), which is
-    what the solvers read.
+    travel : float, optional
+        Check that the profile covers this tangential travel of the contacts [m] (see
+        :func:`estimate_travel`).
     """
     scene = replace(scene, solver=scene.resolved_solver())
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
-    K = scene.contact.points
     tangential = exc.kind == "force"
 
     profile = build_profile(scene.roughness, blk, Path(scene.base_dir))
-    spos = np.asarray(select_contacts(profile, K, blk.length, scene.contact.min_separation),
-                      dtype=float)
-    s_total, stiff_info = _contact_stiffness_total(scene, profile)
+    notes = check_profile(scene, profile) + validity_warnings(scene)
+    # contact points and s_total, as given or from the statistical contact (docs/theory.md);
+    # a measured profile brings its own moments, synthetic ones use the model PSD
+    cl = contact_layout(scene, profile)
+    spos, s_total, K = cl.positions, cl.stiffness_total, cl.n
+    stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
+    if travel is not None:
+        _check_travel(scene, profile, spos, travel)
+    for note in notes:
+        warnings.warn(note, ModelValidityWarning, stacklevel=2)
     stiff = np.full(K, s_total / K)
+    r1 = (2.0 * blk.vertical_damping_ratio * math.sqrt(s_total * blk.mass)
+          if isinstance(blk.vertical_damping, str) else float(blk.vertical_damping))
     x0, y0 = plt.block_position
     contact_xy = np.column_stack([x0 + (spos - profile.s_centre), np.full(K, y0)])
 
@@ -304,7 +445,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass
     fp[kn.FP_GRAV] = GRAVITY
-    fp[kn.FP_R1] = blk.vertical_damping
+    fp[kn.FP_R1] = r1
     fp[kn.FP_R2] = blk.tangential_damping
     fp[kn.FP_T0] = T0
     fp[kn.FP_OMEGA] = exc.omega
@@ -329,7 +470,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None) -> System:
         modes=modes, force_amplitude=T0, calibration=calibration, off=layout.offsets(), fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
-        work=np.zeros(5 * K + 8),
+        work=np.zeros(5 * K + 8), warnings=notes,
+        contact={**cl.as_dict(), "vertical_damping": r1},
     )
 
 

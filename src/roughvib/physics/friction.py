@@ -2,17 +2,17 @@
 
 This module owns
 
-* the numba kernels of the regularised Feldmann law (physics.md §3.1): the branch expression
+* the numba kernels of the regularised Feldmann law (docs/theory.md): the branch expression
   :func:`feldmann_mu` (the event-driven solver keeps the branch ``b`` as a discrete state and
   switches it at ``x = 0``), the law itself :func:`feldmann_mu_law` (``b = sign(x)``), and the
-  latched hysteresis sign :func:`latch_update` / :func:`latch_margin` of physics.md §1.5(g);
+  latched hysteresis sign :func:`latch_update` / :func:`latch_margin` (docs/theory.md);
 * a plain-Python reference :func:`mu_reference` written from the two-branch form of Eq. 10;
-* the tangential-only reference model of physics.md §3.3 (block under a constant normal force,
+* the tangential-only reference model (block under a constant normal force,
   no roughness), integrated with the trapezoidal rule and a scalar Newton iteration per step
   (:func:`simulate_tangential`), and the calibration of the force amplitude T0 to a target rms
   velocity (:func:`calibrate_force_amplitude`).
 
-Conventions (physics.md §1.4): the friction force on the block is ``-mu(v + s v_h) F_N``, with
+Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h) F_N``, with
 ``s = +1`` after a velocity maximum (decelerating branch) and ``s = -1`` after a velocity minimum
 (accelerating branch). All kernels take floats, ints and arrays only and run unchanged with
 ``NUMBA_DISABLE_JIT=1``.
@@ -100,7 +100,7 @@ def feldmann_mu_law(x, mu_slip, mu_stick, a1, a2):
 
 @njit(cache=True)
 def latch_update(s, v_ext, v, eps):
-    """Advance the latched hysteresis sign by one velocity sample (physics.md §1.5(g)).
+    """Advance the latched hysteresis sign by one velocity sample (docs/theory.md).
 
     ``s = +1`` (after a velocity maximum) tracks the running minimum of the velocity in
     ``v_ext``; ``s = -1`` (after a velocity minimum) tracks the running maximum. The sign flips
@@ -208,7 +208,7 @@ def _tangential_kernel(t0_amp, mass, r2, normal_force, omega, mu_slip, mu_stick,
 
 
 def mu_reference(x: float, mu_slip: float, mu_stick: float, a1: float, a2: float) -> float:
-    """Eq. 10 as printed in physics.md §1.2, two explicit branches (no numba, for tests).
+    """Eq. 10 as printed in the paper, two explicit branches (no numba, for tests).
 
     Parameters
     ----------
@@ -241,7 +241,7 @@ def law_parameters(friction: Friction) -> tuple[float, float, float, float]:
 def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, omega: float,
                         friction: Friction, duration: float, dt: float = 1e-6,
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Tangential-only block under a constant normal force (physics.md §3.3).
+    """Tangential-only block under a constant normal force (docs/theory.md).
 
     ``m v' = T0 cos(omega t) - mu(v + s v_h) F_N - r2 v``, ``x' = v``, from rest at t = 0 with
     the latch on the accelerating branch (``s = -1``, running maximum 0). The regularised law is

@@ -1,6 +1,6 @@
 """Simply supported Kirchhoff plate: modes, shapes, static and residual compliance, mobility.
 
-This module owns the linear plate of physics.md §2: the mode set for a frequency band, the
+This module owns the linear plate (docs/theory.md): the mode set for a frequency band, the
 (unnormalised) mode shapes, the exact static Green's function, the residual compliance of the
 truncated modes and the frequency-response (mobility) functions used to check the modal model.
 
@@ -286,16 +286,17 @@ def static_compliance(plate: Plate, points: ArrayLike) -> np.ndarray:
     -----
     Levy form (Timoshenko & Woinowsky-Krieger 1959, §36): with the series taken along the
     shorter side L1 (index n, theta = n pi u / L1) and the other side L2, the 1-D Green's
-    function of D (d^2/dv^2 - alpha^2)^2 on the infinite line is (1 + alpha |d|) exp(-alpha |d|)
-    / (4 alpha^3); odd images of the source about v = 0 and v = L2 (sources at v1 + 2 j L2 with
-    sign +1 and -v1 + 2 j L2 with sign -1) satisfy w = w'' = 0 on both edges. Hence
+    function of D (d^2/dv^2 - alpha^2)^2 on the infinite line is
+    ``(1 + alpha |d|) exp(-alpha |d|) / (4 alpha^3)``; odd images of the source about v = 0 and
+    v = L2 (sources at v1 + 2 j L2 with sign +1 and -v1 + 2 j L2 with sign -1) satisfy
+    w = w'' = 0 on both edges. Hence::
 
         G = L1^2 / (2 pi^3 B') sum_images sign S(kappa, pi u1 / L1, pi u2 / L1),
         kappa = pi |v2 - v_image| / L1,
 
-    with S summed over n in closed form by :func:`_levy_image_sum`. The direct term carries the
+    with S summed over n in closed form by ``_levy_image_sum``. The direct term carries the
     slow n^-3 convergence of the point compliance; evaluating it in closed form removes every
-    truncation error, and the images decay like exp(-2 pi |j| L2 / L1), so all with
+    truncation error, and the images decay like exp(-2 pi ``|j|`` L2 / L1), so all with
     kappa < 45 are kept (a handful for any aspect ratio).
     """
     pts = np.asarray(points, dtype=float)
@@ -348,7 +349,7 @@ def residual_compliance(plate: Plate, modes: PlateModes, points: ArrayLike) -> n
     """Static compliance of the modes left out of ``modes`` between points [m/N].
 
     C_res = G_static,exact - sum_(r in modes) phi_r(i) phi_r(j) / (M omega_r^2)
-    (physics.md §2.4), the quasi-static flexibility of the truncated modes.
+    (docs/theory.md), the quasi-static flexibility of the truncated modes.
 
     Parameters
     ----------

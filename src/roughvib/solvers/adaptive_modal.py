@@ -2,7 +2,7 @@
 
 The plate modes couple to the block only through the K contact forces, and each mode is a
 linear oscillator. Over a step of length h with the modal force linear in time (first-order
-hold), a mode is propagated exactly, whatever omega h is (physics.md §2.5; the fixed-step
+hold), a mode is propagated exactly, whatever omega h is (docs/theory.md; the fixed-step
 ``exact-modal`` scheme):
 
     [q, q']_{n+1} = Phi(h) [q, q']_n + G0(h) u_n + G1(h) u_{n+1},   u = phi^T F / M.
@@ -17,8 +17,8 @@ What this module adds to the fixed-step scheme, to make it a reference-grade sol
 * **Error control** by step doubling: every step of length h is also taken as two steps of
   h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps (kept),
   weighted by IDA's tolerances (``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration``:
-  :func:`roughvib.solvers.ida._atol_vector`): RMS over the modes as in IDA, max over the
-  block, contact and energy states (see :func:`_err_norm`). Step sizes are
+  ``roughvib.solvers.ida._atol_vector``): RMS over the modes as in IDA, max over the
+  block, contact and energy states (see ``_err_norm``). Step sizes are
   dyadic fractions of the output step, so the propagators of each size are computed once and
   cached, and every output time is a step boundary (no interpolation of the modes).
 * **Events as in IDA**: the regime is fixed within a step (no active set, no max()); the
@@ -39,21 +39,36 @@ Limits: the Feldmann law or prescribed motion (the set-valued Coulomb law needs 
 
 from __future__ import annotations
 
+import collections
+import copy
 import math
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
-from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
-from roughvib.scene import SceneError
-from roughvib.solvers.events import EventBook, SolverFailure
-from roughvib.solvers.ida import RawSolution, _atol_vector, output_grid, progress_bar
+from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers.checkpoint import (
+    Checkpoint,
+    input_fingerprint,
+    start_state,
+    write_checkpoint,
+)
+from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
+from roughvib.solvers.ida import (
+    RawSolution,
+    _atol_vector,
+    check_tolerances,
+    output_grid,
+    progress_bar,
+)
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
 
@@ -65,7 +80,9 @@ N_SLOTS = NLEV + 3
 SERIES_LIMIT = 1.0   # omega h below which the propagators come from the power series
 N_SERIES = 22        # terms: 1 / 22! < 1e-21
 ROOT_TOL = 1e-13     # s, width of the bracket that locates an event
-NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights
+NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights ...
+NEWTON_ULPS = 8.0    # ... or within this many round-offs of its equation's terms
+EPS = 2.220446049250313e-16  # double-precision unit round-off (numpy.finfo(float).eps)
 SAFETY = 0.9
 
 # codes of _advance
@@ -75,6 +92,7 @@ ADV_DONE = 2
 ADV_MIN_STEP = -1
 ADV_NEWTON = -2
 ADV_NONFINITE = -3
+ADV_STALL = -4
 
 # integer loop state / statistics (int64 array `ist`)
 I_K = 0          # next output index
@@ -86,7 +104,8 @@ I_ROOT_EVALS = 5  # trial steps of the root searches
 I_MAPS = 6       # propagator computations
 I_NEWTON = 7     # Newton iterations
 I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
-N_IST = 9
+I_IVL = 9        # step attempts since the last output time (stall guard)
+N_IST = 10
 
 
 @njit(cache=True)
@@ -199,7 +218,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
     ``d[0]`` = z'' [m/s^2], ``d[1]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
-    time derivatives of the energy integrals [W], exactly as in :func:`kernels.residual`.
+    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`.
     """
     idq, ivz, ix, iF, R, K = off[1], off[3], off[4], off[6], off[8], off[9]
     m = fp[kn.FP_MASS]
@@ -244,10 +263,14 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
 
     Unknowns: the forces of the closed contacts and, for a force-driven block, the tangential
-    velocity at t0 + h; Newton until the update is below ``NEWTON_TOL`` tolerance weights
-    ``wts``. Returns False when Newton does not converge (the caller takes a smaller step).
+    velocity at t0 + h; Newton until every update is below ``NEWTON_TOL`` tolerance weights
+    ``wts`` or, for tolerances near round-off, below ``NEWTON_ULPS`` times the round-off of its
+    equation (unit round-off times the sum of the magnitudes of the equation's terms, divided
+    by the diagonal of the Newton matrix): an update at that level is noise, which no further
+    iteration removes. Returns False when Newton does not converge (the caller takes a smaller
+    step).
 
-    ``ws`` is scratch of length >= 2 R + 4 K + 2; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
+    ``ws`` is scratch of length >= 2 R + 5 K + 3; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
     (int64) of length >= K + 1.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
@@ -263,6 +286,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     F = ws[2 * R + K:2 * R + 2 * K]
     rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
     idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
+    noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
@@ -322,6 +346,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
                 jac[a, c] = G1c[slot, k, j] + beta
             jac[a, a] += 1.0 / stiff[k]
             rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
+            noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
+                                            + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
             if force_driven:
                 jac[a, nc] = -dh * 0.5 * h
         if force_driven:
@@ -332,6 +358,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
             for c in range(nc):
                 jac[nc, c] = 0.5 * mu
             jac[nc, nc] = m / h + 0.5 * (dmu * S1 + r2)
+            noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[1])
+                                             + 0.5 * (abs(texc1) + abs(mu * S1) + abs(r2 * v1))
+                                             ) / abs(jac[nc, nc])
         if nu == 0:
             ok = True
             break
@@ -342,12 +371,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         for a in range(nc):
             k = int(idx[a])
             F[k] += rhs[a]
-            e = abs(rhs[a]) / wts[iF + k]
+            e = abs(rhs[a]) / max(wts[iF + k], noise[a] / NEWTON_TOL)
             if e > worst:
                 worst = e
         if force_driven:
             v1 += rhs[nc]
-            e = abs(rhs[nc]) / wts[ivx]
+            e = abs(rhs[nc]) / max(wts[ivx], noise[nc] / NEWTON_TOL)
             if e > worst:
                 worst = e
         if not worst <= NEWTON_TOL:
@@ -436,12 +465,19 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 @njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
              atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, ipiv, track_latch):
+             prof, reg, rf, work, ws, jac, ipiv, track_latch, fresh, max_steps):
     """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
     are the state and time just past the root, ``fired[i] = 1`` for the roots that crossed)
-    or a negative failure code. The state ``y`` must be consistent with the regime on entry.
+    or a negative failure code: ``ADV_STALL`` after more than ``max_steps`` step attempts
+    within one output interval. The state ``y`` must be consistent with the regime on entry.
+
+    ``fresh``: the state was set from outside (start, event switch); its derivatives, modal
+    force, margins and armed roots are computed on entry. Otherwise (the previous call
+    returned ``ADV_CHUNK``) the loop continues with those of the previous call, exactly as
+    if it had not returned: chunk returns, and the checkpoints written at them, leave the
+    result bit-identical.
 
     Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
     half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
@@ -457,20 +493,23 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
     t = tt[0]
-    derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
-    modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
+    if fresh:
+        derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
+        modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
     # outputs at grid points the event landed on (after the switch, as IDA does)
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
         _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
                           cres, spos, prof, reg, rf, work, track_latch)
         k += 1
+        ist[I_IVL] = 0
     ist[I_K] = k
     if k >= n:
         return ADV_DONE
-    kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-    for i in range(n_ev):
-        armed[i] = 1 if g0[i] > 0.0 else 0
+    if fresh:
+        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+        for i in range(n_ev):
+            armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
     while True:
         k = ist[I_K]
@@ -482,6 +521,10 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
         if lev >= NLEV - 1:
             tt[0] = t
             return ADV_MIN_STEP
+        ist[I_IVL] += 1
+        if ist[I_IVL] > max_steps:
+            tt[0] = t
+            return ADV_STALL
         hl = h_max / 2.0 ** lev
         base = grid[k - 1]
         rel = t - base
@@ -656,6 +699,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
                               spos, prof, reg, rf, work, track_latch)
             ist[I_K] = k + 1
+            ist[I_IVL] = 0
             if track_latch:
                 # the latch margin depends on the extremum just updated
                 kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
@@ -680,7 +724,9 @@ def _check_scene(system: System) -> None:
                          f"got {scene.plate.loss_factor}")
 
 
-def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> RawSolution:
+def solve_adaptive_modal(system: System, *, progress: bool | None = None,
+                         checkpoint_dir: str | os.PathLike | None = None,
+                         resume: Checkpoint | None = None) -> RawSolution:
     """Integrate with the adaptive exact-modal scheme (see the module docstring).
 
     Parameters
@@ -689,6 +735,13 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
         From :func:`roughvib.model.system.assemble`.
     progress : bool, optional
         Progress bar on stderr (default: scene.output.progress).
+    checkpoint_dir : path, optional
+        Where ``checkpoint.pkl`` is written every ``output.checkpoint_interval`` of simulated
+        time (nothing is written when the interval is 0 or this is None). A checkpoint holds
+        everything the step loop carries, so runs with and without checkpoints, and resumed
+        runs, are bit-identical.
+    resume : Checkpoint, optional
+        Continue from this checkpoint (of the same scene) instead of starting at t = 0.
 
     Returns
     -------
@@ -704,7 +757,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     R = system.n_modes
     lay = system.layout
     grid, outs = output_grid(system)
-    n = grid.size
+    n, n_out = outs.shape
     # largest step: the output step, halved until it is within solver.max_step
     h_max = out_cfg.step
     if scfg.max_step > 0:
@@ -712,14 +765,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             h_max *= 0.5
 
     reg, rf = system.new_regime_arrays()
-    y0, closed = system.static_equilibrium()
-    regime = initial_regime(closed, system.fp, lay.tangential, False)
-    regime.pack(reg, rf)
-    y, _ = system.consistent(0.0, y0, reg, rf)
-    y_initial = y.copy()
+    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
+    check_tolerances(system, y_initial)
     args = system.kernel_args(reg, rf)
     (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
-    kn.outputs(0.0, y, outs[0], *args)
 
     nst = lay.size
     n_ev = K + 3
@@ -736,41 +785,95 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
     G = np.zeros((4, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
-    ws = np.zeros(2 * R + 4 * K + 2)
+    ws = np.zeros(2 * R + 5 * K + 3)
     jac = np.zeros((K + 1, K + 1))
     ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    ist[I_K] = 1
-    ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
+    cp_interval = out_cfg.checkpoint_interval
+    # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
+    cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
+    scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
+    budget = step_budget(out_cfg.step)
 
-    book = EventBook(system, regime, reg, rf)
+    wall_before = cpu_before = 0.0
+    if resume is None:
+        kn.outputs(0.0, y, outs[0], *args)
+        ist[I_K] = 1
+        ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
+        book = EventBook(system, regime, reg, rf)
+        book.log_initial_phase(0.0, y)
+        fresh = True
+    else:
+        loop = resume.loop
+        outs[:resume.k] = resume.outputs
+        ist[:] = loop["ist"]
+        tt[0] = resume.t
+        D[0] = loop["d"]
+        U[0] = loop["u"]
+        G[0] = loop["g"]
+        armed[:] = loop["armed"]
+        prev = dict(resume.stats)
+        wall_before = float(prev.pop("wall_time", 0.0))
+        cpu_before = float(prev.pop("cpu_time", 0.0))
+        book = EventBook(system, regime, reg, rf, events=list(resume.events),
+                         recent=collections.deque(loop["recent"]),
+                         stats=collections.Counter(prev))
+        book.stats["resumes"] += 1
+        fresh = False  # the loop continues exactly where the checkpointed run was
+
     status, message = "success", "reached the end of the output grid"
-    bar = progress_bar(system, progress)
+    bar = progress_bar(system, progress, initial=float(tt[0]))
     chunk = max(1, n // 200)
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
+
+    def write_cp() -> None:
+        k = int(ist[I_K])
+        st = dict(book.stats)
+        st["wall_time"] = wall_before + time.perf_counter() - wall0
+        st["cpu_time"] = cpu_before + time.process_time() - cpu0
+        write_checkpoint(checkpoint_dir, Checkpoint(
+            scene_toml=scene_toml, t=float(tt[0]), k=k, y=y.copy(), y_initial=y_initial,
+            outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
+            regime=copy.deepcopy(regime), events=list(book.events), stats=st,
+            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[0].copy(),
+                  "u": U[0].copy(), "g": G[0].copy(), "armed": armed.copy()},
+            force_amplitude=float(system.force_amplitude),
+            base_dir=str(Path(scene.base_dir).resolve()),
+            inputs=input_fingerprint(scene_toml, system.profile.stats)))
+
     try:
         while True:
             k_stop = min(n, int(ist[I_K]) + chunk)
+            if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
+                k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
+                             + cp_stride + 1)
             code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
                             G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
                             phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            ipiv, track_latch)
+                            ipiv, track_latch, fresh, budget)
+            fresh = False
             regime.v_ext = float(rf[0])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()
             if code == ADV_DONE:
                 break
             if code == ADV_CHUNK:
+                k = int(ist[I_K])
+                if cp_stride and (k - 1) % cp_stride == 0 and k < n:
+                    book.stats["checkpoints"] += 1
+                    if scene_toml:
+                        write_cp()
                 continue
             te = float(tt[0])
             if code == ADV_EVENT:
                 y_new, _ = book.apply(te, y, set(np.flatnonzero(fired).tolist()))
                 y[:] = y_new
+                fresh = True
                 continue
             where = f"t = {te:.6g} s (regime {regime.describe()})"
             if code == ADV_MIN_STEP:
@@ -782,6 +885,9 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
             if code == ADV_NEWTON:
                 raise SolverFailure("newton_failure", f"adaptive-modal: Newton failed while "
                                     f"locating an event at {where}", te)
+            if code == ADV_STALL:
+                raise stall_failure("adaptive-modal", te, f"more than {budget} step attempts",
+                                    regime.describe())
             raise SolverFailure("nonfinite", f"adaptive-modal: the state became non-finite at "
                                 f"{where}", te)
     except SolverFailure as exc:
@@ -797,7 +903,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None) -> Raw
         "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
         "residual_evaluations": None, "jacobian_evaluations": None,
         "restarts": int(book.stats.get("restarts", 0)),
-        "wall_time": time.perf_counter() - wall0, "cpu_time": time.process_time() - cpu0,
+        "wall_time": wall_before + time.perf_counter() - wall0,
+        "cpu_time": cpu_before + time.process_time() - cpu0,
         "events_total": len(book.events), "largest_step": h_max,
     })
     k_done = int(ist[I_K])

@@ -1,29 +1,41 @@
-"""Checkpoints of the event-driven IDA loop: what a run needs to continue where it stopped.
+"""Checkpoints of the event-driven solvers: what a run needs to continue where it stopped.
 
 A checkpoint is one file, ``checkpoint.pkl`` in the run's output directory, replaced
 atomically (written to a temporary file in the same directory, then ``os.replace``), so a run
 killed while writing leaves the previous checkpoint intact. It holds the scene (TOML text), the
 output rows already filled, the event log, the statistics, the discrete regime and the
-continuous state at a grid time t_c; IDA is restarted at t_c from a consistent state both in
-the run that wrote it and in the run that resumes from it, which is why the two give identical
-results (docs/robustness.md).
+continuous state at a grid time t_c, and the solver's own loop state. IDA is restarted at t_c
+from a consistent state both in the run that wrote it and in the run that resumes from it; the
+adaptive exact-modal scheme, a one-step method, stores everything its loop carries from one
+step to the next. Either way the resumed run is identical to the uninterrupted one
+(docs/robustness.md).
+It also records what the run read besides the scene (the SHA-256 of a roughness file), and
+:func:`check_inputs` refuses to resume when that has changed.
 
 The file is a Python pickle written by roughvib for roughvib: load only checkpoints you made.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import pickle
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from roughvib.scene import SceneError
+from roughvib.scene import Scene, SceneError, scene_to_toml
 
-__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "read_checkpoint",
+if TYPE_CHECKING:  # the model (numba kernels) is needed only to start a run, not to name
+    # a checkpoint file: roughvib.rundir reads CHECKPOINT_NAME before any heavy import
+    from roughvib.model.regimes import Regime
+    from roughvib.model.system import System
+
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_inputs",
+           "check_resume", "input_fingerprint", "read_checkpoint", "start_state",
            "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
@@ -33,7 +45,7 @@ _MAGIC = "roughvib-checkpoint"
 
 @dataclass
 class Checkpoint:
-    """State of an IDA run at a checkpoint time.
+    """State of an event-driven run at a checkpoint time.
 
     Attributes
     ----------
@@ -44,7 +56,7 @@ class Checkpoint:
     k : int
         Index of the next output row to fill (grid[k - 1] == t).
     y : ndarray, shape (n_states,)
-        State returned by IDA at t_c (before the consistent restart).
+        State at t_c (IDA's, before the consistent restart).
     y_initial : ndarray, shape (n_states,)
         State at t = 0 (energy audit).
     outputs : ndarray, shape (k, n_out)
@@ -54,16 +66,22 @@ class Checkpoint:
     regime : object
         The :class:`~roughvib.model.regimes.Regime`.
     events : list
-        :class:`~roughvib.solvers.ida.EventRecord` so far.
+        :class:`~roughvib.solvers.events.EventRecord` so far.
     stats : dict
         Solver statistics so far (counts; wall time of the earlier processes).
     loop : dict
-        Event-loop bookkeeping: ``recent`` (event times in the storm window),
-        ``t_last_restart``, ``last_fired``, ``refire_ignored``.
+        Event-loop bookkeeping and what the solver (``scene_toml``'s ``solver.method``)
+        carries between steps. IDA: ``recent`` (event times in the storm window),
+        ``t_last_restart``, ``last_fired``, ``refire_ignored``, ``h_restart``.
+        adaptive-modal: ``recent``, the integer loop state ``ist`` (step level, counters),
+        and the derivatives ``d``, modal forces ``u``, margins ``g`` and armed roots
+        ``armed`` of the state.
     force_amplitude : float
         T0 [N] of the run (resuming checks it is reproduced).
     base_dir : str
         Directory relative paths of the scene (roughness files) are resolved against.
+    inputs : dict
+        What the run depends on besides the code, from :func:`input_fingerprint`.
     """
 
     scene_toml: str
@@ -80,6 +98,115 @@ class Checkpoint:
     loop: dict = field(default_factory=dict)
     force_amplitude: float = float("nan")
     base_dir: str = "."
+    inputs: dict = field(default_factory=dict)
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
+    """What a run depends on: the scene (its TOML text) and a roughness file's contents.
+
+    Parameters
+    ----------
+    scene_toml : str
+        The scene as stored in the checkpoint.
+    profile_stats : dict
+        ``Profile.stats`` of the run: ``path`` and ``sha256`` of the bytes read from a
+        roughness file (absent for synthetic profiles).
+
+    Returns
+    -------
+    dict
+        ``scene_sha256`` and, with a roughness file, ``roughness_file`` = ``{"path",
+        "sha256"}``.
+    """
+    out: dict = {"scene_sha256": _sha256(scene_toml.encode())}
+    if profile_stats.get("sha256"):
+        out["roughness_file"] = {"path": str(profile_stats["path"]),
+                                 "sha256": profile_stats["sha256"]}
+    return out
+
+
+def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
+    """Refuse to resume if an input of the checkpoint's run has changed since it was written.
+
+    Parameters
+    ----------
+    cp : Checkpoint
+    scene : Scene
+        The scene stored in the checkpoint.
+    path : Path
+        The checkpoint file (for the message).
+
+    Raises
+    ------
+    SceneError
+        One line: the scene text is damaged, or the roughness file is missing, changed, or
+        was not recorded (a checkpoint of an older roughvib).
+    """
+    again = "start the run again without --resume"
+    recorded = cp.inputs.get("scene_sha256")
+    if recorded is not None and recorded != _sha256(cp.scene_toml.encode()):
+        raise SceneError(f"{path}: the checkpoint's scene does not match its recorded SHA-256 "
+                         f"(a damaged file); {again}")
+    if scene.roughness.kind != "file":
+        return
+    rec = cp.inputs.get("roughness_file")
+    if not rec:
+        raise SceneError(f"{path}: the checkpoint records no SHA-256 of roughness.path (an "
+                         f"older roughvib wrote it), so an edited profile file would go "
+                         f"unnoticed; {again}")
+    try:
+        now = _sha256(Path(rec["path"]).read_bytes())
+    except OSError as exc:
+        raise SceneError(f"roughness.path {rec['path']} cannot be read ({exc.strerror}): the "
+                         f"checkpoint in {path.parent} was written with it; restore it or "
+                         f"{again}") from None
+    if now != rec["sha256"]:
+        raise SceneError(f"roughness.path {rec['path']} changed since the checkpoint was "
+                         f"written (SHA-256 {rec['sha256'][:12]}... then, {now[:12]}... now): "
+                         f"restore it or {again}")
+
+
+def check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
+    """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
+    if scene_to_toml(system.scene) != cp.scene_toml:
+        raise SceneError("the checkpoint was written by a different scene; resume with the "
+                         "scene stored in the checkpoint (roughvib run --resume DIR)")
+    if not (1 <= cp.k < n) or cp.outputs.shape != (cp.k, n_out) or \
+            cp.y.shape != (system.layout.size,):
+        raise SceneError(f"the checkpoint does not fit this model (rows {cp.outputs.shape}, "
+                         f"{cp.y.shape[0]} states; expected {n} rows of {n_out} outputs and "
+                         f"{system.layout.size} states)")
+    if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
+        raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
+                         f"from the recalibrated {system.force_amplitude!r} N")
+
+
+def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpoint | None,
+                n: int, n_out: int) -> tuple[Regime, np.ndarray, np.ndarray]:
+    """Where an event-driven run starts: the regime (packed into ``reg``, ``rf``), the state
+    and the state at t = 0 (energy audit).
+
+    Without ``resume``: the static equilibrium at t = 0, made consistent. With it: the
+    checkpoint's, once :func:`check_resume` has accepted it for this scene and a grid of
+    ``n`` rows of ``n_out`` outputs.
+    """
+    if resume is None:
+        from roughvib.model.regimes import initial_regime
+
+        y0, closed = system.static_equilibrium()
+        regime = initial_regime(closed, system.fp, system.layout.tangential, system.coulomb)
+        regime.pack(reg, rf)
+        y, _ = system.consistent(0.0, y0, reg, rf)
+        return regime, y, y.copy()
+    check_resume(resume, system, n, n_out)
+    reg[:] = resume.reg
+    rf[:] = resume.rf
+    return (resume.regime, np.array(resume.y, dtype=float),
+            np.array(resume.y_initial, dtype=float))
 
 
 def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:

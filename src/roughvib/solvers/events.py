@@ -3,13 +3,16 @@
 The solvers own *when* a root fires (IDA's root finding, or the adaptive exact-modal scheme's
 own search); :class:`EventBook` owns what follows, so that both produce the same event log:
 the regime is switched by :func:`roughvib.model.regimes.switch`, the state made consistent by
-:meth:`System.consistent`, both limits of the margins and of the friction force are logged,
+:meth:`.System.consistent`, both limits of the margins and of the friction force are logged,
 and the event-storm guard (``solver.max_events`` within ``solver.event_window``) stops the run.
+The stall guard (:func:`step_budget`, :func:`stall_failure`) bounds the solver work between two
+output times, so that every run ends.
 """
 
 from __future__ import annotations
 
 import collections
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,7 +21,16 @@ from roughvib.model import kernels as kn
 from roughvib.model.regimes import Regime, switch
 from roughvib.model.system import System
 
-__all__ = ["EventBook", "EventRecord", "SolverFailure"]
+__all__ = ["EventBook", "EventRecord", "SolverFailure", "initial_phase_events", "stall_failure",
+           "step_budget"]
+
+#: Stall guard: a run whose mean internal step within one output interval falls below
+#: STALL_MEAN_STEP (and that takes more than STALL_MIN_STEPS steps there) stops as "stalled".
+#: Legitimate runs stay far below it: IDA at rtol 1e-14 took ~6,500 steps per 1e-5 s output
+#: interval on a lift-off scene, adaptive-modal ~1,000; the stalls of issue 17 took 20,000
+#: steps (and as many Jacobians) without leaving the interval.
+STALL_MEAN_STEP = 5e-10  # s
+STALL_MIN_STEPS = 20_000
 
 
 class SolverFailure(RuntimeError):
@@ -30,6 +42,25 @@ class SolverFailure(RuntimeError):
         self.t = t
 
 
+def step_budget(output_step: float) -> int:
+    """Internal steps allowed within one output interval of ``output_step`` [s]."""
+    return max(STALL_MIN_STEPS, math.ceil(output_step / STALL_MEAN_STEP))
+
+
+def stall_failure(method: str, t: float, what: str, regime: str) -> SolverFailure:
+    """The ``stalled`` failure of the stall guard, with its hint.
+
+    ``what`` says which budget ran out, e.g. "more than 20000 steps".
+    """
+    return SolverFailure(
+        "stalled",
+        f"{method} stalled at t = {t:.6g} s (regime {regime}): {what} within one output "
+        f"interval without reaching its end. Hint: the tolerances may be below what double "
+        f"precision resolves for this scene (loosen solver.atol, solver.atol_acceleration or "
+        f"solver.rtol), or the scene has a discontinuity no event sees; the event log's last "
+        f"entries show where", t)
+
+
 @dataclass
 class EventRecord:
     """One entry of the event log (the regime before and after, and the trigger values).
@@ -39,11 +70,12 @@ class EventRecord:
     time : float [s]
     kind : str
         ``lift_off``, ``touch_down``, ``stick``, ``slip``, ``friction_branch``,
-        ``latch_flip`` or ``event_storm``.
+        ``latch_flip``, the guards' ``hysteresis_hold``, ``dwell_hold``, ``chatter_guard``,
+        or ``event_storm``. The phase a run starts in is logged at its start time.
     contact : int
         Contact index for contact events, -1 for block-level events.
     regime_before, regime_after : str
-        :meth:`Regime.describe` texts.
+        :meth:`.Regime.describe` texts.
     margin_before, margin_after : float
         The root function that fired, at the event, evaluated with the regime before (≈ 0,
         it just crossed) and with the regime after the switch (the new regime's margin for
@@ -74,6 +106,40 @@ class EventRecord:
     friction_after: float
 
 
+def initial_phase_events(system: System, t: float, y: np.ndarray, reg: np.ndarray,
+                         rf: np.ndarray, stick: bool, regime_text: str = ""
+                         ) -> list[EventRecord]:
+    """The friction phase a run starts in, as a ``stick`` or ``slip`` event at ``t``.
+
+    With it the log reads as a complete phase sequence: every phase, the first included,
+    starts with an event. Empty without tangential dynamics (prescribed motion).
+
+    Parameters
+    ----------
+    system : System
+    t : float
+        Start time [s].
+    y : ndarray, shape (n_states,)
+        Consistent initial state.
+    reg, rf : ndarray
+        The kernels' view of the initial regime.
+    stick : bool
+        The run starts in stick (else in slip).
+    regime_text : str
+        :meth:`Regime.describe` of the initial regime (``regime_after``).
+    """
+    if not system.tangential:
+        return []
+    K = system.n_contacts
+    out = np.empty(kn.N_OUT_FIXED + 2 * K)
+    kn.outputs(t, y, out, *system.kernel_args(reg, rf))
+    fric = float(out[kn.OUT_NAMES.index("friction_force")])
+    return [EventRecord(t, "stick" if stick else "slip", -1, "", regime_text, float("nan"),
+                        float("nan"), float(out[kn.OUT_NAMES.index("block_tangential_velocity")]),
+                        float(out[kn.OUT_NAMES.index("normal_force")]), float("nan"), fric,
+                        fric)]
+
+
 @dataclass
 class EventBook:
     """The regime of a run and the log of its switches.
@@ -85,7 +151,7 @@ class EventBook:
         Switched in place; ``reg``/``rf`` (the kernels' view of it) are repacked after every
         switch.
     reg, rf : ndarray
-        From :meth:`System.new_regime_arrays`.
+        From :meth:`.System.new_regime_arrays`.
     """
 
     system: System
@@ -95,6 +161,13 @@ class EventBook:
     events: list[EventRecord] = field(default_factory=list)
     recent: collections.deque = field(default_factory=collections.deque)
     stats: collections.Counter = field(default_factory=collections.Counter)
+
+    def log_initial_phase(self, t: float, y: np.ndarray) -> None:
+        """Log the friction phase the run starts in (see :func:`initial_phase_events`)."""
+        for rec in initial_phase_events(self.system, t, y, self.reg, self.rf,
+                                        self.regime.stick, self.regime.describe()):
+            self.events.append(rec)
+            self.stats[f"events_{rec.kind}"] += 1
 
     def apply(self, te: float, ye: np.ndarray, fired: set[int]
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -118,10 +191,12 @@ class EventBook:
         kn.events(te, ye, evbuf, *ev_args)
         kn.outputs(te, ye, outbuf, *args)
         fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+        fr = system.scene.friction
         kinds = []
         for idx in sorted(fired):
             for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
-                             lay.slice("contact.force"), system.scene.friction.dwell_time):
+                             lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
+                             fr.chatter_window):
                 kinds.append((tr.kind, tr.contact, idx))
                 if tr.guard:
                     self.stats[f"guard_{tr.guard}"] += 1
@@ -155,6 +230,10 @@ class EventBook:
                 f"regime {after}). Hint: raise solver.max_events or "
                 f"solver.event_window if the events are physical, or check for "
                 f"grazing contact (roughness much smaller than the static "
-                f"compression changes).", te)
+                f"compression changes)"
+                + ("; for stick/slip chatter of the Coulomb law, lower "
+                   "friction.chatter_switches" if any(kd in ("stick", "slip")
+                                                      for kd, _, _ in kinds) else "")
+                + ".", te)
         self.stats["restarts"] += 1
         return y, yp

@@ -1,6 +1,6 @@
 """Fixed-step baselines on the same model and the same Result contract as IDA.
 
-``exact-modal`` (physics.md §2.5): each plate mode is propagated exactly over a step with a
+``exact-modal`` (docs/theory.md): each plate mode is propagated exactly over a step with a
 first-order-hold (piecewise-linear) modal force, ``s_{n+1} = Phi s_n + G0 u_n + G1 u_{n+1}``,
 which is unconditionally stable and free of period error even for modes with omega h > pi.
 The plate displacement at the contacts is then ``w_{n+1} = w_free + G1c F_{n+1}`` (plus the
@@ -13,8 +13,8 @@ both schemes share one numba loop and differ only in the precomputed per-mode co
 
 Both use average-acceleration Newmark for the block's vertical motion and the trapezoidal rule
 with a scalar Newton iteration for the tangential motion, staggered: the tangential step uses
-the normal force of the previous step (physics.md §2.5, "acceptable"). Events are located by
-sign changes between steps with linear interpolation and written to the same event log.
+the normal force of the previous step (a staggering that costs little accuracy). Events are
+located by sign changes between steps with linear interpolation and written to the same event log.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu_law, latch_update
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
+from roughvib.solvers.events import initial_phase_events
 from roughvib.solvers.ida import EventRecord, RawSolution
 
 __all__ = ["modal_propagators", "solve_fixed_step"]
@@ -95,7 +96,7 @@ def log_step_events(t0, h, comp_old, comp, v0, v1, tang, vth, exact_stick, log_l
                     ev_t, ev_kind, ev_contact, n_ev, tangential):
     """Events of one step by sign change, with linear interpolation (shared by the loops).
 
-    Contacts: the compression changes sign (lift-off / touch-down). Tangential: |v| crosses
+    Contacts: the compression changes sign (lift-off / touch-down). Tangential: ``|v|`` crosses
     ``vth`` (stick / slip; ``exact_stick``: stick means v == 0), and the hysteresis latch is
     advanced (``latch_flip`` logged when ``log_latch``). Updates ``comp_old`` and ``tang`` in
     place and returns the new event count.
@@ -251,7 +252,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         t1 = t0 + h
         # ---- tangential (trapezoidal, Newton on v1; normal force of step n) ----------------
         if tangential and moreau:
-            # Moreau-Jean (physics.md §3.4 D): free velocity, then the friction impulse is
+            # Moreau-Jean (Acary & Brogliato 2008): free velocity, then the friction impulse is
             # the projection onto [-h mu_stick F_N, h mu_stick F_N] (stick: v = 0 exactly)
             t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
             vfree = (v0 + h * t_new / m) / (1.0 + h * r2 / m)
@@ -481,7 +482,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     elif code == 2:
         status = "active_set_failure"
         message = f"contact active set did not converge at t = {n_done * h:.6g} s"
-    events = event_records(n_ev, ev_t, ev_kind, ev_contact)
+    events = (initial_phase_events(system, 0.0, y, reg, rf, start_stick)
+              + event_records(n_ev, ev_t, ev_kind, ev_contact))
     # final state vector in the IDA layout (for the energy audit)
     yf = np.zeros(lay.size)
     yf[lay.slice("plate.q")] = q
@@ -499,7 +501,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     rows = (n_done // out_every) + 1 if code else n_out
     stats = {"steps": int(n_done), "step_size": h, "residual_evaluations": None,
              "jacobian_evaluations": None, "restarts": 0, "wall_time": wall,
-             "cpu_time": time.process_time() - cpu0, "events_total": n_ev,
+             "cpu_time": time.process_time() - cpu0, "events_total": len(events),
              "events_truncated": n_ev >= cap}
     return RawSolution(time=np.arange(n_out) * scene.output.step, outputs=out, events=events,
                        stats=stats, status=status, message=message, y_initial=y,

@@ -12,9 +12,9 @@ Guards (docs/theory.md): a root that fires again within ``REFIRE_DT`` of the res
 same function is ignored once; more than ``solver.max_events`` events within
 ``solver.event_window`` stop the run with status ``event_storm``.
 
-scikit-sundae pitfalls handled here (shared/ida-notes.md §4): the eventsfn's event history is
+scikit-sundae pitfalls handled here: the eventsfn's event history is
 cleared after every event; step counts are read through SUNDIALS' ``IDAGetNumSteps`` (not
-exposed by sksundae; see :class:`_IdaCounters`); unknown return codes are caught.
+exposed by sksundae; see ``_IdaCounters``); unknown return codes are caught.
 """
 
 from __future__ import annotations
@@ -37,11 +37,21 @@ import sksundae as sun
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
-from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
-from roughvib.solvers.events import EventBook, EventRecord, SolverFailure
+from roughvib.solvers.checkpoint import (
+    Checkpoint,
+    input_fingerprint,
+    start_state,
+    write_checkpoint,
+)
+from roughvib.solvers.events import (
+    EventBook,
+    EventRecord,
+    SolverFailure,
+    stall_failure,
+    step_budget,
+)
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -55,6 +65,14 @@ REFIRE_DT = 1e-12  # s
 # It is capped at the same fraction of the output step: after a free flight (an exact parabola)
 # BDF's last step is huge, and restarting a touch-down with it failed the error test 10 times.
 RESTART_STEP_FRACTION = 0.01
+# Stall guard on the Jacobians of one step() call: at most step_budget / this many. A healthy
+# interval needs a few (restarts add ~10 each); the stalls of issue 17 refactorised at every
+# step, at ~5 ms per factorisation.
+JACOBIANS_PER_STEP_BUDGET = 40
+
+
+class _JacobianBudget(Exception):
+    """Raised inside the Jacobian callback to abort a stalled IDASolve call."""
 
 
 @dataclass
@@ -185,6 +203,72 @@ def _atol_vector(system: System) -> np.ndarray:
     return atol
 
 
+#: solver.atol must be at least this many unit round-offs of the contact compression's terms
+#: (docs/robustness.md): near a lift-off or touch-down a contact force is known only to
+#: s_k eps L. Measured on the one-contact lift-off scene of issue 17 (rtol 1e-10, 0.02 s, 8
+#: events): IDA stalled in its error test at a touch-down with atol = 10 eps L and at the
+#: first lift-off with 2.3 eps L, and ran through at 100 eps L (adaptive-modal ran at 1e-5 eps L).
+ATOL_FLOOR_ULPS = 100.0
+
+
+def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, float]]:
+    """Round-off floors of the absolute tolerances at state ``y`` (the static equilibrium).
+
+    Returns ``{field: (floor, scale)}`` for ``atol`` [m] and, with plate modes,
+    ``atol_acceleration`` [m/s^2]; ``scale`` is the magnitude whose round-off sets the floor.
+
+    * ``atol``: the contact compression z - w_k + h is a difference of terms as large as
+      L = |z| + max |w_k| + max |h| [m] (block position, plate displacement at the contacts,
+      roughness height), so it is known to eps L, and a closing contact's force only to
+      s_k eps L, while its tolerance weight tends to atol s_k. The floor is
+      ``ATOL_FLOOR_ULPS`` eps L.
+    * ``atol_acceleration``: each mode balances w_r^2 q_r against its modal force per unit
+      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to eps max |u_r|.
+      Below that floor both event-driven solvers slow down (1.6x at the floor, 4x at 4x the
+      floor, 100x and more for block.mass >= 1e9 kg) and finally stall.
+    """
+    eps = float(np.finfo(float).eps)
+    lay = system.layout
+    F = np.asarray(y[lay.slice("contact.force")], dtype=float)
+    w = system.cres @ F
+    if system.n_modes:
+        w = w + system.phi.T @ np.asarray(y[lay.slice("plate.q")], dtype=float)
+    L = (abs(float(y[lay.index("block.z")])) + float(np.max(np.abs(w), initial=0.0))
+         + float(np.max(np.abs(system.profile.z), initial=0.0)))
+    floors = {"atol": (ATOL_FLOOR_ULPS * eps * L, L)}
+    if system.n_modes:
+        u = float(np.max(np.abs(system.phi @ F))) / system.fp[kn.FP_MMODAL]
+        floors["atol_acceleration"] = (eps * u, u)
+    return floors
+
+
+def check_tolerances(system: System, y: np.ndarray) -> None:
+    """Refuse absolute tolerances below their round-off floors (:func:`tolerance_floors`).
+
+    Raises
+    ------
+    SceneError
+        One line naming each field below its floor, the rule, the unit and the value.
+    """
+    scfg = system.scene.solver
+    floors = tolerance_floors(system, y)
+    bad = []
+    floor, L = floors["atol"]
+    if scfg.atol < floor:
+        bad.append(f"solver.atol must be >= {floor:.2g} m for this scene ({ATOL_FLOOR_ULPS:g} "
+                   f"round-offs of the contact compression, whose terms reach {L:.3g} m), "
+                   f"got {scfg.atol:g} m")
+    if "atol_acceleration" in floors:
+        floor, u = floors["atol_acceleration"]
+        if scfg.atol_acceleration < floor:
+            bad.append(f"solver.atol_acceleration must be >= {floor:.2g} m/s^2 for this scene "
+                       f"(the round-off of the plate modes' force balance, whose modal forces "
+                       f"per modal mass reach {u:.3g} m/s^2 under block.mass = "
+                       f"{system.scene.block.mass:g} kg), got {scfg.atol_acceleration:g} m/s^2")
+    if bad:
+        raise SceneError("; ".join(bad))
+
+
 def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     rows, cols = kn.jacobian_pattern(system.off)
     n = system.layout.size
@@ -228,7 +312,7 @@ def _krylov_options(system: System, args: tuple) -> dict:
     """IDA options of the matrix-free path: GMRES(1) + exact preconditioner + analytic Jv.
 
     Both callbacks evaluate the Newton matrix at IDA's current iterate, so the preconditioned
-    system is the identity and one Krylov iteration solves it (ida-notes §3).
+    system is the identity and one Krylov iteration solves it.
     """
     (off, fpa, omega2, cdamp, phi, _phi_obs, stiff, cres, spos, prof, reg, _rf, work) = args
     ws = krylov_workspace(system.layout.size, system.n_modes, system.n_contacts)
@@ -266,32 +350,18 @@ def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
 def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
     """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
 
-    ``progress`` None means the scene's ``output.progress``.
+    ``progress`` None means the scene's ``output.progress``. When stderr is not a terminal
+    (a log file), a few whole lines instead (:mod:`roughvib._progress`).
     """
-    from tqdm import tqdm
+    from roughvib._progress import progress_bar as bar
 
     scene = system.scene
     if progress is None:
         progress = scene.output.progress
-    return tqdm(total=float(scene.output.duration), initial=initial, unit="s",
-                unit_scale=False, disable=not progress, file=sys.stderr,
-                desc=f"roughvib {scene.name}", leave=False,
-                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
-
-
-def _check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
-    """A checkpoint must belong to this scene and fit its grid (else a one-line error)."""
-    if scene_to_toml(system.scene) != cp.scene_toml:
-        raise SceneError("the checkpoint was written by a different scene; resume with the "
-                         "scene stored in the checkpoint (roughvib run --resume DIR)")
-    if not (1 <= cp.k < n) or cp.outputs.shape != (cp.k, n_out) or \
-            cp.y.shape != (system.layout.size,):
-        raise SceneError(f"the checkpoint does not fit this model (rows {cp.outputs.shape}, "
-                         f"{cp.y.shape[0]} states; expected {n} rows of {n_out} outputs and "
-                         f"{system.layout.size} states)")
-    if not np.isnan(cp.force_amplitude) and cp.force_amplitude != system.force_amplitude:
-        raise SceneError(f"the checkpoint's force amplitude {cp.force_amplitude!r} N differs "
-                         f"from the recalibrated {system.force_amplitude!r} N")
+    return bar(float(scene.output.duration), initial=initial, unit="s sim",
+               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
+               value_format=".4f", unit_scale=False, leave=False,
+               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
 
 
 def solve_ida(system: System, *, progress: bool | None = None,
@@ -327,22 +397,12 @@ def solve_ida(system: System, *, progress: bool | None = None,
     n, n_out = outs.shape
 
     reg, rf = system.new_regime_arrays()
-    if resume is None:
-        y0, closed = system.static_equilibrium()
-        regime = initial_regime(closed, system.fp, lay.tangential, system.coulomb)
-        regime.pack(reg, rf)
-        t_start, k_start = 0.0, 1
-        y, yp = system.consistent(0.0, y0, reg, rf)
-        y_initial = y.copy()
-    else:
-        _check_resume(resume, system, n, n_out)
-        regime = resume.regime
-        reg[:] = resume.reg
-        rf[:] = resume.rf
-        t_start, k_start = float(resume.t), int(resume.k)
+    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
+    t_start, k_start = (0.0, 1) if resume is None else (float(resume.t), int(resume.k))
+    if resume is not None:
         outs[:k_start] = resume.outputs
-        y, yp = system.consistent(t_start, np.array(resume.y, dtype=float), reg, rf)
-        y_initial = np.array(resume.y_initial, dtype=float)
+    y, yp = system.consistent(t_start, y, reg, rf)
+    check_tolerances(system, y_initial)
     cp_interval = scene.output.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
@@ -362,7 +422,14 @@ def solve_ida(system: System, *, progress: bool | None = None,
         residual(t, yy, yyp, res, off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
                  prof, reg, rf, work)
 
+    budget = step_budget(out_cfg.step)
+    jac_budget = budget // JACOBIANS_PER_STEP_BUDGET
+    jac_count = [0]  # Jacobians within the current step() call
+
     def jacfn(t, yy, yyp, res, cj, jj):
+        jac_count[0] += 1
+        if jac_count[0] > jac_budget:  # aborts this IDASolve call (stall guard)
+            raise _JacobianBudget
         jacobian_values(t, yy, yyp, cj, vals, off, fpa, omega2, cdamp, phi, phi_obs, stiff,
                         cres, spos, prof, reg, rf, work)
         scatter(vals, perm, jj)
@@ -376,7 +443,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
 
     options = dict(
         rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
-        eventsfn=eventsfn, num_events=n_ev, max_num_steps=1_000_000, max_step=scfg.max_step,
+        eventsfn=eventsfn, num_events=n_ev, max_num_steps=budget, max_step=scfg.max_step,
         max_order=scfg.max_order,
     )
     if scfg.linear_solver == "gmres":
@@ -454,18 +521,25 @@ def solve_ida(system: System, *, progress: bool | None = None,
                   "last_fired": sorted(last_fired), "refire_ignored": refire_ignored,
                   "h_restart": h_restart},
             force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve())))
+            base_dir=str(Path(scene.base_dir).resolve()),
+            inputs=input_fingerprint(scene_toml, system.profile.stats)))
 
     book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
+    if resume is None:
+        book.log_initial_phase(0.0, y)
     k = k_start
     r = None
     try:
         while k < n:
+            jac_count[0] = 0
             try:
                 r = cy.step(grid[k], "normal", None)
-            except KeyError as exc:  # unknown IDA return code (shared/ida-notes.md §4.3)
+            except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
                 raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
                                     f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
+            except _JacobianBudget:
+                raise stall_failure("ida", grid[k - 1], f"more than {jac_budget} Jacobians",
+                                    regime.describe()) from None
             if first_result:
                 counters.validate(int(r.nfev))
                 first_result = False
@@ -481,7 +555,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     last_fired = set()
                     continue
                 close_segment(r)
-                y, yp = book.apply(te, np.asarray(r.y, dtype=float), fired)
+                r_event, r = r, None  # closed: a failure before the next result adds nothing
+                y, yp = book.apply(te, np.asarray(r_event.y, dtype=float), fired)
                 # first step after the restart: RESTART_STEP_FRACTION of the last step
                 h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
                 cy.init_step(te, y, yp)
@@ -492,8 +567,11 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     kn.outputs(grid[k], y, outs[k], *args)
                     k += 1
                 continue
+            if r.status == -1:  # max_num_steps within this output interval
+                raise stall_failure("ida", grid[k - 1], f"more than {budget} steps",
+                                    regime.describe())
             if r.status < 0:
-                # r.y keeps IDA's last accepted state (shared/ida-notes.md §4.4)
+                # r.y keeps IDA's last accepted state
                 near = _closest_contact(grid[k - 1], r.y, K, ev_args)
                 raise SolverFailure(
                     "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "

@@ -302,7 +302,7 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
 
 def _study(scene, base, out, worker, budget, remaining, t_start, reference, methods, rtols,
            steps, reference_rtol, reference_method, presets, progress) -> pd.DataFrame:
-    from tqdm import tqdm
+    from roughvib._progress import progress_bar
 
     if reference is not None:
         ref = load_result(reference)
@@ -334,7 +334,7 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
     rows = []
     last_cost: dict[str, float] = {}
     period = base.period
-    bar = tqdm(total=len(queue), desc="work-precision runs", disable=not progress, unit="run")
+    bar = progress_bar(len(queue), desc="work-precision runs", disable=not progress, unit="run")
     with tempfile.TemporaryDirectory(prefix="wp-", dir=out) as scratch:
         for i, run in enumerate(queue):
             row = {"method": run.method, "setting": run.setting, "preset": run.preset,

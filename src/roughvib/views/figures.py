@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from roughvib.analysis import figures_data as fd
-from roughvib.analysis.events import lift_off_intervals, stick_intervals
+from roughvib.analysis.events import GUARD_KINDS, lift_off_intervals, stick_intervals
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -165,7 +165,8 @@ def plot_regime_timeline(result: Result, *, ax: Axes | None = None) -> Axes:
     iv = stick_intervals(result.events, t_end)
     if iv:
         ax.broken_barh([(s, e - s) for s, e in iv], (K - 0.4 + 0.5, 0.8), color="C0")
-    guards = result.events[result.events["kind"].isin(["hysteresis_hold", "dwell_hold"])]
+    guards = result.events[result.events["kind"].isin(
+        [k for k in GUARD_KINDS if k != "event_storm"])]
     if len(guards):
         ax.plot(guards["time"], np.full(len(guards), K + 0.5), "k|", ms=8, label="guard")
         ax.legend(loc="upper right", fontsize=7)
@@ -359,7 +360,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
         [third-octave, narrow band].
     noise_rms : float, optional
         rms [m/s^2] of a simulated white accelerometer noise added to the block (drawn as a
-        further thin line); physics.md §7 suggests 1e-3.
+        further thin line); 1e-3 is an estimate of the paper's.
     resolution : float
         Narrow-band bin spacing [Hz].
 
@@ -463,6 +464,7 @@ def _whole(fn: Callable, **kw) -> Callable[[Result], Figure]:
     return draw
 
 
+#: figure name -> drawing function (``roughvib plot --figure NAME`` and the run report)
 FIGURES: dict[str, Callable[[Result], Figure]] = {
     "velocity": _whole(plot_velocity),
     "friction-velocity": _whole(plot_friction_velocity_pair),

@@ -3,8 +3,7 @@ the page (CSS, title, navigation, sections).
 
 Every report page (the run report, the sweep report) is built from these pieces, so the pages
 look alike and escape the same way. A page is self-contained: one file, no script, no network;
-figures are embedded as PNG data URIs (or, where a report keeps its PNGs beside the page, linked
-by a relative file name).
+figures are embedded as PNG data URIs (also where a report keeps its PNGs beside the page).
 """
 
 from __future__ import annotations
@@ -19,8 +18,9 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 
 __all__ = ["CSS", "esc", "figure", "figure_data_uri", "frame_table", "kv_table", "num", "page",
-           "slug", "table"]
+           "png_data_uri", "slug", "table"]
 
+#: the style sheet of every report page (inline, so that a page is one file)
 CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
        max-width: 1100px; padding: 0 1em; color: #222; line-height: 1.4; }
@@ -36,6 +36,7 @@ figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: 0.85em; color: #555; }
 .status-success { color: #17692b; } .status-failed { color: #a11; }
 .note { font-size: 0.85em; color: #555; }
+.banner { border: 2px solid #a11; background: #fdecea; padding: 0.6em 1em; margin: 1em 0; }
 nav a { margin-right: 1em; }
 """
 
@@ -121,7 +122,12 @@ def figure_data_uri(fig, *, dpi: int) -> str:
     """
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return png_data_uri(buf.getvalue())
+
+
+def png_data_uri(png: bytes) -> str:
+    """PNG bytes (a file's content) as a ``data:image/png;base64,...`` URI."""
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
 def figure(src: str, *, alt: str, caption_html: str = "", id: str | None = None) -> str:
@@ -130,7 +136,7 @@ def figure(src: str, *, alt: str, caption_html: str = "", id: str | None = None)
     Parameters
     ----------
     src : str
-        Data URI (:func:`figure_data_uri`) or a relative file name.
+        Data URI (:func:`figure_data_uri`, :func:`png_data_uri`).
     alt : str
         Text of the image for readers that do not show it.
     caption_html : str

@@ -5,8 +5,9 @@
 resonance, third-octave band levels), the solver statistics, the energy audit, the accuracy
 section of a verified run (``roughvib run --verify``), the per-cycle
 event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as
-base64 PNG data URIs. The page needs no server, no network and no script; it opens from disk in
-any browser.
+base64 PNG data URIs. The report of a failed run opens with a banner and shows what the run
+recorded up to the failure (``partial.nc`` and the event log). The page needs no server, no
+network and no script; it opens from disk in any browser.
 
 ``roughvib report DIR`` (:mod:`roughvib.cli.report`) calls :func:`write_report`.
 """
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from roughvib.analysis.levels import single_draw_note
 from roughvib.views.html import esc, figure, figure_data_uri, frame_table, kv_table, num, page
 
 __all__ = ["build_report", "write_report"]
@@ -72,15 +74,22 @@ def _levels_section(summary: dict) -> str:
         ("normal force min", m.get("normal_force_min"), "N"),
         ("closed contacts, mean", m.get("active_contacts_mean"), "-"),
     ]
-    return kv_table(rows)
+    note = single_draw_note(summary)
+    return kv_table(rows) + (f"<p class='note'>{esc(note)}</p>" if note else "")
 
 
 def _model_section(summary: dict) -> str:
     mo = summary.get("model", {})
     prof = mo.get("profile", {})
+    c = mo.get("contact", {})
     rows = [("plate modes", mo.get("modes"), "-"), ("contacts", mo.get("contacts"), "-"),
+            ("contact points from", c.get("points_source"), "-"),
+            ("micro-contacts (statistical model)", c.get("micro_contacts"), "-"),
+            ("contact selection", c.get("selection"), "-"),
             ("states", mo.get("states"), "-"),
             ("total contact stiffness", mo.get("contact_stiffness_total"), "N/m"),
+            ("contact stiffness from", c.get("stiffness_source"), "-"),
+            ("vertical damping r1", c.get("vertical_damping"), "N s/m"),
             ("initially closed contacts", mo.get("initially_closed_contacts"), "-"),
             ("profile rms", prof.get("rms"), "m"),
             ("profile rms slope", prof.get("rms_slope"), "-"),
@@ -241,6 +250,34 @@ def _phase_section(result) -> str:
                                 "(roughvib events DIR shows the same table).</p>")
 
 
+def _last_events_section(result) -> str:
+    """The last 20 events of a failed run (the whole log is in events.csv)."""
+    ev = result.events
+    if not len(ev):  # no events.csv: the summary keeps the last ones
+        ev = pd.DataFrame(result.summary.get("last_events") or [])
+    if not len(ev):
+        return "<p class='note'>no events were logged before the failure</p>"
+    cols = [c for c in ("time", "kind", "contact", "regime_before", "regime_after",
+                        "tangential_velocity", "normal_force") if c in ev.columns]
+    ev = ev.tail(20)[cols].copy()
+    if "contact" in ev:  # an integer, empty for block-level events
+        ev["contact"] = [("" if pd.isna(c) else int(c)) for c in ev["contact"]]
+    return frame_table(ev)
+
+
+def _failed_banner(result, has_series: bool) -> str:
+    s = result.summary
+    t_end = (s.get("partial_result") or {}).get("t_end")
+    at = f" at t = {t_end:.6g} s" if t_end is not None else ""
+    shown = ("The phase table and the figures below show what was recorded up to the failure "
+             "(partial.nc and the event log in events.csv); levels, spectra and the contact "
+             "resonance are computed for complete runs only." if has_series else
+             "The run stopped before its first output sample: there is no time series to "
+             "show, only the statistics and the last events.")
+    return (f"<div class='banner' role='alert'><b>This run FAILED ({esc(s.get('status', '?'))}"
+            f"{esc(at)}).</b> {esc(shown)}</div>")
+
+
 def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, list[str]]:
     from roughvib.views.figures import FIGURES, _plt, plot_spectra
 
@@ -287,8 +324,9 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     Parameters
     ----------
     result : Result
-        Fresh or loaded; a failed run gives a page with its status, statistics, last events
-        and scene, without figures.
+        Fresh or loaded; a failed run (loaded with ``partial=True``) gives a page with a
+        banner, its status, statistics, last events and scene, and the phase table and the
+        figures of what it recorded up to the failure.
     title : str, optional
         Page title (default: "roughvib report: <scene>").
     dpi : int
@@ -308,8 +346,10 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     title = title or f"roughvib report: {scene_name}"
     status = s.get("status", "unknown")
     ok = status == "success"
+    has_series = result.dataset.sizes.get("time", 0) > 0  # a failed run: partial.nc
     sections: list[tuple[str, str, str]] = []  # (id, heading, html)
-    sections.append(("levels", "Summary", _levels_section(s)))
+    if ok:  # a failed run has no levels: they need the whole analysis window
+        sections.append(("levels", "Summary", _levels_section(s)))
     if ok:
         try:
             res, bands = _resonance_and_bands(result)
@@ -324,22 +364,19 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     sections.append(("energy", "Energy audit", _energy_section(s)))
     if ok:
         sections.append(("accuracy", "Accuracy", _safe(_accuracy_section, s)))
-    if ok:
+    if not ok:
+        sections.append(("last-events", "Last events before the failure",
+                         _safe(_last_events_section, result)))
+    if has_series:
         sections.append(("phases", "Event phase table", _safe(_phase_section, result)))
         figs, _ = _figures_section(result, dpi, noise_rms)
         sections.append(("figures", "Figures", figs))
-    else:
-        last = s.get("last_events") or []
-        if last:
-            cols = [c for c in ("time", "kind", "contact", "tangential_velocity",
-                                "normal_force") if c in last[0]]
-            sections.append(("last-events", "Last events before the failure",
-                             frame_table(pd.DataFrame(last)[cols])))
     sections.append(("scene", "Scene (resolved, repeatable)",
                      f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
-    created = result.dataset.attrs.get("created", "") if ok else ""
+    created = result.dataset.attrs.get("created", "")
     status_cls = "status-success" if ok else "status-failed"
     header = (
+        ("" if ok else _failed_banner(result, has_series)) +
         f"<p>status: <b class='{status_cls}'>{esc(status)}</b>: {esc(s.get('message', ''))}"
         f"<br>run created {esc(created)}; report by roughvib {esc(__version__)} on "
         f"{esc(time.strftime('%Y-%m-%d %H:%M:%S'))}<br>model after J. Feldmann, "
@@ -354,7 +391,7 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     Parameters
     ----------
     result_dir : str or Path
-        Directory written by ``roughvib run`` / :meth:`Result.save`.
+        Directory written by ``roughvib run`` / :meth:`Result.save <roughvib.results.Result.save>`.
     out : str or Path, optional
         HTML file (default ``result_dir/report.html``).
     dpi : int
@@ -374,7 +411,7 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     """
     from roughvib.results import load_result
 
-    result = load_result(result_dir)
+    result = load_result(result_dir, partial=True)
     path = Path(out) if out is not None else Path(result_dir) / "report.html"
     text = build_report(result, dpi=dpi, noise_rms=noise_rms)
     path.parent.mkdir(parents=True, exist_ok=True)

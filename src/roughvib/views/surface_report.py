@@ -27,12 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.physics.surface.contact import contact_stiffness
+from roughvib.physics.surface.contact import contact_layout, contact_stiffness
 from roughvib.physics.surface.roughness import (
     Profile,
     band_psd,
     build_profile,
-    select_contacts,
 )
 from roughvib.scene import Scene, SceneError
 
@@ -45,7 +44,7 @@ def scan_range(scene: Scene) -> tuple[float, float, str]:
     * ``prescribed``: min and max of velocity t + amplitude sin(omega t) over the output
       duration;
     * ``force`` with a target rms velocity: +-sqrt(2) v_rms / omega (harmonic motion,
-      physics.md §5.4);
+      docs/theory.md);
     * ``force`` with only T0: 0 ... 2 T0 / (m omega^2), the frictionless block started at rest
       (an upper bound);
     * no motion: (0, 0).
@@ -140,20 +139,19 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
     stroke = hi - lo
     profile = build_profile(scene.roughness, scene.block, scene.base_dir,
                             stroke=stroke if stroke > 0 else None)
-    c = scene.contact
-    s_pts = select_contacts(profile, c.points, scene.block.length, c.min_separation)
-    try:
-        cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+    cl = contact_layout(scene, profile)
+    s_pts, n_pts = cl.positions, cl.n
+    cs = cl.statistical
+    if cs is None:
+        try:
+            cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+        except SceneError as err:
+            statistical = {"error": str(err)}
+    if cs is not None:
         statistical = cs.as_dict()
-    except SceneError as err:
-        cs = None
-        statistical = {"error": str(err)}
-    if isinstance(c.stiffness, str):
-        if cs is None:
-            raise SceneError(statistical["error"])
-        s_used, s_source = cs.s_total, "auto (statistical contact)"
-    else:
-        s_used, s_source = float(c.stiffness), "scene (contact.stiffness)"
+    s_used = cl.stiffness_total
+    s_source = ("auto (statistical contact)" if cl.stiffness_source == "auto"
+                else "scene (contact.stiffness)")
 
     paths: dict[str, Path] = {}
     s = profile.s
@@ -183,11 +181,12 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
         rows.append({"index": j, "s_m": float(sp), "offset_m": float(sp - profile.s_centre),
                      "plate_x_m": float(x0 + sp - profile.s_centre), "plate_y_m": float(y0),
                      "height_m": float(zh), "below_top_m": float(heights.max() - zh),
-                     "stiffness_N_per_m": s_used / c.points,
+                     "stiffness_N_per_m": s_used / n_pts,
                      "scan_from_m": float(sp + lo), "scan_to_m": float(sp + hi)})
     p = out / "contacts.csv"
     with p.open("w", newline="") as fh:
-        fh.write(f"# s_total = {s_used} N/m ({s_source}), {c.points} equal springs\n")
+        fh.write(f"# s_total = {s_used} N/m ({s_source}), {n_pts} equal springs "
+                 f"(contact.points: {cl.points_source}, selection {cl.selection})\n")
         if cs is not None:
             fh.write(f"# statistical ({cs.model}): s_total = {cs.s_total:.6g} N/m, "
                      f"micro-contacts = {cs.micro_contacts:.4g}, real area = "
@@ -243,7 +242,8 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
 
     # ---- json -------------------------------------------------------------------------
     report = {"scene": scene.name, "stiffness_used_N_per_m": s_used,
-              "stiffness_source": s_source, "statistical_contact": statistical,
+              "stiffness_source": s_source, "contact": cl.as_dict(),
+              "statistical_contact": statistical,
               "contacts": rows, "profile": {"stats": profile.stats, "dx_m": dx,
                                             "s0_m": profile.s0,
                                             "s_centre_m": profile.s_centre},

@@ -5,7 +5,8 @@ Everything here takes plain tables, dicts and file names computed by
 :mod:`roughvib.studies.sweep.report` and never imports the studies. A report is a title, an
 introduction and a list of blocks ``(kind, payload)``: ``("h2", heading)``, ``("p", text)``,
 ``("img", PNG file name next to the report)`` and ``("table", (header, rows))`` with rows of
-strings.
+strings. The Markdown links the PNG files; the HTML page embeds them, so that it is one
+self-contained file like the run report.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from roughvib.views.html import esc, figure, page, slug, table
+from roughvib.views.html import esc, figure, page, png_data_uri, slug, table
 
 __all__ = ["render_html", "render_markdown", "study_figure"]
 
@@ -112,9 +113,11 @@ def render_markdown(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -
     return "\n".join(md)
 
 
-def render_html(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -> str:
+def render_html(title: str, intro: str, blocks: Sequence[tuple[str, Any]], *,
+                directory: str | Path) -> str:
     """The report as one HTML page of :func:`roughvib.views.html.page` (see the module
-    docstring for ``blocks``): each ``h2`` block opens a section."""
+    docstring for ``blocks``): each ``h2`` block opens a section, each ``img`` block's PNG
+    (read from ``directory``) is embedded as a data URI."""
     header = [f"<p>{esc(intro)}</p>"]
     sections: list[tuple[str, str, list[str]]] = []
     for kind, payload in blocks:
@@ -127,7 +130,8 @@ def render_html(title: str, intro: str, blocks: Sequence[tuple[str, Any]]) -> st
         if kind == "p":
             part = f"<p>{esc(payload)}</p>"
         elif kind == "img":
-            part = figure(payload, alt=payload)
+            png = (Path(directory) / payload).read_bytes()
+            part = figure(png_data_uri(png), alt=payload)
         else:
             part = table(*payload)
         (sections[-1][2] if sections else header).append(part)

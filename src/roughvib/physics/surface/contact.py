@@ -1,4 +1,4 @@
-"""Statistical normal contact stiffness of the block on the plate (physics.md §4).
+"""Statistical normal contact stiffness of the block on the plate (docs/theory.md).
 
 This module owns the contact sub-program: summit statistics from spectral moments
 (Nayak / McCool), the Greenwood-Williamson (GW) and Greenwood-Tripp (GT) models solved at the
@@ -18,18 +18,23 @@ GW, one equivalent rough surface (density eta, radius R, summit std sigma_s) on 
 GT, two rough surfaces each with summit density eta and radius beta, composite std sigma.
 Derived from two paraboloids of radius beta at lateral offset r, Hertz with the effective
 radius beta/2 (so E* is the usual 1/E* = sum (1 - nu_i^2)/E_i, which makes the constant
-agree with physics.md §4.1)::
+agree with Greenwood-Williamson's)::
 
     P   = (16 sqrt(2) pi / 15) (eta beta sigma)^2 sqrt(sigma / beta) E* A_n F_5/2(h)
     k   = (5/2) (P / sigma) F_3/2(h) / F_5/2(h)
     n_c = 4 pi eta^2 beta sigma A_n F_1(h) ,   A_r = pi^2 (eta beta sigma)^2 A_n F_2(h)
 
 The equivalent GW surface of two surfaces with comparable summits has 1/R = 1/beta + 1/beta
-(physics.md §4.1), so GT is fed beta = 2 R, eta = eta_s, sigma = sigma_s. With that mapping
+(docs/theory.md), so GT is fed beta = 2 R, eta = eta_s, sigma = sigma_s. With that mapping
 the two models agree within 1 % in stiffness and micro-contact count for the default surface;
 with beta = R (reading "beta is the summit radius" literally) GT is 4.8-4.9 % softer.
 
-For Gaussian summits F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi) (D the parabolic
+The number of contact points of the 2-D model (``contact.points = "auto"``,
+:func:`contact_count`) is the expected number of micro-contacts n_c rounded to the nearest
+integer, at least one; :func:`contact_layout` resolves a scene's contact points, stiffness
+and their sources in one place for the model and the surface report.
+
+For Gaussian summits ``F_n(h) = Gamma(n+1) exp(-h^2/4) D_-(n+1)(h) / sqrt(2 pi)`` (D the parabolic
 cylinder function); an exponential summit distribution (standardised: phi*(s) = exp(-(s+1)),
 s >= -1) gives F_n = Gamma(n+1) exp(-(h+1)) and exactly k = P / sigma_s.
 """
@@ -42,14 +47,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, special
 
-from roughvib.physics.surface.roughness import spectral_moments
-from roughvib.scene import Scene, SceneError
+from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
+from roughvib.scene import MAX_CONTACTS, Scene, SceneError
 
 __all__ = [
     "GRAVITY",
+    "ContactLayout",
     "ContactSolution",
     "ContactStiffness",
     "SummitParameters",
+    "contact_count",
+    "contact_layout",
     "contact_stiffness",
     "effective_modulus",
     "gw_integral",
@@ -123,6 +131,9 @@ class SummitParameters:
         Bandwidth parameter m0 m4 / m2^2 [-].
     rms, rms_slope, rms_curvature : float
         sqrt(m0) [m], sqrt(m2) [-], sqrt(m4) [1/m].
+    mean_height : float
+        Mean summit height above the mean plane of the surface, 4 sqrt(m0 / (pi alpha))
+        [m] (McCool 1986); the GW separation d is measured from this plane.
     """
 
     density: float
@@ -132,10 +143,11 @@ class SummitParameters:
     rms: float
     rms_slope: float
     rms_curvature: float
+    mean_height: float
 
 
 def summit_parameters(m0: float, m2: float, m4: float) -> SummitParameters:
-    """Summit density, radius and height spread from profile spectral moments (physics.md §4.1).
+    """Summit density, radius and height spread from profile spectral moments (docs/theory.md).
 
     Parameters
     ----------
@@ -161,7 +173,8 @@ def summit_parameters(m0: float, m2: float, m4: float) -> SummitParameters:
         density=m4 / (6.0 * math.pi * math.sqrt(3.0) * m2),
         radius=1.0 / ((8.0 / 3.0) * math.sqrt(m4 / math.pi)),
         std=math.sqrt((1.0 - 0.8968 / alpha) * m0),
-        alpha=alpha, rms=math.sqrt(m0), rms_slope=math.sqrt(m2), rms_curvature=math.sqrt(m4))
+        alpha=alpha, rms=math.sqrt(m0), rms_slope=math.sqrt(m2), rms_curvature=math.sqrt(m4),
+        mean_height=4.0 * math.sqrt(m0 / (math.pi * alpha)))
 
 
 def effective_modulus(e1: float, nu1: float, e2: float | None = None,
@@ -181,7 +194,7 @@ def effective_modulus(e1: float, nu1: float, e2: float | None = None,
 
 
 def velocity_factor(v_rms: float) -> float:
-    """The paper's velocity ("elevation") factor of the contact stiffness (physics.md §4.2-3).
+    """The paper's velocity ("elevation") factor of the contact stiffness (docs/theory.md).
 
     (v_rms / 0.01 m/s)^log10(0.33): 1 at 10 mm/s, 0.33 at 100 mm/s.
 
@@ -290,7 +303,7 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
 
 @dataclass(frozen=True)
 class ContactStiffness:
-    """Statistical contact at the static load (physics.md §4).
+    """Statistical contact at the static load (docs/theory.md).
 
     Attributes
     ----------
@@ -298,6 +311,9 @@ class ContactStiffness:
         Total incremental normal stiffness [N/m], including the velocity factor.
     micro_contacts : float
         Expected number of micro-contacts n_c [-].
+    points : int
+        Contact points of the 2-D model for ``contact.points = "auto"``:
+        :func:`contact_count` of ``micro_contacts`` [-].
     real_area : float
         Real contact area A_r [m^2].
     mean_pressure : float
@@ -334,6 +350,7 @@ class ContactStiffness:
 
     s_total: float
     micro_contacts: float
+    points: int
     real_area: float
     mean_pressure: float
     plasticity_index: float
@@ -356,6 +373,29 @@ class ContactStiffness:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
+def contact_count(micro_contacts: float) -> int:
+    """Contact points of the 2-D model from the expected number of micro-contacts.
+
+    N = max(1, round(n_c)): each micro-contact of the areal surface becomes one contact point
+    at its position along the sliding direction (the 2-D model has no y); a loaded block
+    rests on at least one. docs/theory.md ("Contact module") gives the reasoning and its
+    limits.
+
+    Parameters
+    ----------
+    micro_contacts : float
+        n_c [-], >= 0.
+
+    Returns
+    -------
+    int
+        N >= 1.
+    """
+    if not (micro_contacts >= 0 and math.isfinite(micro_contacts)):
+        raise ValueError(f"micro_contacts must be a finite number >= 0, got {micro_contacts}")
+    return max(1, int(round(micro_contacts)))
+
+
 def _scene_v_rms(scene: Scene) -> float:
     exc = scene.excitation
     if exc.kind == "prescribed":
@@ -366,7 +406,8 @@ def _scene_v_rms(scene: Scene) -> float:
                          "excitation.amplitude must be non-zero, got 0 m/s rms")
     if exc.target_rms_velocity is None:
         raise SceneError("contact.velocity_factor needs excitation.target_rms_velocity [m/s] "
-                         f"(the factor scales with the rms velocity), got force_amplitude = "
+                         f"(the factor scales with the rms velocity; or set "
+                         f"contact.velocity_factor = false), got force_amplitude = "
                          f"{exc.force_amplitude} N only")
     return float(exc.target_rms_velocity)
 
@@ -379,9 +420,9 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     given; the others from the profile spectral moments of the raw surface (McCool,
     :func:`summit_parameters`). The moments default to the model PSD of ``[roughness]`` (its
     band, roll-off and Hurst exponent) at the rms ``roughness.raw_rms``: the areal PSD when
-    ``reduce_3d`` is set (that surface is generated), the profile PSD of physics.md §5.1
-    otherwise (this reproduces the worked numbers of physics.md §4.2). Both surfaces are steel
-    of the plate's E and nu; A_n = block length x width.
+    ``reduce_3d`` is set (that surface is generated), the profile PSD of :func:`.band_psd`
+    otherwise (this gives the values of docs/theory.md, 3.1e6 and 7.4e6 N/m). Both surfaces
+    are steel of the plate's E and nu; A_n = block length x width.
 
     Parameters
     ----------
@@ -437,7 +478,8 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     vf = velocity_factor(_scene_v_rms(scene)) if c.velocity_factor else 1.0
     s_total = sol.stiffness * vf
     return ContactStiffness(
-        s_total=float(s_total), micro_contacts=sol.micro_contacts, real_area=sol.real_area,
+        s_total=float(s_total), micro_contacts=sol.micro_contacts,
+        points=contact_count(sol.micro_contacts), real_area=sol.real_area,
         mean_pressure=float(load / sol.real_area),
         plasticity_index=float(e_star / c.hardness * math.sqrt(std / rad)),
         separation=sol.h, summit_density=eta, summit_radius=rad, summit_std=std,
@@ -445,3 +487,99 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
         load=float(load), stiffness_ratio=float(sol.stiffness * std / load),
         velocity_factor=float(vf), effective_modulus=float(e_star), nominal_area=float(area),
         surface_rms=surface_rms, summit_source=source)
+
+
+# --------------------------------------------------------------------------------------------
+# the contact points and stiffness the model uses
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ContactLayout:
+    """The contact points and total stiffness of a scene, and where they came from.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (N,)
+        Profile coordinates of the contact points at x = 0 [m], sorted.
+    stiffness_total : float
+        s_total [N/m], split equally over the N points.
+    points_source, stiffness_source : {"scene", "auto"}
+        ``contact.points`` / ``contact.stiffness`` as given, or from the statistical model.
+    selection : {"separated", "highest"}
+        ``contact.selection``.
+    min_separation : float
+        The separation applied in the selection [m] (0 for ``highest``).
+    statistical : ContactStiffness or None
+        The statistical contact, when either value is ``"auto"``.
+    """
+
+    positions: np.ndarray
+    stiffness_total: float
+    points_source: str
+    stiffness_source: str
+    selection: str
+    min_separation: float
+    statistical: ContactStiffness | None
+
+    @property
+    def n(self) -> int:
+        """Number of contact points N [-]."""
+        return int(self.positions.size)
+
+    def as_dict(self) -> dict:
+        """Plain dict (JSON-ready) of everything but the positions."""
+        return {"points": self.n, "points_source": self.points_source,
+                "stiffness_total": self.stiffness_total,
+                "stiffness_source": self.stiffness_source, "selection": self.selection,
+                "min_separation": self.min_separation,
+                "micro_contacts": (self.statistical.micro_contacts
+                                   if self.statistical is not None else None)}
+
+
+def contact_layout(scene: Scene, profile: Profile) -> ContactLayout:
+    """Resolve the contact points and total stiffness of a scene on its profile.
+
+    ``contact.points`` and ``contact.stiffness`` are taken as given, or, when ``"auto"``,
+    from :func:`contact_stiffness` (the micro-contact count through :func:`contact_count`,
+    the stiffness with the velocity factor). The points are the highest profile maxima
+    under the block (:func:`~roughvib.physics.surface.roughness.select_contacts`), at least
+    ``contact.min_separation`` apart for ``selection = "separated"``, with no separation
+    constraint for ``"highest"``.
+
+    Parameters
+    ----------
+    scene : Scene
+    profile : Profile
+        The scene's profile (a measured one brings the moments of its raw surface).
+
+    Returns
+    -------
+    ContactLayout
+
+    Raises
+    ------
+    SceneError
+        The statistical model cannot be solved, or it asks for more than ``MAX_CONTACTS``
+        points.
+    """
+    c = scene.contact
+    auto_n, auto_s = isinstance(c.points, str), isinstance(c.stiffness, str)
+    stat = (contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+            if auto_n or auto_s else None)
+    if auto_n:
+        n = stat.points
+        if n > MAX_CONTACTS:
+            raise SceneError(f"contact.points = 'auto' asks for {n} contact points "
+                             f"({stat.micro_contacts:.4g} micro-contacts at block.mass = "
+                             f"{scene.block.mass} kg), more than {MAX_CONTACTS}; give "
+                             f"contact.points as a number, got 'auto'")
+    else:
+        n = int(c.points)
+    s_total = stat.s_total if auto_s else float(c.stiffness)
+    sep = c.min_separation if c.selection == "separated" else 0.0
+    pos = np.asarray(select_contacts(profile, n, scene.block.length, sep), dtype=float)
+    return ContactLayout(positions=pos, stiffness_total=float(s_total),
+                         points_source="auto" if auto_n else "scene",
+                         stiffness_source="auto" if auto_s else "scene",
+                         selection=c.selection, min_separation=float(sep), statistical=stat)

@@ -7,7 +7,7 @@ uniform grid and evaluated by a numba kernel with one index computation and a Ho
     z(s) = sum_k c[j, k] u**k ,   j = floor((s - s0) / dx),   u = s - (s0 + j dx)
 
 ``linear`` is C0 (the paper-like interpolation whose slope jumps at every node excite the
-high frequencies, physics.md §5.5), ``cubic`` a C2 not-a-knot spline (default) and ``quintic``
+high frequencies, docs/theory.md), ``cubic`` a C2 not-a-knot spline (default) and ``quintic``
 a C4 spline for convergence checks.
 """
 

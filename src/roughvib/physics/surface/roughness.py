@@ -1,7 +1,7 @@
 """Roughness profiles (the kinematic input), their spectra, and the choice of contact points.
 
-This module owns physics.md §5: everything between the ``[roughness]`` scene section and the
-uniform-grid height profile z(s) (positive up, physics.md §1.4) the solver interpolates.
+This module owns the roughness input (docs/theory.md): everything between the ``[roughness]``
+scene section and the uniform-grid height profile z(s) (positive up) the solver interpolates.
 
 ``build_profile`` makes a :class:`Profile` from one of
 
@@ -9,28 +9,31 @@ uniform-grid height profile z(s) (positive up, physics.md §1.4) the solver inte
 * ``sinusoid``: z = amplitude cos(2 pi (s - s_centre) / wavelength), a crest under the block
   centre (not filtered);
 * ``synthetic``: seeded spectral synthesis (random phases, amplitudes from the target PSD, one
-  real inverse FFT, physics.md §5.1) of a profile with the band-limited self-affine PSD
+  real inverse FFT) of a profile with the band-limited self-affine PSD
   :func:`band_psd`, functionally filtered and then rescaled to ``rms`` exactly;
 * ``synthetic`` with ``reduce_3d``: an isotropic 2-D surface of rms ``raw_rms`` with the areal
-  PSD :func:`areal_psd`, span-averaged across the block width (physics.md §5.2,
+  PSD :func:`areal_psd`, span-averaged across the block width (docs/theory.md,
   :func:`synthesize_span_averages`); the reduction (about -23 dB over 40 mm) is the physics,
   so the result is not rescaled;
-* ``file``: a measured profile (:func:`read_profile_file`): one column of heights, two columns
-  (x, z) or a matrix of parallel traces, which is span-averaged like the synthetic surface.
+* ``file``: a measured profile (:func:`read_measured`): a text file (:func:`read_profile_file`:
+  one column of heights, two columns (x, z) or a matrix of parallel traces) or an instrument
+  file (SDF, X3P, .sur, .datx, ... through the optional SurfaceTopography package); a matrix
+  of traces or a map is span-averaged like the synthetic surface.
 
-The functional filter over the block length (physics.md §5.3, :func:`functional_filter`) is
+The functional filter over the block length (docs/theory.md, :func:`functional_filter`) is
 ``highpass`` 1 - sinc(kL/2) (reading 2, default), ``block-lowpass`` sinc(kL/2) (reading 1,
 with a warning) or ``none``. It is applied to ``synthetic`` and ``file`` profiles.
 
 Spectral conventions: wavenumbers k are angular [rad/m]; a one-sided profile PSD G(k)
 [m^2/(rad/m)] integrates to the variance, ``integral_0^inf G dk = rms^2``; an isotropic areal
-PSD S2(|k|) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
+PSD S2(``|k|``) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
 moments are ``m_n = integral k^n G(k) dk``: m0 = rms^2, m2 = (rms slope)^2, m4 = (rms
 curvature)^2.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import warnings
@@ -51,6 +54,7 @@ __all__ = [
     "cbrt2_positions",
     "functional_filter",
     "profile_statistics",
+    "read_measured",
     "read_profile_file",
     "select_contacts",
     "span_average",
@@ -164,7 +168,7 @@ def profile_statistics(z: np.ndarray, dx: float, *, periodic: bool = False) -> d
 
 
 # --------------------------------------------------------------------------------------------
-# model spectra and moments (physics.md §5.1, §4.1)
+# model spectra and moments (docs/theory.md)
 # --------------------------------------------------------------------------------------------
 
 
@@ -202,7 +206,7 @@ def _psd_shape(k: np.ndarray, roughness: Roughness, q: float
 
 
 def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
-    """One-sided profile PSD G(k) of physics.md §5.1.
+    """One-sided profile PSD G(k) of the synthetic profiles (docs/theory.md).
 
     G = C for k_L <= k < k_0, C (k/k_0)^-(1+2H) for k_0 <= k <= k_H, zero outside, with
     k_L, k_0, k_H = 2 pi / (longest, rolloff, shortest wavelength).
@@ -229,16 +233,16 @@ def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> n
 
 
 def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
-    """Isotropic areal PSD S2(|k|) of the raw surface (physics.md §5.2).
+    """Isotropic areal PSD S2(``|k|``) of the raw surface (docs/theory.md).
 
     The same band and roll-off as :func:`band_psd` with the areal exponent: S2 = C for
-    k_L <= |k| < k_0, C (|k|/k_0)^-(2+2H) up to k_H, zero outside. A profile cut through such
-    a surface has G(k) ~ k^-(1+2H) above k_0, like :func:`band_psd`.
+    ``k_L <= |k| < k_0``, ``C (|k|/k_0)^-(2+2H)`` up to k_H, zero outside. A profile cut through
+    such a surface has G(k) ~ k^-(1+2H) above k_0, like :func:`band_psd`.
 
     Parameters
     ----------
     k : array_like
-        |k| [rad/m].
+        ``|k|`` [rad/m].
     roughness : Roughness
     rms : float, optional
         Normalise so that the integral over the wavenumber plane is ``rms**2`` [m].
@@ -265,12 +269,12 @@ def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: b
         Band and Hurst exponent.
     rms : float, optional
         rms height [m]; default ``roughness.raw_rms`` (the raw surface feeds the contact
-        stiffness, physics.md §4.1).
+        stiffness, docs/theory.md).
     areal : bool
         False: the profile PSD :func:`band_psd`. True: a profile along x through the isotropic
         surface :func:`areal_psd` (the ``reduce_3d`` surface), m_n = integral kx^n S2 d^2k,
-        which with the angular means <cos^2> = 1/2 and <cos^4> = 3/8 is m2 = <|k|^2> / 2,
-        m4 = 3 <|k|^4> / 8 over S2.
+        which with the angular means <cos^2> = 1/2 and <cos^4> = 3/8 is m2 = ``<|k|^2> / 2``,
+        m4 = ``3 <|k|^4> / 8`` over S2.
 
     Returns
     -------
@@ -314,7 +318,7 @@ def synthesize_profile(roughness: Roughness, rms: float | None = None) -> np.nda
     """Seeded random-phase synthesis of a profile with the PSD :func:`band_psd` (no filter).
 
     Amplitudes sqrt(G(k_j)) on the FFT bins k_j = 2 pi j / (n dx) of the band, phases uniform
-    from ``numpy.random.default_rng(roughness.seed)``, one real inverse FFT (physics.md §5.1).
+    from ``numpy.random.default_rng(roughness.seed)``, one real inverse FFT.
     The amplitudes are deterministic, so every realisation has exactly the target power in
     every bin; the heights are Gaussian by the central limit theorem (thousands of
     components). The profile is periodic over n dx.
@@ -420,7 +424,7 @@ def cbrt2_positions(width: float, first_spacing: float) -> np.ndarray:
 
 
 def span_average(traces: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Span average of parallel traces with trapezoidal weights (physics.md §5.2 step 3).
+    """Span average of parallel traces with trapezoidal weights.
 
     Parameters
     ----------
@@ -485,7 +489,7 @@ def synthesize_span_averages(roughness: Roughness,
     (0.8 GB) although only averages across the block are needed. Averaging is linear, so each
     layout's average is formed in the (kx, ky) domain, c(kx) = sum_ky Z(kx, ky) v(ky) with
     v(ky) = sum_j w_j exp(i ky y_j) / sum_j w_j, chunk by chunk over kx (only kx <= k_H carry
-    power, and per kx only the ky inside the disc |k| <= k_H), and one inverse FFT per layout
+    power, and per kx only the ky inside the disc ``|k|`` <= k_H), and one inverse FFT per layout
     gives the profile. The result is exactly the average of the traces of that periodic
     surface at the given (arbitrary, not gridded) positions; memory stays at a few MB and the
     default case (4001 traces) takes about 2 s of CPU.
@@ -552,7 +556,7 @@ def synthesize_span_averages(roughness: Roughness,
 
 
 # --------------------------------------------------------------------------------------------
-# functional filter (physics.md §5.3)
+# functional filter (docs/theory.md)
 # --------------------------------------------------------------------------------------------
 
 
@@ -598,7 +602,7 @@ def functional_filter(z: np.ndarray, dx: float, kind: str, length: float, *,
     else:
         warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
                       "block length: it removes almost all short-wavelength input "
-                      "(physics.md §5.3, reading 1)", stacklevel=2)
+                      "(docs/theory.md)", stacklevel=2)
         h = sinc
     return np.fft.irfft(np.fft.rfft(ext) * h, m)[:n]
 
@@ -624,6 +628,8 @@ class MeasuredProfile:
     path : Path
     last_line : int
         Line number of the last data line (1-based).
+    sha256 : str
+        SHA-256 of the file's bytes as read (a resumed run checks the file is unchanged).
     """
 
     z: np.ndarray
@@ -632,6 +638,7 @@ class MeasuredProfile:
     layout: str
     path: Path
     last_line: int
+    sha256: str = ""
 
 
 _Y_HEADER = re.compile(r"^\s*#\s*y\s*:\s*(.*)$", re.IGNORECASE)
@@ -695,13 +702,16 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
         p = Path(base_dir) / p
     where = f"roughness.path {p}"
     try:
-        text = p.read_text()
-    except UnicodeDecodeError:
-        raise SceneError(f"{where} cannot be read as text (binary file?), got "
-                         f"{p.stat().st_size} bytes") from None
+        raw = p.read_bytes()
     except OSError as exc:
         raise SceneError(f"{where} cannot be read: {exc.strerror}, got path "
                          f"{str(path)!r}") from None
+    try:  # UTF-8 (ASCII included); a leading byte-order mark is dropped, not read as data
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{where} line {line}: the file must be UTF-8 text (a binary file, or "
+                         f"another encoding?), got byte 0x{raw[exc.start]:02x}") from None
     scale = _UNITS[units]
     rows: list[list[float]] = []
     lines: list[int] = []
@@ -790,7 +800,65 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
                          f"block length: need a length >= {min_length:.6g} m{why}, got {n} "
                          f"points x {dx:.6g} m = {(n - 1) * dx:.6g} m")
     return MeasuredProfile(z=z, dx=float(dx), y=y, layout=layout, path=p,
-                           last_line=lines[-1])
+                           last_line=lines[-1], sha256=hashlib.sha256(raw).hexdigest())
+
+
+def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,
+                  min_length: float | None = None,
+                  min_length_reason: str = "") -> MeasuredProfile:
+    """Read the measured profile of a ``roughness.kind = "file"`` scene, text or instrument.
+
+    Plain text goes to :func:`read_profile_file`; instrument formats (``roughness.format``,
+    or by suffix for ``"auto"``) are read through SurfaceTopography
+    (:func:`roughvib.physics.surface.topography.read_topography_map`): the file's x axis is
+    the sliding direction, its units and pixel sizes are used, and of a map wider than the
+    block only the traces within ``block.width`` about the map's centre line are kept (the
+    block averages only over its own width). A map becomes a trace matrix with its y
+    positions, exactly like a text file with a ``# y:`` line.
+
+    Parameters
+    ----------
+    roughness : Roughness
+        ``path``, ``format``, ``units`` and ``spacing`` (text only).
+    block : Block
+        Width (crop of a map).
+    base_dir, min_length, min_length_reason
+        As for :func:`read_profile_file`.
+
+    Returns
+    -------
+    MeasuredProfile
+        ``layout`` "map" for an instrument map (one trace: "heights"); ``last_line`` 0.
+
+    Raises
+    ------
+    SceneError
+        As the readers; a file too short for ``min_length``.
+    """
+    from roughvib.physics.surface.topography import read_topography_map, uses_topography
+
+    r = roughness
+    if not uses_topography(r.path, r.format):
+        return read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
+                                 min_length=min_length, min_length_reason=min_length_reason)
+    p = Path(r.path) if Path(r.path).is_absolute() else Path(base_dir) / r.path
+    tm = read_topography_map(r.path, base_dir=base_dir)
+    z, y = tm.z, None
+    if z.ndim == 2:
+        y_all = (np.arange(z.shape[1]) - (z.shape[1] - 1) / 2.0) * tm.dy
+        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-9)
+        z, y = z[:, keep], y_all[keep]
+        if z.shape[1] == 1:
+            z, y = z[:, 0], None
+    n = z.shape[0]
+    if min_length is not None and (n - 1) * tm.dx < min_length:
+        why = f" ({min_length_reason})" if min_length_reason else ""
+        raise SceneError(f"roughness.path {p}: too few points along x (the sliding direction) "
+                         f"for the stroke plus the block length: need a length >= "
+                         f"{min_length:.6g} m{why}, got {n} points x {tm.dx:.6g} m = "
+                         f"{(n - 1) * tm.dx:.6g} m")
+    return MeasuredProfile(z=z, dx=float(tm.dx), y=y, layout="map" if z.ndim == 2 else "heights",
+                           path=p, last_line=0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -845,10 +913,9 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     stats: dict = {"kind": r.kind}
     periodic = False
     if r.kind == "file":
-        meas = read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
-                                 min_length=min_len, min_length_reason=reason)
+        meas = read_measured(r, block, base_dir, min_length=min_len, min_length_reason=reason)
         dx = meas.dx
-        stats.update(path=str(meas.path), layout=meas.layout)
+        stats.update(path=str(meas.path), layout=meas.layout, sha256=meas.sha256)
         if meas.z.ndim == 2:
             traces = meas.z - meas.z.mean(axis=0)
             y = meas.y if meas.y is not None else np.linspace(-block.width / 2,
@@ -863,7 +930,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         else:
             z = meas.z.copy()
         # moments of the raw measured surface (before span averaging and filtering) feed the
-        # statistical contact model (contact.stiffness = "auto", physics.md §4.1)
+        # statistical contact model (contact.stiffness = "auto", docs/theory.md)
         raw_traces = meas.z if meas.z.ndim == 2 else meas.z[:, None]
         per = [profile_statistics(raw_traces[:, j], dx) for j in range(raw_traces.shape[1])]
         stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
@@ -906,7 +973,7 @@ def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
 
     ``roughness.trace_layout = "uniform"`` (default) uses a trace pitch equal to
     ``roughness.spacing`` (10 um), far below the spanwise correlation length of the band
-    (>= 50 um), so the trapezoidal average is the continuous width average of physics.md §5.2
+    (>= 50 um), so the trapezoidal average is the continuous width average of docs/theory.md
     (-23 dB for the default surface, the analytic value is -23.1 dB). ``"cbrt2"`` uses the
     paper's 2^(1/3) layout (about -10 dB; see :func:`cbrt2_positions`). Both reductions of the
     same surface are reported in ``stats``.
@@ -935,7 +1002,7 @@ def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------
-# contact points (physics.md §5.4)
+# contact points (docs/theory.md)
 # --------------------------------------------------------------------------------------------
 
 
@@ -957,7 +1024,7 @@ def select_contacts(profile: Profile, n: int, window_length: float, min_separati
     Rules, in order:
 
     1. The window is ``|s - s_centre| <= window_length / 2`` (grid points).
-    2. Flat window (height range below 1e-12 of the largest |z|, or exactly zero, e.g. kind
+    2. Flat window (height range below 1e-12 of the largest ``|z|``, or exactly zero, e.g. kind
        ``none``): n points equally spaced with equal gaps to each other and to the window
        edges, ``s_centre + linspace(-w/2, w/2, n + 2)[1:-1]`` (n = 1: the centre).
        ``min_separation`` is not applied.

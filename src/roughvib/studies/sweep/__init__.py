@@ -35,8 +35,10 @@ keys work as well. With both ``[grid]`` and ``[[case]]`` every case is run at ev
 A case directory is written under a temporary name and renamed when complete, so a sweep killed
 at any moment loses only the cases in flight. Re-running skips the cases whose summary.json says
 ``success`` and re-runs failed and missing ones. A case's name is readable values plus a hash of
-the base scene and the case's values, so it stays the same when the grid is extended and changes
-when the base scene or the fixed values change.
+the base scene and the case's values (``target_rms_velocity-0.01__seed-2__1a2b3c4d5e``, nothing a
+shell needs quoted; the exact values are in case.json), so it stays the same when the grid is
+extended and changes when the base scene or the fixed values change. Case directories named the
+way roughvib 0.1 named them (``target_rms_velocity=0.01,seed=2-...``) are renamed on resuming.
 
 Each case is one Dask task. Without a scheduler address a ``LocalCluster`` of worker processes
 with one thread each is started; numba, OpenMP and BLAS are limited to one thread per worker so

@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from roughvib.studies.sweep.ensemble import ensemble_blocks, ensemble_tables
 from roughvib.studies.sweep.spec import SUCCESS, _replace_file
 from roughvib.studies.sweep.tables import _fit
 from roughvib.views.sweep_report import render_html, render_markdown, study_figure
@@ -49,7 +50,7 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     Parameters
     ----------
     directory : path
-        Sweep directory written by :func:`run_sweep`.
+        Sweep directory written by :func:`.run_sweep`.
 
     Returns
     -------
@@ -134,6 +135,9 @@ def sweep_report(directory: str | os.PathLike) -> Path:
                             "successful cases; nothing to fit."))
     pd.DataFrame(fit_rows).to_csv(rep / "fits.csv", index=False, float_format="%.6g")
 
+    if (ens := ensemble_tables(d)) is not None:
+        blocks += ensemble_blocks(ens, rep)
+
     failed = table[table["status"] != SUCCESS]
     if len(failed):
         blocks.append(("h2", f"Failed or missing cases ({len(failed)})"))
@@ -156,5 +160,5 @@ def sweep_report(directory: str | os.PathLike) -> Path:
              f"{len(table)} cases, {len(ok)} succeeded, {len(table) - len(ok)} failed or "
              f"missing. Tables: `sweep.csv`, `sweep.nc`; fits: `report/fits.csv`.").strip()
     _replace_file(rep / "report.md", render_markdown(title, intro, blocks))
-    _replace_file(rep / "report.html", render_html(title, intro, blocks))
+    _replace_file(rep / "report.html", render_html(title, intro, blocks, directory=rep))
     return rep / "report.md"

@@ -1,11 +1,15 @@
 """Running a sweep: each case one Dask task that writes its directory under a temporary name and
-renames it into place when complete; resuming skips the complete cases."""
+renames it into place when complete; resuming skips the complete cases, and so does a task whose
+case is complete on disk (Dask re-runs the tasks of a killed worker). One sweep at a time per
+directory (a lock file); temporary directories of killed workers are removed."""
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import hashlib
 import json
+import logging
 import os
 import re
 import secrets
@@ -15,18 +19,21 @@ import socket
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from roughvib.scene import Scene, SceneError
+from roughvib.rundir import DirectoryLock, OutputError, swap_into_place
+from roughvib.scene import ModelValidityWarning, Scene, SceneError
 from roughvib.studies.sweep.spec import (
     CASES_DIR,
     SUCCESS,
     Case,
     Sweep,
     _replace_file,
+    adopt_old_case_names,
     load_sweep,
 )
 from roughvib.studies.sweep.tables import _write_tables
@@ -46,7 +53,10 @@ THREAD_ENV: dict[str, str] = {
 }
 
 _TOKEN_FILE = ".sweep-token"
+_LOCK_FILE = ".sweep.lock"
 _STALE = re.compile(r"^\..*\.(tmp|old)-")
+#: seconds to wait for a scheduler given by address (Dask's default is 30 s)
+CONNECT_TIMEOUT = 10.0
 
 
 def _write_json(path: Path, obj: Any) -> None:
@@ -55,11 +65,16 @@ def _write_json(path: Path, obj: Any) -> None:
     path.write_text(json.dumps(_jsonable(obj), indent=2))
 
 
+def _host_tag() -> str:
+    return hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
+
+
 def _new_tmp(root: Path, name: str) -> Path:
     """A fresh temporary case directory (created with the umask's permissions, unlike
-    ``mkdtemp``'s 0700, so that a shared sweep directory stays readable)."""
+    ``mkdtemp``'s 0700, so that a shared sweep directory stays readable), named after its
+    host and process so that a task can tell the directories of dead workers."""
     while True:
-        tmp = root / f".{name}.tmp-{secrets.token_hex(6)}"
+        tmp = root / f".{name}.tmp-{_host_tag()}-{os.getpid()}-{secrets.token_hex(6)}"
         try:
             tmp.mkdir()
             return tmp
@@ -67,18 +82,31 @@ def _new_tmp(root: Path, name: str) -> Path:
             continue
 
 
-def _publish(tmp: Path, final: Path) -> None:
-    """Rename a complete case directory into place, replacing an older (failed) one."""
+def _remove_dead_tmp(root: Path, name: str) -> None:
+    """Temporary directories of this case left by killed workers on this host."""
+    pattern = re.compile(rf"^\.{re.escape(name)}\.tmp-{_host_tag()}-(\d+)-[0-9a-f]+$")
+    for entry in root.iterdir():
+        m = pattern.match(entry.name)
+        if not m or int(m.group(1)) == os.getpid():
+            continue
+        try:
+            os.kill(int(m.group(1)), 0)
+        except ProcessLookupError:  # its process is gone
+            shutil.rmtree(entry, ignore_errors=True)
+        except OSError:  # alive (another user's process)
+            pass
+
+
+def _complete_case(final: Path, name: str) -> dict[str, Any] | None:
+    """The task's return value for a case complete on disk (None if it is not)."""
+    if not _is_complete(final):
+        return None
     try:
-        os.rename(tmp, final)
-        return
-    except OSError:
-        if not final.exists():
-            raise
-    old = final.with_name(f".{final.name}.old-{secrets.token_hex(4)}")
-    os.rename(final, old)
-    os.rename(tmp, final)
-    shutil.rmtree(old, ignore_errors=True)
+        wall = float(json.loads((final / "case.json").read_text())["wall_time"])
+    except (OSError, ValueError, KeyError, TypeError):
+        wall = float("nan")
+    return {"name": name, "status": SUCCESS, "message": "complete on disk, not recomputed",
+            "wall_time": wall}
 
 
 def _failure_summary(name: str, status: str, message: str) -> dict[str, Any]:
@@ -130,15 +158,22 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
         raise RuntimeError(f"worker {socket.gethostname()} does not see the sweep directory "
                            f"{root.parent} of the client (the workers need it on a shared "
                            f"filesystem under the same path)")
+    # Dask re-runs the tasks of a killed worker, finished ones included: never recompute
+    done = _complete_case(root / name, name)
+    if done is not None:
+        return done
+    _remove_dead_tmp(root, name)
     tmp = _new_tmp(root, name)
     try:
         try:
             from roughvib.simulation import simulate
 
             scene = base.with_overrides({**values, "name": name})
-            result = simulate(scene, progress=False)
+            with warnings.catch_warnings():  # kept in the case's summary.json
+                warnings.simplefilter("ignore", ModelValidityWarning)
+                result = simulate(scene, progress=False)
             with _local_dask():
-                result.save(tmp)
+                result.write_files(tmp)
             status, message = result.status, str(result.summary.get("message", ""))
         except SceneError as exc:
             status, message = "input_error", _one_line(exc)
@@ -152,7 +187,7 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
             "name": name, "values": values, "status": status, "wall_time": wall,
             "host": socket.gethostname(), "pid": os.getpid(), "started": started,
             "finished": datetime.now(UTC).isoformat(timespec="seconds")})
-        _publish(tmp, root / name)
+        swap_into_place(tmp, root / name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return {"name": name, "status": status, "message": message, "wall_time": wall}
@@ -179,9 +214,12 @@ def _ignore_sigint() -> bool:
 
 
 def _is_complete(case_dir: Path) -> bool:
+    from roughvib.results import check_run_files
+
     try:
         summary = json.loads((case_dir / "summary.json").read_text())
-    except (OSError, ValueError):
+        check_run_files(case_dir, summary, hashes=False)  # sizes: cheap
+    except (OSError, ValueError):  # MixedRunError is a ValueError
         return False
     return summary.get("status") == SUCCESS and (case_dir / "result.nc").is_file()
 
@@ -226,6 +264,28 @@ class SweepRun:
     failed: int
 
 
+def _probe(address: str) -> None:
+    """Fail at once, with one line, when nothing listens at a TCP scheduler address (Dask
+    itself keeps retrying a refused connection until its timeout)."""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls"):
+        return  # other transports: Dask's own timeout
+    try:
+        host, port = parts.hostname, parts.port or 8786
+    except ValueError:
+        host = None
+    if not host:
+        raise SceneError(f"--scheduler must be an address like tcp://host:8786, got "
+                         f"{address!r}")
+    try:
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        raise SceneError(f"--scheduler {address}: cannot connect ({exc.strerror or exc}); start "
+                         f"a scheduler with 'dask scheduler' or check the address") from None
+
+
 def _connect(scheduler: str | None, workers: int | None):
     """A Dask client: to ``scheduler`` if given, else to a new LocalCluster (returned too)."""
     try:
@@ -234,10 +294,18 @@ def _connect(scheduler: str | None, workers: int | None):
         raise SceneError("sweeps need dask.distributed: "
                          "pip install 'dask[distributed]>=2024.1'") from None
     if scheduler:
-        return Client(scheduler), None
+        try:
+            return Client(scheduler, timeout=CONNECT_TIMEOUT), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SceneError(f"--scheduler {scheduler}: no Dask scheduler answered within "
+                             f"{CONNECT_TIMEOUT:g} s ({_one_line(exc)}); start one with 'dask "
+                             f"scheduler' or check the address") from None
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           env=dict(THREAD_ENV))
+    with warnings.catch_warnings():  # the port is in the dashboard line run_sweep writes
+        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
+                                category=UserWarning)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               env=dict(THREAD_ENV))
     try:
         client = Client(cluster)
         client.run(_ignore_sigint)
@@ -245,6 +313,19 @@ def _connect(scheduler: str | None, workers: int | None):
     except BaseException:
         cluster.close()
         raise
+
+
+def _close_quietly(cluster) -> None:
+    """Close the sweep's own LocalCluster without Dask's "Worker process still alive after 4.0
+    seconds, killing": the cases are published by then, and on a busy machine the workers,
+    which ignore SIGINT, are simply slower to exit than the nanny waits."""
+    nanny = logging.getLogger("distributed.nanny")
+    level = nanny.level
+    nanny.setLevel(logging.ERROR)
+    try:
+        cluster.close()
+    finally:
+        nanny.setLevel(level)
 
 
 def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
@@ -256,7 +337,7 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
     Parameters
     ----------
     sweep : str, path, Sweep or dict
-        See :func:`load_sweep`.
+        See :func:`.load_sweep`.
     out : path
         Sweep directory; created if needed. With a remote scheduler it must be on a filesystem
         the workers share, under the same path.
@@ -283,22 +364,46 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
     Raises
     ------
     SceneError
-        Bad sweep file or ``workers < 1``. A failing case does not raise: its status and
-        message are in its directory and in the table.
+        Bad sweep file, ``workers < 1``, or no scheduler at ``scheduler``. A failing case does
+        not raise: its status and message are in its directory and in the table.
+    roughvib.rundir.OutputError
+        ``out`` cannot be created, or another sweep is running into it (``out/.sweep.lock``).
     """
-    from tqdm.auto import tqdm
-
     spec = load_sweep(sweep, overrides)
     if workers is not None and workers < 1:
         raise SceneError(f"workers must be >= 1, got {workers}")
     note = log or (lambda _msg: None)
+    if scheduler and client is None:
+        _probe(scheduler)  # before anything is written
     out = Path(out).resolve()
     cases_dir = out / CASES_DIR
-    cases_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        cases_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{out} cannot be a sweep directory: {exc.strerror}") from None
+    # one sweep at a time per directory (a second one would take over the first one's token)
+    lock = DirectoryLock(out / _LOCK_FILE, str(out), "sweep").acquire()
+    try:
+        return _run_locked(spec, out, cases_dir, scheduler=scheduler, workers=workers,
+                           client=client, progress=progress, note=note)
+    finally:
+        lock.release()
+
+
+def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | None,
+                workers: int | None, client: Any, progress: bool,
+                note: Callable[[str], None]) -> SweepRun:
+    """The body of :func:`run_sweep`, holding the sweep directory's lock."""
+    from roughvib._progress import progress_bar
+
     token = secrets.token_hex(8)
     _replace_file(out / _TOKEN_FILE, token)
     _replace_file(out / "sweep.json", json.dumps(spec.to_json(), indent=2))
     _remove_stale(cases_dir)
+    renamed = adopt_old_case_names(spec, cases_dir)
+    if renamed:
+        note(f"renamed {len(renamed)} case directories of an older roughvib to the new names "
+             f"(e.g. {renamed[0][0]} -> {renamed[0][1]}); nothing recomputed")
 
     cases = spec.cases()
     todo = [c for c in cases if not _is_complete(cases_dir / c.name)]
@@ -320,15 +425,17 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         try:
             if getattr(client, "dashboard_link", None):
                 note(f"dask dashboard: {client.dashboard_link}")
-            bar = tqdm(total=len(cases), initial=skipped, desc=f"sweep {spec.name}",
-                       unit="case", disable=not progress, file=sys.stderr)
+            bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
+                               unit="case", disable=not progress, file=sys.stderr)
             for c in todo:
                 fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
                                     token, pure=False, key=f"case-{c.name}-{token}")
                 futures[fut] = c
             failed_now = 0
             for fut in as_completed(list(futures)):
-                case = futures[fut]
+                # forget the future once read: Dask then has no result to recompute when the
+                # worker that holds it dies (the task would find its case complete anyway)
+                case = futures.pop(fut)
                 try:
                     status = fut.result()["status"]
                 except Exception as exc:  # the task itself died (worker lost, no directory)
@@ -351,10 +458,11 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
             if own:
                 client.close()
                 if cluster is not None:
-                    cluster.close()
+                    _close_quietly(cluster)
             if interrupted:
                 with contextlib.suppress(Exception):
                     _write_tables(spec, out, errors)
+    _remove_stale(cases_dir)  # every task has ended: what is left was a killed worker's
     table = _write_tables(spec, out, errors)
     return SweepRun(out, table, skipped, len(todo), int((table["status"] != SUCCESS).sum()))
 
@@ -366,7 +474,7 @@ def _record_failure(cases_dir: Path, name: str, status: str, message: str) -> No
         try:
             _write_json(tmp / "summary.json", _failure_summary(name, status, message))
             _write_json(tmp / "case.json", {"name": name, "status": status})
-            _publish(tmp, cases_dir / name)
+            swap_into_place(tmp, cases_dir / name)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     except OSError:

@@ -19,14 +19,16 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from roughvib.scene import Scene, SceneError, load_scene, scene_to_dict
+from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
 
-__all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "builtin_sweeps", "case_name", "load_sweep"]
+__all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "adopt_old_case_names", "builtin_sweeps",
+           "case_name", "load_sweep", "old_case_name"]
 
 SUCCESS = "success"
 CASES_DIR = "cases"
 _TOP_KEYS = ("name", "description", "base", "set", "grid", "case")
-_SAFE = re.compile(r"[^A-Za-z0-9._=,+-]+")
+_SAFE = re.compile(r"[^A-Za-z0-9._=,+-]+")  # sweep names (and the case names before 0.2)
+_SHELL_SAFE = re.compile(r"[^A-Za-z0-9._+-]+")  # case names: nothing a shell needs quoted
 
 # --------------------------------------------------------------------------------------------
 # sweep description
@@ -40,7 +42,7 @@ class Case:
     Attributes
     ----------
     name : str
-        Directory name under ``DIR/cases`` (filesystem-safe, stable).
+        Directory name under ``DIR/cases`` (stable; no character a shell needs quoted).
     values : dict
         The varied values of this case, dotted scene key -> value.
     index : tuple of int
@@ -164,6 +166,16 @@ def _check_key(base: Scene, key: str, where: str) -> None:
                          f"{', '.join(known)})")
 
 
+def _check_range(value: Any, where: str) -> None:
+    """Numbers of a grid or case must fit a float64 or int64 (the tables store them)."""
+    if isinstance(value, list):
+        for v in value:
+            _check_range(v, where)
+    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2**63 - 1:
+        raise SceneError(f"{where} must be a number within the range of a 64-bit integer or "
+                         f"float, got an integer of {len(str(abs(value)))} digits")
+
+
 def _canonical(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), allow_nan=True)
 
@@ -184,8 +196,23 @@ def _fmt_value(v: Any) -> str:
     return _canonical(v)
 
 
+def _case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None, *,
+               pair: str, sep: str, tail: str, safe: re.Pattern) -> str:
+    keys = list(keys) if keys is not None else list(values)
+    lasts = [k.rsplit(".", 1)[-1] for k in keys]
+    parts = []
+    for k in [k for k in keys if k in values] + [k for k in values if k not in keys]:
+        last = k.rsplit(".", 1)[-1]
+        label = last if lasts.count(last) <= 1 else k
+        parts.append(f"{label}{pair}{_fmt_value(values[k])}")
+    readable = safe.sub("_", sep.join(parts))[:80].lstrip(".-")
+    digest = hashlib.sha256(_canonical({"base": _fingerprint(base), "values": values})
+                            .encode()).hexdigest()[:10]
+    return f"{readable}{tail}{digest}" if readable else digest
+
+
 def case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = None) -> str:
-    """Stable, filesystem-safe directory name of a case.
+    """Stable directory name of a case that a shell takes without quotes.
 
     Parameters
     ----------
@@ -200,21 +227,56 @@ def case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = 
     Returns
     -------
     str
-        ``"target_rms_velocity=0.01,seed=2-1a2b3c4d5e"``: readable values (at most 80
-        characters of ``[A-Za-z0-9._=,+-]``) and 10 hex digits of a SHA-256 over the base scene
-        and the values.
+        ``"target_rms_velocity-0.01__seed-2__1a2b3c4d5e"``: ``key-value`` pairs joined by
+        ``__`` (at most 80 characters of ``[A-Za-z0-9._+-]``, anything else replaced by
+        ``_``), then ``__`` and 10 hex digits of a SHA-256 over the base scene and the values.
+        The exact values are in the case's ``case.json``.
     """
-    keys = list(keys) if keys is not None else list(values)
-    lasts = [k.rsplit(".", 1)[-1] for k in keys]
-    parts = []
-    for k in [k for k in keys if k in values] + [k for k in values if k not in keys]:
-        last = k.rsplit(".", 1)[-1]
-        label = last if lasts.count(last) <= 1 else k
-        parts.append(f"{label}={_fmt_value(values[k])}")
-    readable = _SAFE.sub("_", ",".join(parts))[:80].lstrip(".")
-    digest = hashlib.sha256(_canonical({"base": _fingerprint(base), "values": values})
-                            .encode()).hexdigest()[:10]
-    return f"{readable}-{digest}" if readable else digest
+    return _case_name(base, values, keys, pair="-", sep="__", tail="__", safe=_SHELL_SAFE)
+
+
+def old_case_name(base: Scene, values: dict[str, Any], keys: Iterable[str] | None = None
+                  ) -> str:
+    """The name roughvib 0.1 gave a case (``"target_rms_velocity=0.01,seed=2-1a2b3c4d5e"``),
+    same hash as :func:`case_name`; kept to adopt the case directories of older sweeps."""
+    return _case_name(base, values, keys, pair="=", sep=",", tail="-", safe=_SAFE)
+
+
+def adopt_old_case_names(sweep: Sweep, cases_dir: Path) -> list[tuple[str, str]]:
+    """Rename the case directories of an older roughvib (``key=value,...``) to today's names.
+
+    A directory is renamed only if no directory of the new name exists; its ``case.json``
+    then records the old name under ``renamed_from``. Nothing is recomputed: a complete case
+    stays complete under its new name.
+
+    Parameters
+    ----------
+    sweep : Sweep
+    cases_dir : Path
+        ``DIR/cases`` of the sweep.
+
+    Returns
+    -------
+    list of (str, str)
+        The (old, new) names renamed.
+    """
+    renamed = []
+    keys = sweep.varied_keys
+    for case in sweep.cases():
+        old = cases_dir / old_case_name(sweep.base, case.values, keys)
+        new = cases_dir / case.name
+        if old == new or not old.is_dir() or new.exists():
+            continue
+        os.rename(old, new)
+        info_path = new / "case.json"
+        try:
+            info = json.loads(info_path.read_text())
+        except (OSError, ValueError):
+            info = {"values": case.values}
+        info.update(name=case.name, renamed_from=old.name)
+        _replace_file(info_path, json.dumps(info, indent=2))
+        renamed.append((old.name, case.name))
+    return renamed
 
 
 def _sweeps_dir():
@@ -285,6 +347,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, source: str, default_name: s
             raise SceneError(f"grid.{k} must be a non-empty list of values, got {values!r}")
         seen = []
         for v in values:
+            _check_range(v, f"grid.{k}")
             c = _canonical(v)
             if c in seen:
                 raise SceneError(f"grid.{k} has the value {v!r} more than once")
@@ -303,6 +366,7 @@ def _parse(data: dict[str, Any], *, base_dir: Path, source: str, default_name: s
         flat = _flatten(entry)
         for k in flat:
             _check_key(base, k, f"case[{i}].")
+            _check_range(flat[k], f"case[{i}].{k}")
             if k in grid:
                 raise SceneError(f"case[{i}].{k} is also a grid key; give it in one place")
             if k in fixed:
@@ -362,12 +426,7 @@ def load_sweep(source: str | os.PathLike | Sweep | dict,
     if not path.is_file():
         raise SceneError(f"sweep {text!r} is neither a built-in sweep "
                          f"({', '.join(builtins) or 'none installed'}) nor an existing file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise SceneError(f"sweep file {path} cannot be read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"sweep file {path} is not valid TOML: {exc}") from None
+    data = read_toml_file(path, "sweep file")
     stem = _SAFE.sub("_", path.stem) or "sweep"
     return _parse(data, base_dir=path.resolve().parent, source=str(path.resolve()),
                   default_name=stem, overrides=overrides)

@@ -1,0 +1,42 @@
+"""The documentation and the code point only at what the repository holds.
+
+The developers' own notes (the model brief, the IDA notes, the style guide) are not part of
+the repository; a user cannot follow a reference to them. What a user needs is in docs/ in our
+own words (docs/theory.md), so no file under docs/ or src/ may name those notes again.
+"""
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+SUFFIXES = {".py", ".md", ".rst", ".toml", ".txt", ".cfg", ".html", ".css", ".js"}
+FORBIDDEN = re.compile(
+    r"physics\.md|ida[-_ ]notes|design\.md|/work/|shared/(physics|ida|design)|"
+    r"model brief|\bthe brief\b|\bbrief's\b|\(brief:",
+    flags=re.IGNORECASE)
+
+
+def _files():
+    for top in ("src", "docs"):
+        for path in sorted((ROOT / top).rglob("*")):
+            parts = set(path.relative_to(ROOT).parts)
+            if path.is_file() and path.suffix in SUFFIXES and not parts & {
+                    "_build", "generated", "auto_examples", "__pycache__"}:
+                yield path
+
+
+def test_no_reference_to_files_outside_the_repository():
+    hits = []
+    for path in _files():
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+            if FORBIDDEN.search(line):
+                hits.append(f"{path.relative_to(ROOT)}:{n}: {line.strip()}")
+    assert not hits, "references to notes outside the repository:\n" + "\n".join(hits)
+
+
+def test_the_check_sees_the_sources_and_the_pages():
+    names = {p.relative_to(ROOT).as_posix() for p in _files()}
+    assert {"docs/theory.md", "src/roughvib/scene.py", "src/roughvib/cli/report.py",
+            "src/roughvib/scenes/paper.toml"} <= names
+    assert FORBIDDEN.search("see physics.md §2.4") and FORBIDDEN.search("ida-notes §3")
+    assert not FORBIDDEN.search("roughvib sweep v.toml --out /shared/runs/velocity")
