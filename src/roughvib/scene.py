@@ -911,9 +911,10 @@ class Scene:
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
         if (self.output.checkpoint_interval > 0
                 and self.solver.method not in CHECKPOINTED + ("auto",)):
-            raise SceneError(f"output.checkpoint_interval needs solver.method = 'auto', 'ida' "
-                             f"or 'adaptive-modal' (the event-driven solvers are checkpointed), "
-                             f"got {self.solver.method!r}")
+            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' or "
+                             f"'adaptive-modal' (or 'auto', which picks one of them: the "
+                             f"event-driven solvers are checkpointed), got "
+                             f"{self.solver.method!r}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

@@ -269,16 +269,19 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     events = events_frame(raw.events)
     audit = energy_audit(system, raw)
 
-    resolved = scene
+    # the saved scene repeats the run: the solver section as it ran (concrete method, the
+    # preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run
+    # (whose checkpoint holds that section) writes the same scene.toml as an uninterrupted one
+    resolved = replace(scene, solver=solver)
     comments = {}
     if system.tangential:
         exc = scene.excitation
-        resolved = replace_section(scene, "excitation", force_amplitude=system.force_amplitude,
+        resolved = replace_section(resolved, "excitation",
+                                   force_amplitude=system.force_amplitude,
                                    target_rms_velocity=None)
         if exc.target_rms_velocity is not None:
             comments["excitation.force_amplitude"] = (
                 f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
-    comments.update(_solver_comments(scene.solver, solver))
     resolved = _resolve_contact(resolved, system, comments)
     scene_toml = scene_to_toml(resolved, comments=comments)
     _add_regimes(ds, system, events)
@@ -394,28 +397,6 @@ def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> Raw
     from roughvib.solvers.fixed_step import solve_fixed_step
 
     return solve_fixed_step(system, progress=progress)
-
-
-def _solver_comments(given: Solver, solver: Solver) -> dict[str, str]:
-    """scene.toml comments saying what ``auto`` and the accuracy preset resolved to."""
-    out = {}
-    if given.method == "auto":
-        out["solver.method"] = f"ran {solver.method}"
-    keys = given.from_preset()
-    if solver.method in FIXED_STEP_METHODS:
-        keys = tuple(k for k in keys if k == "step")
-    else:
-        keys = tuple(k for k in keys if k not in ("step", "atol_acceleration_relative"))
-    units = {"atol": " m", "atol_acceleration": " m/s^2", "step": " s"}
-    parts = []
-    for k in keys:
-        parts.append(f"{k} {getattr(solver, k):g}{units.get(k, '')}")
-        if k == "atol_acceleration" and solver.atol_acceleration_relative is not None:
-            parts[-1] += (f" (= {solver.atol_acceleration_relative:g} x the pilot's "
-                          f"acceleration level)")
-    if parts:
-        out["solver.accuracy"] = f"{solver.method}: " + ", ".join(parts)
-    return out
 
 
 def verification_scene(scene: Scene) -> tuple[Scene, str]:

@@ -3,6 +3,7 @@ their key only, ``auto`` picks the solver, a run records what it used."""
 
 import math
 import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -69,8 +70,9 @@ def test_auto_runs_adaptive_modal_where_it_can_and_ida_elsewhere():
     assert coulomb.resolved_solver().method == "ida"
     assert roughvib.load_scene("paper", {"plate.loss_factor": 2.0}
                                ).resolved_solver().method == "ida"
+    # both event-driven solvers write checkpoints: auto does not need IDA for them
     ckpt = roughvib.load_scene("paper", {"output.checkpoint_interval": 0.05})
-    assert ckpt.resolved_solver().method == "ida"
+    assert ckpt.resolved_solver().method == "adaptive-modal"
     # the second solve of --verify: the other event-driven solver, or IDA 100x tighter
     assert verification_scene(roughvib.load_scene("paper"))[0].solver.method == "ida"
     v, how = verification_scene(roughvib.load_scene("paper", {"solver.method": "ida"}))
@@ -97,10 +99,12 @@ def test_a_run_records_its_tolerances_and_the_pilot_scales_atol_acceleration():
     assert s["atol_acceleration"] == pytest.approx(pre["atol_acceleration_relative"]
                                                    * pilot["level"])
     assert "atol_acceleration" in s["from_preset"]
-    assert "# ran adaptive-modal" in r.scene_toml and "pilot's acceleration level" in r.scene_toml
-    # the scene file keeps the preset, not the numbers: reloading it re-resolves the same way
-    again = roughvib.scene.scene_from_dict(__import__("tomllib").loads(r.scene_toml))
-    assert again.solver.rtol is None and again.solver.method == "auto"
+    # the saved scene holds the solver section as it ran, as numbers: it repeats the run
+    # without a pilot (and a resumed run writes the same file)
+    again = roughvib.scene.scene_from_dict(tomllib.loads(r.scene_toml))
+    assert again.solver.method == "adaptive-modal" and again.solver.rtol == pre["rtol"]
+    assert again.solver.atol_acceleration == s["atol_acceleration"]
+    assert again.resolved_solver() == again.solver
     # an explicit absolute value: no pilot
     r2 = simulate(scene.with_overrides({"solver.atol_acceleration": 3e-9}))
     assert "pilot" not in r2.summary["solver"]
