@@ -122,3 +122,15 @@ def test_event_times_velocity_and_energy_limits():
     assert acc["verdict"] == "fail"
     acc = _measure(_run(BLOCK, PLATE, energy=-3e-6), ref)
     assert acc["verdict"] == "fail" and "energy audit" in acc["failures"][0]
+
+
+@pytest.mark.parametrize("missing", [None, float("nan")])
+def test_a_run_without_an_energy_audit_cannot_pass(missing):
+    """The paper scheme keeps no energy audit (None in a loaded summary, NaN in a fresh
+    one): that item of the contract cannot be shown to hold, so the verdict is a fail with a
+    reason, not a crash or a pass."""
+    acc = _measure(_run(BLOCK, PLATE, energy=missing))
+    assert acc["verdict"] == "fail" and acc["failures"] == [
+        "the run has no energy audit (its method keeps none)"]
+    assert acc["energy_rel_residual"] is None and contract_ratio(acc) == math.inf
+    assert verdict_line(acc).endswith("energy n/a")
