@@ -441,8 +441,9 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
     """Solve ``scene`` a second, independent way and judge ``result`` by the accuracy contract.
 
     The second solve is :func:`verification_scene`'s, with the run's force amplitude (no
-    second calibration). Writes the measurement (:func:`roughvib.analysis.accuracy.
-    measure_accuracy`) into ``result.summary["accuracy"]`` and returns it; the second solve's
+    second calibration). Writes the measurement
+    (:func:`~roughvib.analysis.accuracy.measure_accuracy`) into ``result.summary["accuracy"]``
+    and returns it; the second solve's
     method, tolerances, wall time and status are in its ``verification`` entry. A failed
     second solve gives the verdict ``"unverified"``.
 

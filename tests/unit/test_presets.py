@@ -47,6 +47,20 @@ def test_each_preset_is_what_the_docs_say():
                 assert getattr(s, key) == value, (method, level, key)
 
 
+def test_every_fixed_step_preset_runs_on_the_default_output_grid():
+    """A preset step must divide the 1e-5 s output step (a 2e-5 s draft step was refused)."""
+    from roughvib.scene import FIXED_STEP_METHODS
+    from roughvib.solvers.fixed_step import step_grid
+
+    for method in FIXED_STEP_METHODS:
+        for level in ACCURACY_LEVELS:
+            scene = roughvib.load_scene("paper", {"solver.method": method,
+                                                  "solver.accuracy": level})
+            resolved = scene.with_overrides({"solver.step": scene.resolved_solver().step})
+            h, every, _, _ = step_grid(resolved)
+            assert every * h == pytest.approx(scene.output.step), (method, level)
+
+
 def test_explicit_values_override_their_key_only_and_none_restores_the_preset():
     s = roughvib.load_scene("paper", {"solver.method": "ida", "solver.rtol": 1e-9})
     r = s.resolved_solver()

@@ -145,7 +145,7 @@ def measure_accuracy(result, reference, *, period: float, transient: float,
     period, transient : float
         The scene's excitation period and run-in [s] (:func:`analysis_window`).
     contract : Contract
-        The limits (default: :data:`CONTRACT`).
+        The limits (default: ``CONTRACT``).
     reference_label : str
         How the reference was made (written into the report).
 

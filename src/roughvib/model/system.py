@@ -360,7 +360,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     validity warnings (issued as :class:`~roughvib.scene.ModelValidityWarning` and kept in
     ``System.warnings``) and, with ``travel``, the coverage of the profile.
 
-    The system's ``scene`` carries the resolved solver section (:meth:`Scene.resolved_solver`:
+    The system's ``scene`` carries the resolved solver section (``Scene.resolved_solver``:
     a concrete method, tolerances and step from the accuracy preset unless given), which is
     what the solvers read.
 

@@ -96,7 +96,7 @@ def errors_against(result: Result, reference: Result, period: float, transient: 
     Returns
     -------
     dict
-        ``block_band_db`` and ``plate_band_db`` (largest |deviation| over the contract's
+        ``block_band_db`` and ``plate_band_db`` (largest absolute deviation over the contract's
         bands, inf for a lost band) with ``block_band_hz`` / ``plate_band_hz``,
         ``velocity_rel_rms``, ``event_dt_max`` [s], ``events_unmatched``,
         ``energy_rel_residual``, ``contract_ratio`` (largest error / its limit) and
