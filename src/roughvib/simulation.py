@@ -14,6 +14,7 @@ import time
 import tomllib
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
@@ -31,7 +32,9 @@ from roughvib.scene import (
     scene_to_toml,
 )
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
-from roughvib.solvers.ida import RawSolution, solve_ida
+
+if TYPE_CHECKING:
+    from roughvib.solvers.ida import RawSolution
 
 __all__ = ["energy_audit", "resume", "simulate"]
 
@@ -250,7 +253,10 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     t0 = time.perf_counter()
     system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
     t_pre = time.perf_counter() - t0
+    # each solver is imported when it runs: IDA brings scikit-sundae and scipy.sparse
     if scene.solver.method == "ida":
+        from roughvib.solvers.ida import solve_ida
+
         raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
                         resume=_resume_from)
     elif scene.solver.method == "adaptive-modal":

@@ -30,7 +30,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.special import zeta
 
 from roughvib.scene import Plate
 
@@ -183,6 +182,8 @@ def _li_coefficients(s: int) -> np.ndarray:
 
     c_k = zeta(s - k) / k! for k != s - 1 and c_(s-1) = H_(s-1) / (s-1)! (harmonic number).
     """
+    from scipy.special import zeta  # only where the residual compliance is computed
+
     k = np.arange(_LI_TERMS)
     c = np.empty(_LI_TERMS)
     for kk in k:

@@ -45,7 +45,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, special
 
 from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
 from roughvib.scene import MAX_CONTACTS, Scene, SceneError
@@ -99,6 +98,8 @@ def gw_integral(n: float, h: float | np.ndarray, distribution: str = "gaussian"
     float or ndarray
         F_n(h) [-].
     """
+    from scipy import special  # here, not at the top: a run with a cached contact needs none
+
     h = np.asarray(h, dtype=float)
     if distribution == "gaussian":
         d, _ = special.pbdv(-n - 1.0, h)
@@ -282,6 +283,8 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
         if hi > 64.0:
             raise ValueError(f"load {load} N is too small for the {model.upper()} model "
                              f"(separation h > 64)")
+    from scipy import optimize
+
     h = optimize.brentq(f, lo, hi, xtol=1e-14, rtol=1e-14, maxiter=200)
     F = lambda n: gw_integral(n, h, distribution)  # noqa: E731
     if model == "gw":

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.interpolate import CubicSpline, make_interp_spline
 
 __all__ = ["build_coefficients", "profile_eval", "profile_eval_many"]
 
@@ -49,6 +48,9 @@ def build_coefficients(z: np.ndarray, dx: float, kind: str = "cubic") -> np.ndar
         c[:, 0] = z[:-1]
         c[:, 1] = np.diff(z) / dx
         return c
+    # scipy.interpolate (which imports scipy.optimize and scipy.linalg) only for the splines
+    from scipy.interpolate import CubicSpline, make_interp_spline
+
     s = np.arange(n) * dx
     if kind == "cubic":
         spl = CubicSpline(s, z, bc_type="not-a-knot")
