@@ -63,6 +63,29 @@ EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "ma
 FORMAT_VERSION = 1
 
 
+def _write_netcdf(ds: xr.Dataset, path: Path) -> None:
+    """``ds.to_netcdf(path, engine="h5netcdf")`` without asking dask for its scheduler.
+
+    ``to_netcdf`` looks up the active dask scheduler (importing ``dask.distributed`` and its
+    dependencies: about 0.4 s of a short run on the 2-core machine) to decide whether to close
+    the file between chunk writes, which only matters for dask arrays; ours are numpy arrays.
+    Writing through the same h5netcdf store with xarray's HDF5 lock gives the same file
+    (tested against ``to_netcdf``). With an xarray that no longer has these names, the public
+    ``to_netcdf`` is used.
+    """
+    try:
+        from xarray.backends import H5NetCDFStore
+        from xarray.backends.locks import HDF5_LOCK
+    except ImportError:  # pragma: no cover - another xarray layout
+        ds.to_netcdf(path, engine="h5netcdf")
+        return
+    store = H5NetCDFStore.open(str(path), mode="w", lock=HDF5_LOCK)
+    try:
+        ds.dump_to_store(store, unlimited_dims=ds.encoding.get("unlimited_dims"))
+    finally:
+        store.close()
+
+
 def _jsonable(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {str(k): _jsonable(v) for k, v in obj.items()}
@@ -190,7 +213,7 @@ class Result:
                 ds.attrs.update(status=self.status,
                                 message=str(self.summary.get("message", "")))
             ds.attrs["run_id"] = run_id
-            ds.to_netcdf(tmp / nc, engine="h5netcdf")
+            _write_netcdf(ds, tmp / nc)
             names.append(nc)
         if self.ok or len(self.events):
             ev = self.events.copy()

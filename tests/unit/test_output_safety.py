@@ -225,9 +225,9 @@ _KILL = textwrap.dedent("""
                 os.kill(os.getpid(), signal.SIGKILL)
         rundir.os.rename = rename
     else:  # while writing the staging directory
-        def to_netcdf(self, path, *a, **k):
+        def write_netcdf(ds, path):
             os.kill(os.getpid(), signal.SIGKILL)
-        results.xr.Dataset.to_netcdf = to_netcdf
+        results._write_netcdf = write_netcdf
     _result(2.0).save(out)
 """)
 
