@@ -25,18 +25,23 @@ import os
 import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
-import xarray as xr
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
 from roughvib.rundir import RunDirectory
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
+if TYPE_CHECKING:
+    import xarray as xr
+
+# xarray is imported where a Dataset is built, written or read: a run builds its Result from
+# plain arrays (RunData) and writes result.nc without it (see RunData)
+
 __all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
-           "VARIABLES", "check_run_files", "load_result"]
+           "RunData", "VARIABLES", "check_run_files", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -61,6 +66,142 @@ EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "ma
                  "friction_before", "friction_after"]
 
 FORMAT_VERSION = 1
+
+
+class RunData:
+    """The time series of a run as numpy arrays, laid out as in ``result.nc``.
+
+    ``simulate`` builds a run's :class:`Result` from this instead of an xarray.Dataset:
+    building a Dataset and writing it with xarray import dask (``dask.array`` with
+    scipy.sparse, scipy.special and scipy.fft, for xarray's duck-array checks), about half a
+    second of a short run on the 2-core machine (docs/performance.md, "Fixed cost of a run").
+    :meth:`to_dataset` gives the xarray.Dataset (``Result.dataset`` calls it on first use) and
+    :meth:`write_netcdf` writes the very file xarray's ``to_netcdf`` writes (tested group for
+    group, attribute for attribute and byte for byte).
+
+    Attributes
+    ----------
+    variables : dict
+        name -> (dims, values, attrs), in the order of the Dataset's variables.
+    coords : list of str
+        The names in ``variables`` that are coordinates.
+    attrs : dict
+        Global attributes.
+    """
+
+    def __init__(self) -> None:
+        self.variables: dict[str, tuple[tuple[str, ...], np.ndarray, dict]] = {}
+        self.coords: list[str] = []
+        self.attrs: dict = {}
+
+    def add(self, name: str, dims: str | tuple[str, ...], values: np.ndarray,
+            attrs: dict | None = None, *, coord: bool = False) -> None:
+        """Add (or replace) a variable; ``coord=True`` makes it a coordinate."""
+        dims = (dims,) if isinstance(dims, str) else tuple(dims)
+        values = np.asarray(values)
+        if values.ndim != len(dims):
+            raise ValueError(f"{name}: {values.ndim}-d values for dims {dims}")
+        self.variables[name] = (dims, values, dict(attrs or {}))
+        if coord and name not in self.coords:
+            self.coords.append(name)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.variables[name][1]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.variables
+
+    @property
+    def sizes(self) -> dict[str, int]:
+        """Length of each dimension."""
+        out: dict[str, int] = {}
+        for dims, values, _ in self.variables.values():
+            out.update(zip(dims, values.shape, strict=True))
+        return out
+
+    def to_dataset(self) -> xr.Dataset:
+        """The xarray.Dataset of these arrays (variables, coordinates and attributes)."""
+        import xarray as xr
+
+        names = list(self.variables)
+        coords = {n: self.variables[n] for n in names if n in self.coords}
+        # the data variables before the first coordinate make the Dataset, the later ones are
+        # added in order: the variable order of the Datasets built before RunData existed
+        first = min((names.index(c) for c in coords), default=len(names))
+        ds = xr.Dataset({n: self.variables[n] for n in names[:first] if n not in coords},
+                        coords=coords)
+        for n in names[first:]:
+            if n not in coords:
+                ds[n] = self.variables[n]
+        ds.attrs.update(self.attrs)
+        return ds
+
+    def _coordinates_attrs(self) -> tuple[dict[str, str], str | None]:
+        """The ``coordinates`` attributes of xarray's CF encoding: on every variable, the
+        non-dimension coordinates whose dimensions it has; globally, those on none."""
+        extra = [c for c in self.coords if (c,) != self.variables[c][0]]
+        per_var: dict[str, str] = {}
+        for name, (dims, _, _) in self.variables.items():
+            if name in extra or name in dims:
+                continue
+            mine = sorted(c for c in extra if set(self.variables[c][0]) <= set(dims))
+            if mine:
+                per_var[name] = " ".join(mine)
+        used = {c for text in per_var.values() for c in text.split()}
+        rest = sorted(set(extra) - used)
+        return per_var, (" ".join(rest) if rest else None)
+
+    def write_netcdf(self, path: str | os.PathLike, attrs: dict) -> None:
+        """Write the arrays as netCDF-4 (h5netcdf) with global attributes ``attrs``.
+
+        The file is the one ``to_dataset().assign_attrs(attrs).to_netcdf(path,
+        engine="h5netcdf")`` writes, in the same order (global attributes, dimensions,
+        variables): float variables carry a NaN ``_FillValue``, integer ones none, and the
+        data variables list their non-dimension coordinates in ``coordinates``.
+        """
+        import h5netcdf
+
+        per_var, global_coords = self._coordinates_attrs()
+        with h5netcdf.File(str(path), "w") as f:
+            for k, v in attrs.items():
+                f.attrs[k] = v
+            if global_coords is not None:
+                f.attrs["coordinates"] = global_coords
+            for dim, size in self.sizes.items():
+                f.dimensions[dim] = size
+            for name, (dims, values, vattrs) in self.variables.items():
+                fill = np.nan if values.dtype.kind == "f" else None
+                var = f.create_variable(name, dimensions=dims, dtype=values.dtype,
+                                        fillvalue=fill, chunks=None)
+                for k, v in vattrs.items():
+                    var.attrs[k] = v
+                if name in per_var:
+                    var.attrs["coordinates"] = per_var[name]
+                var[...] = values
+
+
+class _DatasetField:
+    """``Result.dataset``: an xarray.Dataset, built from a :class:`RunData` on first use.
+
+    A dataclass field whose default is a descriptor (Python >= 3.10): the constructor's
+    argument goes through ``__set__``, and raising AttributeError on the class keeps the field
+    without a default.
+    """
+
+    def __set_name__(self, owner, name: str) -> None:
+        self._slot = f"_{name}"
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            raise AttributeError("dataset")
+        value = obj.__dict__[self._slot]
+        if isinstance(value, RunData):
+            value = value.to_dataset()
+            obj.__dict__[self._slot] = value
+        return value
+
+    def __set__(self, obj, value) -> None:
+        obj.__dict__[self._slot] = value
 
 
 def _write_netcdf(ds: xr.Dataset, path: Path) -> None:
@@ -108,7 +249,8 @@ class Result:
     ----------
     dataset : xarray.Dataset
         Time series on the output grid (see ``VARIABLES``); coordinate ``contact`` carries the
-        contact positions.
+        contact positions. The constructor also takes a :class:`RunData`, which becomes the
+        Dataset on first access (a run that is only saved never builds one).
     events : pandas.DataFrame
         Event log, columns ``EVENT_COLUMNS`` (contact is empty for block-level events).
     summary : dict
@@ -117,7 +259,7 @@ class Result:
         The fully resolved scene.
     """
 
-    dataset: xr.Dataset
+    dataset: xr.Dataset = _DatasetField()
     events: pd.DataFrame
     summary: dict
     scene_toml: str
@@ -205,15 +347,19 @@ class Result:
         names = ["scene.toml"]
         (tmp / "scene.toml").write_text(self.scene_toml, encoding="utf-8")
         nc = "result.nc" if self.ok else "partial.nc"
-        if self.ok or self.dataset.sizes.get("time", 0) > 0:
-            ds = self.dataset.copy()
-            ds.attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
-                        for k, v in ds.attrs.items()}
+        data = self.__dict__["_dataset"]  # RunData until someone asked for the Dataset
+        if self.ok or data.sizes.get("time", 0) > 0:
+            attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
+                     for k, v in data.attrs.items()}
             if not self.ok:
-                ds.attrs.update(status=self.status,
-                                message=str(self.summary.get("message", "")))
-            ds.attrs["run_id"] = run_id
-            _write_netcdf(ds, tmp / nc)
+                attrs.update(status=self.status, message=str(self.summary.get("message", "")))
+            attrs["run_id"] = run_id
+            if isinstance(data, RunData):
+                data.write_netcdf(tmp / nc, attrs)
+            else:
+                ds = data.copy()
+                ds.attrs = attrs
+                _write_netcdf(ds, tmp / nc)
             names.append(nc)
         if self.ok or len(self.events):
             ev = self.events.copy()
@@ -313,6 +459,8 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
                          f"reads version {FORMAT_VERSION})")
     check_run_files(d, summary)
     scene_toml = (d / "scene.toml").read_text() if (d / "scene.toml").exists() else ""
+    import xarray as xr
+
     ok = summary.get("status") == "success"
     if not ok and not (partial and (d / "partial.nc").exists()):
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)

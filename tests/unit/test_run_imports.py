@@ -12,13 +12,14 @@ import xarray as xr
 
 import roughvib
 import roughvib.api
-from roughvib.results import _write_netcdf
+from roughvib.results import RunData, _write_netcdf, load_result
 
 TINY = ["--set", "output.duration=0.005", "--set", "plate.max_frequency=2000", "--no-progress",
         "--quiet"]
-# used by the studies and reports, by IDA or by dask's scheduler: never by an adaptive-modal run
-NOT_IN_A_RUN = ("scipy.signal", "scipy.stats", "matplotlib", "sksundae", "distributed",
-                "roughvib.studies.compare", "roughvib.views.report",
+# used by the studies and reports, by IDA, or by xarray (with dask) to build and write a
+# Dataset: never by an adaptive-modal run that is saved
+NOT_IN_A_RUN = ("scipy.signal", "scipy.stats", "matplotlib", "sksundae", "xarray", "dask",
+                "distributed", "roughvib.studies.compare", "roughvib.views.report",
                 "roughvib.views.figures", "roughvib.analysis.spectra")
 
 
@@ -37,7 +38,7 @@ def test_an_adaptive_modal_run_imports_only_what_it_uses(tmp_path):
         f"assert main(['run', 'paper-handset', '--out', {str(out)!r}, "
         f"'--set', 'solver.method=adaptive-modal', *{TINY!r}]) == 0")
     assert (out / "result.nc").is_file()
-    assert "roughvib.solvers.adaptive_modal" in loaded and "xarray" in loaded  # it did run
+    assert "roughvib.solvers.adaptive_modal" in loaded and "h5netcdf" in loaded  # it ran
     assert sorted(m for m in loaded if m.startswith(NOT_IN_A_RUN)) == []
 
 
@@ -78,16 +79,47 @@ def _h5_tree(path) -> dict:
 
 
 def test_result_files_are_those_of_to_netcdf(tmp_path):
+    # a run's Result holds RunData; its file is the one xarray writes from the Dataset
     scene = roughvib.load_scene("paper-handset", {"output.duration": 0.003,
                                                   "plate.max_frequency": 2000.0,
                                                   "solver.method": "adaptive-modal",
                                                   "output.progress": False})
-    ds = roughvib.simulate(scene).to_dataset()
-    ds.attrs = {k: v for k, v in ds.attrs.items() if not isinstance(v, dict | list)}
-    ds.to_netcdf(tmp_path / "public.nc", engine="h5netcdf")
-    _write_netcdf(ds, tmp_path / "ours.nc")
-    a, b = _h5_tree(tmp_path / "public.nc"), _h5_tree(tmp_path / "ours.nc")
-    assert len(a) > 10 and a.keys() == b.keys()
-    for name in a:
-        assert repr(a[name]) == repr(b[name]), name  # repr: NaN fill values compare equal
-    assert xr.open_dataset(tmp_path / "ours.nc", engine="h5netcdf").identical(ds)
+    result = roughvib.simulate(scene)
+    data = result.__dict__["_dataset"]
+    assert isinstance(data, RunData) and data.sizes == {"time": 301, "contact": 10}
+    result.save(tmp_path / "run")
+    assert isinstance(result.__dict__["_dataset"], RunData)  # saving built no Dataset
+    ds = result.dataset  # built now, on first use
+    assert isinstance(ds, xr.Dataset) and result.dataset is ds
+    attrs = {k: v for k, v in ds.attrs.items() if not isinstance(v, dict | list)}
+    data.write_netcdf(tmp_path / "ours.nc", attrs)
+    ds.assign_attrs(attrs).to_netcdf(tmp_path / "xarray.nc", engine="h5netcdf")
+    _write_netcdf(ds.assign_attrs(attrs), tmp_path / "store.nc")
+    a = _h5_tree(tmp_path / "xarray.nc")
+    assert len(a) > 10 and "contact_closed" in a
+    for other in ("ours.nc", "store.nc"):
+        b = _h5_tree(tmp_path / other)
+        assert list(a) == list(b)  # the same variables in the same order
+        for name in a:
+            assert repr(a[name]) == repr(b[name]), (other, name)  # repr: NaN fills compare
+    assert xr.open_dataset(tmp_path / "ours.nc", engine="h5netcdf").identical(
+        ds.assign_attrs(attrs))
+    saved = load_result(tmp_path / "run").dataset
+    assert saved.drop_attrs(deep=False).identical(ds.drop_attrs(deep=False))
+
+
+def test_run_data_coordinates_attributes_follow_xarray(tmp_path):
+    # a coordinate that no variable has (a second dimension) goes to the global attribute
+    data = RunData()
+    data.add("a", ("t", "k"), np.ones((3, 2)), {"units": "m"})
+    data.add("t", "t", np.arange(3.0), coord=True)
+    data.add("kx", "k", np.arange(2.0), coord=True)
+    data.add("w", "w", np.arange(4), coord=True)
+    data.add("wx", "w", np.arange(4.0), coord=True)
+    data.add("flag", "t", np.zeros(3, np.int8), {"flag_values": np.array([0, 1], np.int8)})
+    data.attrs.update(title="x", n=1, f=0.5)
+    data.write_netcdf(tmp_path / "ours.nc", data.attrs)
+    data.to_dataset().to_netcdf(tmp_path / "xarray.nc", engine="h5netcdf")
+    a, b = _h5_tree(tmp_path / "xarray.nc"), _h5_tree(tmp_path / "ours.nc")
+    assert a["/"]["coordinates"] == "wx" and a["a"]["coordinates"] == "kx"
+    assert list(a) == list(b) and all(repr(a[n]) == repr(b[n]) for n in a)
