@@ -4,6 +4,7 @@ Run on demand, not by the tests:
 
     python benchmarks/bench_fixed_cost.py [--repeat 5] [--duration 0.01]
                                           [--method adaptive-modal] [--method ida]
+                                          [--src path/to/other/src]
 
 For each solver method the script runs ``python -m roughvib run paper`` over a short duration
 in fresh subprocesses, three ways:
@@ -54,6 +55,7 @@ STAGES = [
     ("roughvib.model.system", "residual_compliance", "residual compliance"),
     ("roughvib.model.system", "calibrated_force_amplitude", "force calibration"),
     ("roughvib.model.system", "calibrate_force_amplitude", "force calibration"),  # before cache
+    ("roughvib.model.system", "cached_coefficients", "profile interpolant"),
     ("roughvib.model.system", "build_coefficients", "profile interpolant"),
     ("roughvib.model.system", "assemble", "assembly (rest)"),
     ("roughvib.solvers.ida", "solve_ida", "integration"),
@@ -221,14 +223,18 @@ def main() -> None:
     p.add_argument("--cold-repeat", type=int, default=2, help="cold runs (each from empty "
                    "caches; median)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--src", default=str(HERE.parent / "src"),
+                   help="the roughvib sources to measure (default: this checkout's src/; e.g. "
+                        "an export of an earlier commit, for a before/after comparison)")
     a = p.parse_args()
     methods = a.method or ["adaptive-modal", "ida"]
     # as a user runs it: this checkout's sources, byte-code cached (the sandbox sets
     # PYTHONDONTWRITEBYTECODE, which makes every import of roughvib compile its sources)
     env0 = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    env0["PYTHONPATH"] = str(HERE.parent / "src")
+    env0["PYTHONPATH"] = str(Path(a.src).resolve())
     base = Path(tempfile.mkdtemp(prefix="bench_fixed_cost_"))
-    report = {"load_average_before": os.getloadavg(), "cpus": os.cpu_count(),
+    report = {"src": env0["PYTHONPATH"], "load_average_before": os.getloadavg(),
+              "cpus": os.cpu_count(),
               "python": sys.version.split()[0], "runs": {}}
     t_py = [_run([sys.executable, "-c", "pass"], env0) for _ in range(a.repeat)]
     t_np = [_run([sys.executable, "-c", "import numpy"], env0) for _ in range(a.repeat)]

@@ -1,30 +1,35 @@
-"""An on-disk cache of small preprocessing results (a few floats each), keyed by their inputs.
+"""An on-disk cache of preprocessing results, keyed by everything they depend on.
 
 Some preprocessing steps cost a run far more than their result's size: the force calibration
-(T0) integrates the tangential model ten times to reach its target, and the statistical
-contact needs scipy's special functions and root finder, which take longer to import than the
-rest of the run's set-up. Each such result is stored once per distinct input in the user's cache
-directory and read back by every later run, sweep case or process with the same input.
+(T0) integrates the tangential model about ten times, and the statistical contact, the plate's
+residual compliance and the profile's spline interpolant need scipy's special functions, root
+finder and splines, whose imports alone take longer than the rest of a short run's set-up
+(docs/performance.md, "Fixed cost of a run"). Each such result is stored once per distinct
+input in the user's cache directory and read back by every later run, sweep case or process.
 
 Correctness:
 
-* **exact**: the values are stored as ``float.hex`` strings, so a hit returns the very floats the
-  computation returned, and the run is bit-identical to one without the cache;
+* **exact**: values are stored as float64 arrays in an ``.npz`` file (no text conversion), so a
+  hit returns the very numbers the computation returned and the run is bit-identical to one
+  without the cache;
 * **keyed by everything the result depends on**: the inputs (a JSON object, floats written
-  exactly), the source files of the code that computes it (SHA-256 of their bytes, so any edit
-  invalidates), and the versions of Python, numpy, scipy, numba and llvmlite and the machine
-  architecture. The key is the SHA-256 of all of these; the file also repeats them and a
-  lookup checks them, so that a hash collision cannot return a wrong value;
+  exactly; large arrays by their SHA-256), the source files of the code that computes it
+  (SHA-256 of their bytes, so any edit invalidates), and the versions of Python, numpy,
+  scipy, numba and llvmlite and the platform. The file name is the SHA-256 of all of these;
+  the file repeats them and a lookup compares them, so a hash collision cannot return a wrong
+  value;
 * **safe under concurrency**: a file is written under a temporary name in the same directory
   and renamed into place (atomic on POSIX and Windows), so concurrent sweep workers see either
   no file or a complete one; two writers of the same key write the same content;
-* **never fatal**: an unreadable, corrupt or foreign file counts as a miss (the value is
-  recomputed and the file rewritten), and a directory that cannot be created or written only
-  costs the saving.
+* **never fatal**: a missing, unreadable, truncated, corrupt or foreign file, or values that
+  are not finite, count as a miss (the value is recomputed and the file rewritten); a
+  directory that cannot be created or written only costs the saving;
+* **bounded**: each kind keeps at most :data:`MAX_BYTES` of files; the least recently used go
+  first.
 
 Location: ``$ROUGHVIB_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/roughvib`` (default
 ``~/.cache/roughvib``; ``~/Library/Caches/roughvib`` on macOS, ``%LOCALAPPDATA%\\roughvib`` on
-Windows). ``ROUGHVIB_CACHE=off`` (or ``0``, ``no``, ``false``) disables it: every value is
+Windows). ``ROUGHVIB_CACHE=off`` (or ``0``, ``no``, ``false``) switches it off: every value is
 computed and nothing is read or written. Deleting the directory is always safe.
 """
 
@@ -32,7 +37,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import platform
 import sys
@@ -41,7 +45,10 @@ from collections.abc import Callable, Iterable
 from importlib import import_module
 from pathlib import Path
 
-__all__ = ["CACHE_ENV", "CACHE_DIR_ENV", "cache_dir", "cached_values", "code_fingerprint"]
+import numpy as np
+
+__all__ = ["CACHE_DIR_ENV", "CACHE_ENV", "MAX_BYTES", "array_digest", "cache_dir",
+           "cached_arrays", "cached_values", "code_fingerprint"]
 
 #: environment variable that switches the cache off (``off``, ``0``, ``no``, ``false``)
 CACHE_ENV = "ROUGHVIB_CACHE"
@@ -49,6 +56,9 @@ CACHE_ENV = "ROUGHVIB_CACHE"
 CACHE_DIR_ENV = "ROUGHVIB_CACHE_DIR"
 #: layout of the cache files; a change makes every older file a miss
 FORMAT = 1
+#: most bytes kept per kind of result (least recently used files are deleted beyond it)
+MAX_BYTES = 256 * 2**20
+_KEY = "__key__"
 
 
 def cache_dir() -> Path | None:
@@ -85,8 +95,8 @@ def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict:
     Returns
     -------
     dict
-        JSON-ready: ``sources`` (name -> SHA-256), ``python``, ``machine`` and the versions of
-        numpy, scipy, numba and llvmlite.
+        JSON-ready: ``sources`` (file name -> SHA-256), ``python``, ``platform`` and the
+        versions of numpy, scipy, numba and llvmlite.
     """
     sources = {}
     for f in files:
@@ -96,72 +106,95 @@ def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict:
     libs = {name: import_module(name).__version__
             for name in ("numpy", "scipy", "numba", "llvmlite")}
     return {"sources": sources, "python": platform.python_version(),
-            "machine": f"{sys.platform}-{platform.machine()}", **libs}
+            "platform": f"{sys.platform}-{platform.machine()}", **libs}
+
+
+def array_digest(a: np.ndarray) -> str:
+    """Stand-in for a large input array in a cache key: dtype, shape and SHA-256 of its bytes."""
+    a = np.ascontiguousarray(a)
+    return f"{a.dtype.str}{list(a.shape)}:{hashlib.sha256(a.tobytes()).hexdigest()}"
 
 
 def _canonical(record: dict) -> str:
     return json.dumps(record, sort_keys=True)  # floats as repr: exact
 
 
-def _path(directory: Path, kind: str, record: dict) -> Path:
-    digest = hashlib.sha256(_canonical(record).encode()).hexdigest()
-    return directory / kind / f"{digest}.json"
-
-
-def _read(path: Path, record: dict) -> dict[str, float] | None:
-    """The values of a cache file if it is complete and belongs to ``record``, else None."""
+def _read(path: Path, record: dict) -> dict[str, np.ndarray] | None:
+    """The arrays of a cache file if it is complete, finite and belongs to ``record``."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if _canonical(data["key"]) != _canonical(record):
-            return None  # another input under the same name (a hash collision)
-        values = {str(n): float.fromhex(v) for n, v in data["values"].items()}
-    except (OSError, ValueError, TypeError, KeyError, AttributeError):
-        return None  # missing, unreadable, not JSON, truncated, or not a cache file
-    if not values or not all(math.isfinite(v) for v in values.values()):
+        with np.load(path, allow_pickle=False) as f:
+            if str(f[_KEY][()]) != _canonical(record):
+                return None  # another input under the same name (a hash collision)
+            arrays = {name: f[name] for name in f.files if name != _KEY}
+    except Exception:  # noqa: BLE001 - missing, truncated, not a zip, not ours: a miss
         return None
-    return values
+    if not arrays or not all(a.dtype.kind in "fiub" and np.all(np.isfinite(a))
+                             for a in arrays.values()):
+        return None
+    try:
+        os.utime(path)  # recently used: kept longest when the kind outgrows MAX_BYTES
+    except OSError:
+        pass
+    return arrays
 
 
-def _write(path: Path, record: dict, values: dict[str, float]) -> bool:
+def _prune(directory: Path, keep: Path) -> None:
+    """Delete the least recently used files of a kind beyond :data:`MAX_BYTES`."""
+    try:
+        files = [(p.stat().st_mtime, p.stat().st_size, p) for p in directory.glob("*.npz")]
+    except OSError:
+        return
+    total = sum(size for _, size, _ in files)
+    for _, size, p in sorted(files):
+        if total <= MAX_BYTES:
+            break
+        if p != keep:
+            try:
+                p.unlink()
+                total -= size
+            except OSError:
+                pass
+
+
+def _write(path: Path, record: dict, arrays: dict[str, np.ndarray]) -> bool:
     """Write a cache file atomically; False if it could not be written (never raises)."""
-    text = json.dumps({"key": record, "values": {n: float(v).hex() for n, v in values.items()},
-                       "readable": {n: repr(float(v)) for n, v in values.items()}},
-                      sort_keys=True, indent=1)
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".npz")
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **{_KEY: np.array(_canonical(record))}, **arrays)
         os.replace(tmp, path)
-        return True
-    except OSError:
+    except (OSError, ValueError):
         if tmp is not None:
             try:
                 os.unlink(tmp)
             except OSError:
                 pass
         return False
+    _prune(path.parent, keep=path)
+    return True
 
 
-def cached_values(kind: str, inputs: dict, compute: Callable[[], dict[str, float]], *,
-                  code: dict) -> tuple[dict[str, float], str]:
-    """Values of ``compute()`` for these inputs: from the cache, or computed and stored.
+def cached_arrays(kind: str, inputs: dict, compute: Callable[[], dict[str, np.ndarray]], *,
+                  code: dict) -> tuple[dict[str, np.ndarray], str]:
+    """Arrays of ``compute()`` for these inputs: from the cache, or computed and stored.
 
     Parameters
     ----------
     kind : str
         Name of the computation (a subdirectory of the cache).
     inputs : dict
-        Every input of the computation, JSON-ready (str, int, float, bool, None, lists).
+        Every input of the computation, JSON-ready (str, int, float, bool, None, lists; an
+        array through :func:`array_digest`).
     compute : callable
-        ``compute() -> dict[str, float]``, called on a miss.
+        ``compute() -> dict[str, ndarray]`` (numeric arrays), called on a miss.
     code : dict
         :func:`code_fingerprint` of the computation.
 
     Returns
     -------
-    values : dict of str to float
+    arrays : dict of str to ndarray
         Exactly what ``compute()`` returns (or returned when the entry was stored).
     status : {"hit", "miss", "off"}
         Read from the cache; computed (and stored if the directory is writable); computed
@@ -169,12 +202,30 @@ def cached_values(kind: str, inputs: dict, compute: Callable[[], dict[str, float
     """
     directory = cache_dir()
     if directory is None:
-        return {n: float(v) for n, v in compute().items()}, "off"
+        return compute(), "off"
     record = {"format": FORMAT, "kind": kind, "inputs": inputs, "code": code}
-    path = _path(directory, kind, record)
+    digest = hashlib.sha256(_canonical(record).encode()).hexdigest()
+    path = directory / kind / f"{digest}.npz"
     got = _read(path, record)
     if got is not None:
         return got, "hit"
-    values = {n: float(v) for n, v in compute().items()}
-    _write(path, record, values)
-    return values, "miss"
+    arrays = {name: np.asarray(a) for name, a in compute().items()}
+    _write(path, record, arrays)
+    return arrays, "miss"
+
+
+def cached_values(kind: str, inputs: dict, compute: Callable[[], dict[str, float]], *,
+                  code: dict) -> tuple[dict[str, float], str]:
+    """:func:`cached_arrays` for a few floats: ``compute() -> dict[str, float]``.
+
+    Returns
+    -------
+    values : dict of str to float
+        Exactly the floats ``compute()`` returns.
+    status : {"hit", "miss", "off"}
+    """
+    def as_arrays() -> dict[str, np.ndarray]:
+        return {name: np.float64(v) for name, v in compute().items()}
+
+    arrays, status = cached_arrays(kind, inputs, as_arrays, code=code)
+    return {name: float(a) for name, a in arrays.items()}, status

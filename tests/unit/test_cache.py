@@ -2,13 +2,13 @@
 computed floats exactly, any change of input or code misses, a broken file is recomputed, the
 cache can be switched off, and it never fails a run."""
 
-import json
 import threading
 
+import numpy as np
 import pytest
 
 from roughvib import _cache
-from roughvib._cache import cached_values, code_fingerprint
+from roughvib._cache import array_digest, cached_arrays, cached_values, code_fingerprint
 from roughvib.physics.friction import calibrate_force_amplitude, calibrated_force_amplitude
 from roughvib.scene import Friction
 
@@ -63,20 +63,31 @@ def test_any_change_of_input_or_code_misses(cache, inputs, code):
     assert cached_values("k", {"x": 1.0}, Counter({"v": 3.0}), code=CODE) == ({"v": 1.0}, "hit")
 
 
+def _rewrite(path, **arrays):
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _key(path):
+    with np.load(path) as f:
+        return str(f["__key__"][()])
+
+
 @pytest.mark.parametrize("damage", [
-    lambda text: "",                                    # empty (a crash before any byte)
-    lambda text: text[: len(text) // 2],                # truncated
-    lambda text: "not json at all",
-    lambda text: json.dumps({"values": {"v": "0x1p+0"}}),   # no key
-    lambda text: text.replace("0x1.0000000000000p+0", "nonsense"),   # a bad float
-    lambda text: text.replace("0x1.0000000000000p+0", "inf"),        # not finite
-    lambda text: json.dumps({**json.loads(text), "values": {}}),     # no values
-    lambda text: text.replace('"x": 1.0', '"x": 2.0'),  # another input's entry at this name
+    lambda p: p.write_bytes(b""),                                  # a crash before any byte
+    lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 2]),   # truncated
+    lambda p: p.write_bytes(b"not a zip file at all"),
+    lambda p: _rewrite(p, v=np.float64(1.0)),                      # no key
+    lambda p: _rewrite(p, __key__=np.array(_key(p))),              # no values
+    lambda p: _rewrite(p, __key__=np.array(_key(p)), v=np.float64("nan")),   # not finite
+    lambda p: _rewrite(p, __key__=np.array(_key(p)), v=np.array("1.0")),     # not a number
+    lambda p: _rewrite(p, __key__=np.array(_key(p).replace('"x": 1.0', '"x": 2.0')),
+                       v=np.float64(2.0)),                         # another input's entry
 ])
 def test_a_corrupt_file_is_recomputed_and_rewritten(cache, damage):
     cached_values("k", {"x": 1.0}, Counter({"v": 1.0}), code=CODE)
     (path,) = _files(cache)
-    path.write_text(damage(path.read_text()))
+    damage(path)
     compute = Counter({"v": 1.0})
     assert cached_values("k", {"x": 1.0}, compute, code=CODE) == ({"v": 1.0}, "miss")
     assert compute.calls == 1
@@ -129,8 +140,8 @@ def test_concurrent_writers_and_readers_never_see_a_partial_file(cache):
         t.join()
     assert not errors
     assert len(results) == 240 and all(r == AWKWARD for r in results)
-    assert [p.name.endswith(".json") and not p.name.startswith(".tmp")
-            for p in _files(cache)] == [True]
+    assert [p.suffix == ".npz" and not p.name.startswith(".tmp") for p in _files(cache)] == \
+        [True]
 
 
 def test_code_fingerprint_changes_with_the_source(tmp_path):
@@ -142,6 +153,39 @@ def test_code_fingerprint_changes_with_the_source(tmp_path):
     assert a["sources"] != b["sources"] and {k: v for k, v in a.items() if k != "sources"} == \
         {k: v for k, v in b.items() if k != "sources"}
     assert a["numba"] and a["numpy"] and a["scipy"]
+
+
+def test_arrays_are_cached_exactly_and_keyed_by_their_digest(cache):
+    z = np.random.default_rng(1).normal(size=1000)
+    coeffs = {"c": np.outer(z, [1.0, 1 / 3, np.pi]), "n": np.arange(5)}
+    compute = Counter(coeffs)
+    first, s1 = cached_arrays("a", {"z": array_digest(z)}, compute, code=CODE)
+    again, s2 = cached_arrays("a", {"z": array_digest(z)}, compute, code=CODE)
+    assert (s1, s2, compute.calls) == ("miss", "hit", 1)
+    for name, a in coeffs.items():
+        assert again[name].dtype == a.dtype and again[name].tobytes() == a.tobytes()
+    z2 = z.copy()
+    z2[500] = np.nextafter(z2[500], np.inf)  # one ulp of one sample: another key
+    assert array_digest(z2) != array_digest(z)
+    assert cached_arrays("a", {"z": array_digest(z2)}, compute, code=CODE)[1] == "miss"
+
+
+def test_a_kind_keeps_its_most_recently_used_files_within_its_budget(cache, monkeypatch):
+    import os
+
+    big = {"a": np.zeros(1000)}
+    entry = {}
+    for i in range(3):  # entries 0, 1, 2, used in that order, long ago
+        before = set(_files(cache))
+        cached_arrays("b", {"i": i}, Counter(big), code=CODE)
+        (entry[i],) = set(_files(cache)) - before
+        os.utime(entry[i], (1000.0 + i, 1000.0 + i))
+    monkeypatch.setattr(_cache, "MAX_BYTES", sum(p.stat().st_size for p in entry.values()))
+    assert cached_arrays("b", {"i": 0}, Counter(big), code=CODE)[1] == "hit"  # 0 used now
+    cached_arrays("b", {"i": 3}, Counter(big), code=CODE)  # over budget: 1 goes
+    assert not entry[1].exists() and entry[0].exists() and entry[2].exists()
+    assert len(_files(cache)) == 3
+    assert cached_arrays("b", {"i": 3}, Counter(big), code=CODE)[1] == "hit"
 
 
 # --------------------------------------------------------------------------------------------
@@ -172,3 +216,55 @@ def test_a_run_reports_how_its_calibration_was_obtained(cache):
     first, second = assemble(scene), assemble(scene)
     assert (first.calibration["cache"], second.calibration["cache"]) == ("miss", "hit")
     assert first.force_amplitude.hex() == second.force_amplitude.hex()
+
+
+# --------------------------------------------------------------------------------------------
+# the scipy-backed preprocessing through the cache: contact, polylog series, spline
+# --------------------------------------------------------------------------------------------
+
+
+def test_cached_contact_solution_is_the_solution_exactly(cache, monkeypatch):
+    from roughvib.physics.surface import contact
+    from roughvib.physics.surface.contact import _solve_contact_cached, solve_contact
+
+    args = (2.16801, 1.2e8, 1.5e-4, 3.3e-6, 1.6e-3, 1.15e11)
+    direct = solve_contact(*args, model="gw")
+    calls = []
+    monkeypatch.setattr(contact, "solve_contact",
+                        lambda *a, **k: calls.append(a) or solve_contact(*a, **k))
+    for _ in range(2):
+        got = _solve_contact_cached(*args, "gw")
+        assert got == direct and got.h.hex() == direct.h.hex()
+    assert len(calls) == 1  # the second came from the file
+    assert [p.parent.name for p in _files(cache)] == ["contact-solution"]
+    with pytest.raises(ValueError, match="exceeds the range"):  # errors are not cached
+        _solve_contact_cached(1e9, *args[1:], "gw")
+    assert len(_files(cache)) == 1
+
+
+def test_cached_polylog_coefficients_are_the_computed_ones(cache):
+    from roughvib.physics import plate
+
+    for s in (2, 3):
+        plate._li_coefficients.cache_clear()
+        first = plate._li_coefficients(s)
+        plate._li_coefficients.cache_clear()
+        again = plate._li_coefficients(s)  # from the file
+        assert again.tobytes() == first.tobytes() == plate._li_coefficients_computed(s).tobytes()
+    plate._li_coefficients.cache_clear()
+    assert len(_files(cache)) == 2
+
+
+@pytest.mark.parametrize("kind", ["cubic", "quintic"])
+def test_cached_spline_coefficients_are_the_spline_exactly(cache, kind):
+    from roughvib.physics.surface.interp import build_coefficients, cached_coefficients
+
+    z = np.random.default_rng(3).normal(scale=1e-6, size=400)
+    direct = build_coefficients(z, 1e-5, kind)
+    first, s1 = cached_coefficients(z, 1e-5, kind)
+    again, s2 = cached_coefficients(z, 1e-5, kind)
+    assert (s1, s2) == ("miss", "hit")
+    assert again.tobytes() == direct.tobytes() and again.shape == direct.shape
+    assert again.flags.c_contiguous  # the layout numba compiled the kernels for
+    assert cached_coefficients(z, 2e-5, kind)[1] == "miss"
+    assert cached_coefficients(z, 1e-5, "linear")[1] == "not used"  # needs no scipy

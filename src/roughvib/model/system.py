@@ -22,7 +22,7 @@ from roughvib.model.regimes import Regime
 from roughvib.physics.friction import calibrated_force_amplitude
 from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
 from roughvib.physics.surface.contact import contact_layout
-from roughvib.physics.surface.interp import build_coefficients
+from roughvib.physics.surface.interp import cached_coefficients
 from roughvib.physics.surface.roughness import Profile, build_profile
 from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
 
@@ -436,7 +436,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
 
-    coeffs = build_coefficients(profile.z, profile.dx, scene.roughness.interpolation)
+    coeffs, _ = cached_coefficients(profile.z, profile.dx, scene.roughness.interpolation)
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass
     fp[kn.FP_GRAV] = GRAVITY

@@ -16,7 +16,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["build_coefficients", "profile_eval", "profile_eval_many"]
+from roughvib._cache import array_digest, cached_arrays, code_fingerprint
+
+__all__ = ["build_coefficients", "cached_coefficients", "profile_eval", "profile_eval_many"]
 
 _DEGREE = {"linear": 1, "cubic": 3, "quintic": 5}
 
@@ -67,6 +69,30 @@ def build_coefficients(z: np.ndarray, dx: float, kind: str = "cubic") -> np.ndar
         # the derivative just right of each node picks the polynomial piece of that cell
         c[:, k] = spl(left, nu=k) / fact
     return c
+
+
+def cached_coefficients(z: np.ndarray, dx: float, kind: str = "cubic"
+                        ) -> tuple[np.ndarray, str]:
+    """:func:`build_coefficients` through the on-disk cache (:mod:`roughvib._cache`).
+
+    The splines need ``scipy.interpolate``, whose import (with scipy.optimize, linalg and
+    special) costs a short run more than the spline itself; the coefficients of a profile are
+    therefore stored once, keyed by the profile's SHA-256, ``dx``, ``kind`` and this module's
+    code, and read back exactly. ``linear`` needs no scipy and is computed directly.
+
+    Returns
+    -------
+    coefficients : ndarray, shape (n - 1, degree + 1)
+        Bit-identical to ``build_coefficients(z, dx, kind)``.
+    cache : {"hit", "miss", "off", "not used"}
+    """
+    if kind == "linear":
+        return build_coefficients(z, dx, kind), "not used"
+    z = np.asarray(z, dtype=float)
+    arrays, status = cached_arrays(
+        "profile-interpolant", {"z": array_digest(z), "dx": float(dx), "kind": kind},
+        lambda: {"c": build_coefficients(z, dx, kind)}, code=code_fingerprint([__file__]))
+    return arrays["c"], status
 
 
 @njit(cache=True)
