@@ -28,17 +28,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
 from roughvib.rundir import RunDirectory
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 if TYPE_CHECKING:
+    import pandas as pd
     import xarray as xr
 
-# xarray is imported where a Dataset is built, written or read: a run builds its Result from
-# plain arrays (RunData) and writes result.nc without it (see RunData)
+# xarray and pandas are imported where a Dataset or an event table is built, written or read:
+# a run builds its Result from plain arrays and event records and writes its files without
+# them (RunData, _write_events_csv)
 
 __all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
            "RunData", "VARIABLES", "check_run_files", "load_result"]
@@ -64,6 +65,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
 EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
                  "margin_after", "tangential_velocity", "normal_force", "contact_force",
                  "friction_before", "friction_after"]
+_TEXT_COLUMNS = ("kind", "regime_before", "regime_after")
 
 FORMAT_VERSION = 1
 
@@ -180,28 +182,64 @@ class RunData:
                 var[...] = values
 
 
-class _DatasetField:
-    """``Result.dataset``: an xarray.Dataset, built from a :class:`RunData` on first use.
+class _LazyField:
+    """A field of :class:`Result` that may hold a plain stand-in until it is first read.
 
-    A dataclass field whose default is a descriptor (Python >= 3.10): the constructor's
-    argument goes through ``__set__``, and raising AttributeError on the class keeps the field
-    without a default.
+    ``Result.dataset`` may hold a :class:`RunData` and ``Result.events`` the list of event
+    records of a run: a run that is only saved never imports xarray or pandas. On first
+    access the stand-in is converted (``RunData.to_dataset``, :func:`events_frame`) and
+    replaced by the result. A dataclass field whose default is a descriptor (Python >= 3.10):
+    the constructor's argument goes through ``__set__``, and raising AttributeError on the
+    class keeps the field without a default.
     """
 
+    def __init__(self, plain: type, convert) -> None:
+        self.plain, self.convert = plain, convert
+
     def __set_name__(self, owner, name: str) -> None:
-        self._slot = f"_{name}"
+        self.slot = f"_{name}"
+
+    def raw(self, obj):
+        """The stored value, unconverted."""
+        return obj.__dict__[self.slot]
 
     def __get__(self, obj, objtype=None):
         if obj is None:
-            raise AttributeError("dataset")
-        value = obj.__dict__[self._slot]
-        if isinstance(value, RunData):
-            value = value.to_dataset()
-            obj.__dict__[self._slot] = value
+            raise AttributeError(self.slot[1:])
+        value = obj.__dict__[self.slot]
+        if isinstance(value, self.plain):
+            value = self.convert(value)
+            obj.__dict__[self.slot] = value
         return value
 
     def __set__(self, obj, value) -> None:
-        obj.__dict__[self._slot] = value
+        obj.__dict__[self.slot] = value
+
+
+def _write_events_csv(records: list, path: Path) -> None:
+    """The event log as ``events_frame(records).to_csv(path, index=False,
+    float_format="%.12g")`` writes it, with the csv module instead of pandas.
+
+    pandas writes through the csv module (minimal quoting, ``os.linesep``); each numeric
+    column is float64 (``%.12g``, NaN and None empty), ``contact`` an integer (empty for the
+    block-level events, index -1) and the texts as they are. Tested against pandas.
+    """
+    import csv
+
+    def cell(column: str, v) -> str:
+        if column == "contact":
+            return "" if v is None or not v >= 0 else str(int(v))  # as where(contact >= 0)
+        if column in _TEXT_COLUMNS:
+            return "" if v is None else str(v)
+        if v is None or math.isnan(float(v)):
+            return ""
+        return "%.12g" % float(v)  # noqa: UP031 - pandas' float_format
+
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        writer = csv.writer(fh, lineterminator=os.linesep)
+        writer.writerow(EVENT_COLUMNS)
+        for r in records:
+            writer.writerow([cell(c, getattr(r, c)) for c in EVENT_COLUMNS])
 
 
 def _write_netcdf(ds: xr.Dataset, path: Path) -> None:
@@ -252,15 +290,17 @@ class Result:
         contact positions. The constructor also takes a :class:`RunData`, which becomes the
         Dataset on first access (a run that is only saved never builds one).
     events : pandas.DataFrame
-        Event log, columns ``EVENT_COLUMNS`` (contact is empty for block-level events).
+        Event log, columns ``EVENT_COLUMNS`` (contact is empty for block-level events). The
+        constructor also takes the list of event records, which becomes the table on first
+        access (:func:`events_frame`).
     summary : dict
         Status, solver statistics, calibrated T0, rms values, stick fraction, energy audit.
     scene_toml : str
         The fully resolved scene.
     """
 
-    dataset: xr.Dataset = _DatasetField()
-    events: pd.DataFrame
+    dataset: xr.Dataset = _LazyField(RunData, RunData.to_dataset)
+    events: pd.DataFrame = _LazyField(list, lambda records: events_frame(records))
     summary: dict
     scene_toml: str
     extra: dict = field(default_factory=dict)
@@ -347,7 +387,7 @@ class Result:
         names = ["scene.toml"]
         (tmp / "scene.toml").write_text(self.scene_toml, encoding="utf-8")
         nc = "result.nc" if self.ok else "partial.nc"
-        data = self.__dict__["_dataset"]  # RunData until someone asked for the Dataset
+        data = Result.__dict__["dataset"].raw(self)  # RunData until the Dataset was asked for
         if self.ok or data.sizes.get("time", 0) > 0:
             attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
                      for k, v in data.attrs.items()}
@@ -361,10 +401,14 @@ class Result:
                 ds.attrs = attrs
                 _write_netcdf(ds, tmp / nc)
             names.append(nc)
-        if self.ok or len(self.events):
-            ev = self.events.copy()
-            ev["contact"] = ev["contact"].astype("Int64")
-            ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
+        events = Result.__dict__["events"].raw(self)  # records until the table was asked for
+        if self.ok or len(events):
+            if isinstance(events, list):
+                _write_events_csv(events, tmp / "events.csv")
+            else:
+                ev = events.copy()
+                ev["contact"] = ev["contact"].astype("Int64")
+                ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
             names.append("events.csv")
         self.summary["run_id"] = run_id
         self.summary["files"] = {n: _file_info(tmp / n) for n in names}
@@ -423,6 +467,8 @@ def check_run_files(directory: str | os.PathLike, summary: dict, *, hashes: bool
 
 def events_frame(records: list) -> pd.DataFrame:
     """Event records (dataclasses) to the event-log table."""
+    import pandas as pd
+
     rows = [{c: getattr(r, c) for c in EVENT_COLUMNS} for r in records]
     df = pd.DataFrame(rows, columns=EVENT_COLUMNS)
     df["contact"] = df["contact"].where(df["contact"] >= 0).astype("Int64") if len(df) else \
@@ -459,6 +505,7 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
                          f"reads version {FORMAT_VERSION})")
     check_run_files(d, summary)
     scene_toml = (d / "scene.toml").read_text() if (d / "scene.toml").exists() else ""
+    import pandas as pd
     import xarray as xr
 
     ok = summary.get("status") == "success"

@@ -108,6 +108,15 @@ def _build_dataset(system: System, raw: RawSolution) -> RunData:
     return ds
 
 
+def _events_by_kind(records: list) -> dict[str, int]:
+    """Number of events of each kind, most frequent first (ties in order of appearance), as
+    ``events_frame(records)["kind"].value_counts().to_dict()`` gives them."""
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r.kind] = counts.get(r.kind, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: -kv[1]))  # sorted() is stable
+
+
 def _add_regimes(ds: RunData, system: System, events) -> None:
     """``contact_closed(time, contact)`` and ``stick(time)`` from the event log, on the grid."""
     from roughvib.analysis.events import regime_series
@@ -270,7 +279,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
 
         raw = solve_fixed_step(system, progress=progress)
     ds = _build_dataset(system, raw)
-    events = events_frame(raw.events)
+    events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
 
     resolved = scene
@@ -287,7 +296,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     _add_regimes(ds, system, events)
     ds.attrs.update(_provenance(resolved, scene_toml))
 
-    by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
+    by_kind = _events_by_kind(events)
     summary = {
         "format_version": FORMAT_VERSION,
         "status": raw.status,
@@ -311,7 +320,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "warnings": list(system.warnings),
     }
     if raw.status != "success":
-        summary["last_events"] = events.tail(20).to_dict(orient="records")
+        summary["last_events"] = events_frame(events[-20:]).to_dict(orient="records")
         summary["partial_result"] = {
             "file": "partial.nc", "t_end": float(ds["time"][-1]) if ds.sizes["time"]
             else None, "note": "time series up to the failure; load_result(dir, partial=True)"}

@@ -17,9 +17,9 @@ from roughvib.results import RunData, _write_netcdf, load_result
 
 TINY = ["--set", "output.duration=0.005", "--set", "plate.max_frequency=2000", "--no-progress",
         "--quiet"]
-# used by the studies and reports, by IDA, or by xarray (with dask) to build and write a
-# Dataset: never by an adaptive-modal run that is saved
-NOT_IN_A_RUN = ("scipy.signal", "scipy.stats", "matplotlib", "sksundae", "xarray", "dask",
+# used by the studies and reports, by IDA, by xarray (with dask) to build and write a Dataset
+# or by pandas for the event table: never by an adaptive-modal run that is saved
+NOT_IN_A_RUN = ("scipy.signal", "scipy.stats", "matplotlib", "sksundae", "xarray", "dask", "pandas",
                 "distributed", "roughvib.studies.compare", "roughvib.views.report",
                 "roughvib.views.figures", "roughvib.analysis.spectra")
 
@@ -131,3 +131,92 @@ def test_run_data_coordinates_attributes_follow_xarray(tmp_path):
     a, b = _h5_tree(tmp_path / "xarray.nc"), _h5_tree(tmp_path / "ours.nc")
     assert a["/"]["coordinates"] == "wx" and a["a"]["coordinates"] == "kx"
     assert list(a) == list(b) and all(repr(a[n]) == repr(b[n]) for n in a)
+
+
+# --------------------------------------------------------------------------------------------
+# the event log without pandas
+# --------------------------------------------------------------------------------------------
+
+BOUNCING = {"plate.kind": "rigid", "roughness.kind": "sinusoid", "roughness.amplitude": 10e-6,
+            "roughness.wavelength": 0.73e-3, "excitation.kind": "prescribed",
+            "excitation.velocity": 0.1, "excitation.amplitude": 0.0,
+            "excitation.target_rms_velocity": None, "contact.points": 3,
+            "output.duration": 0.01, "output.progress": False}
+
+
+@pytest.fixture(scope="module")
+def logs():
+    """Event records of a bouncing run (lift-offs, touch-downs) and of the paper scene (stick,
+    slip, friction branch), plus records with awkward values."""
+    from roughvib.solvers.events import EventRecord
+
+    bouncing = roughvib.simulate(roughvib.load_scene("paper", BOUNCING))
+    paper = roughvib.simulate(roughvib.load_scene("paper-handset", {
+        "output.duration": 0.02, "plate.max_frequency": 2000.0,
+        "solver.method": "adaptive-modal", "output.progress": False}))
+    base = paper.__dict__["_events"][0]
+    odd = [EventRecord(**{**base.__dict__, **change}) for change in (
+        {"kind": 'a "quoted", text', "margin_before": float("nan")},
+        {"contact": 7, "normal_force": float("inf"), "contact_force": -0.0},
+        {"time": 1e-300, "friction_after": 123456789012345.0, "regime_after": "x\ny"},
+        {"regime_before": "", "regime_after": "", "contact": 0, "margin_after": 0.0},
+        {"contact": float("nan"), "tangential_velocity": -1e-17, "kind": "slip"},
+    )]
+    out = {"bouncing": bouncing.__dict__["_events"], "paper": paper.__dict__["_events"],
+           "odd": odd, "none": []}
+    assert {"lift_off", "touch_down"} <= {r.kind for r in out["bouncing"]}
+    assert {"stick", "slip"} <= {r.kind for r in out["paper"]}
+    return out
+
+
+@pytest.mark.parametrize("name", ["bouncing", "paper", "odd", "none"])
+def test_events_csv_is_the_one_pandas_writes(logs, name, tmp_path):
+    from roughvib.results import _write_events_csv, events_frame
+
+    records = logs[name]
+    ev = events_frame(records)
+    ev.to_csv(tmp_path / "pandas.csv", index=False, float_format="%.12g")
+    _write_events_csv(records, tmp_path / "ours.csv")
+    assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()
+
+
+@pytest.mark.parametrize("name", ["bouncing", "paper"])
+def test_event_counts_and_regime_series_from_records(logs, name):
+    from roughvib.analysis.events import regime_series
+    from roughvib.results import events_frame
+    from roughvib.simulation import _events_by_kind
+
+    records = logs[name]
+    ev = events_frame(records)
+    assert list(_events_by_kind(records).items()) == \
+        list(ev["kind"].value_counts().to_dict().items())
+    grid = np.linspace(0.0, 0.02, 2001)
+    closed0 = np.array([1, 0, 1])
+    for a, b in zip(regime_series(records, grid, closed0, True),
+                    regime_series(ev, grid, closed0, True), strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
+def test_result_events_become_the_table_on_first_use(logs, tmp_path):
+    from roughvib.results import Result, events_frame
+
+    records = logs["bouncing"]
+    result = Result(RunData(), list(records), {"status": "failed"}, "")
+    assert isinstance(result.__dict__["_events"], list)  # not converted yet
+    table = result.events
+    assert table.equals(events_frame(records)) and result.events is table
+
+
+def test_event_counts_keep_pandas_order_for_ties(logs):
+    """value_counts: most frequent first, equal counts in order of first appearance."""
+    from roughvib.results import events_frame
+    from roughvib.simulation import _events_by_kind
+
+    base = logs["paper"][0]
+    kinds = ["slip", "stick", "lift_off", "stick", "touch_down", "slip", "lift_off",
+             "latch_flip", "touch_down", "touch_down"]
+    records = [type(base)(**{**base.__dict__, "kind": k, "time": 1e-3 * i})
+               for i, k in enumerate(kinds)]
+    want = events_frame(records)["kind"].value_counts().to_dict()
+    assert list(_events_by_kind(records).items()) == list(want.items())
+    assert _events_by_kind([]) == {}
