@@ -40,7 +40,8 @@ print(phases[["time", "kind", "tangential_velocity", "regime_after"]].to_string(
 t_end = float(result.dataset["time"][-1])
 for start, end in stick_intervals(events, t_end):
     print(f"stick from {start * 1e3:7.2f} ms to {end * 1e3:7.2f} ms ({(end - start) * 1e3:.1f} ms)")
-table = phase_table(events, t_end, scene.period, scene.contact.points)
+n_contacts = int(result.dataset.sizes["contact"])  # contact.points may be "auto"
+table = phase_table(events, t_end, scene.period, n_contacts)
 print(table[["cycle", "stick_fraction", "stick_phases", "mean_stick_duration"]].to_string())
 
 # %%

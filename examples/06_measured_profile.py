@@ -47,8 +47,9 @@ scene = roughvib.load_scene("paper", {"roughness.kind": "file", "roughness.path"
                                       "output.progress": False})
 
 # %%
-# What ``roughvib surface`` writes: the profile with the chosen contact points (the ten highest
-# maxima under the block), its wavenumber spectra and the contact statistics.
+# What ``roughvib surface`` writes: the profile with the chosen contact points (the highest
+# maxima under the block; the paper scene derives their number from the surface statistics,
+# ``contact.points = "auto"``), its wavenumber spectra and the contact statistics.
 paths = write_surface_report(scene, folder / "surface")
 print(sorted(p.name for p in paths.values()))
 fig, ax = plt.subplots(figsize=(10, 6))

@@ -191,7 +191,7 @@ def tables(root: Path, out: Path) -> None:
     from roughvib.analysis.levels import velocity_exponent
 
     E = {name: load_ensemble(root, name) for name in ENSEMBLES}
-    md: list[str] = ["# Ensemble tables for docs/paper-comparison.md", "",
+    md: list[str] = ["# Ensemble tables of the paper comparison", "",
                      f"Made by `python docs/figures/paper_ensembles.py tables` from {root}. "
                      "Numbers are mean ± sample standard deviation over the seeds (n given).",
                      ""]

@@ -372,7 +372,7 @@ class Result:
 
     def write_files(self, directory: str | os.PathLike) -> list[str]:
         """Write the run's files into the existing directory ``directory``, ``summary.json``
-        last, and record a new run id and the list of files in :attr:`summary`.
+        last, and record a new run id and the list of files in ``summary``.
 
         This is the writing half of :meth:`save`, without its staging and renaming: use it
         only on a fresh directory that is renamed into place afterwards.

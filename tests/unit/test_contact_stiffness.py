@@ -1,8 +1,8 @@
-"""Statistical contact stiffness: GW / GT, summit statistics, physics.md §4.2 worked numbers.
+"""Statistical contact stiffness: GW / GT, summit statistics, worked numbers.
 
 References: quadrature of the defining integrals, the closed-form exponential-summit result
-k = P / sigma_s, a finite-difference dP/d(approach), the worked table of physics.md §4.2
-(computed independently when the brief was written), and direct peak counting on synthetic
+k = P / sigma_s, a finite-difference dP/d(approach), a table of worked numbers
+(computed independently by hand before the code), and direct peak counting on synthetic
 profiles against the exact Gaussian-process formulas (Rice, Cartwright-Longuet-Higgins).
 """
 
@@ -71,7 +71,7 @@ def test_stiffness_is_the_tangent_of_the_load_curve(model):
     assert mid.stiffness == pytest.approx(k_fd, rel=1e-6)
 
 
-# physics.md §4.2: (sigma, rolloff, mass) -> printed values; each checked to half a unit in its
+# worked numbers: (sigma, rolloff, mass) -> printed values; each checked to half a unit in its
 # last printed digit. The 1.4 um row needs the 0.25 mm roll-off (grit-80-like): with 0.5 mm it
 # gives R = 372 um and eta = 1.23e8, not the printed 213 um and 1.5e8.
 TABLE = [

@@ -2,13 +2,15 @@
 
 The developers' own notes (the model brief, the IDA notes, the style guide) are not part of
 the repository; a user cannot follow a reference to them. What a user needs is in docs/ in our
-own words (docs/theory.md), so no file under docs/ or src/ may name those notes again.
+own words (docs/theory.md), so no file under docs/, src/, tests/, benchmarks/ or examples/ may
+name those notes again.
 """
 
 import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+THIS = Path(__file__).name  # this file names the patterns it looks for
 SUFFIXES = {".py", ".md", ".rst", ".toml", ".txt", ".cfg", ".html", ".css", ".js"}
 FORBIDDEN = re.compile(
     r"physics\.md|ida[-_ ]notes|design\.md|/work/|shared/(physics|ida|design)|"
@@ -17,10 +19,10 @@ FORBIDDEN = re.compile(
 
 
 def _files():
-    for top in ("src", "docs"):
+    for top in ("src", "docs", "tests", "benchmarks", "examples"):
         for path in sorted((ROOT / top).rglob("*")):
             parts = set(path.relative_to(ROOT).parts)
-            if path.is_file() and path.suffix in SUFFIXES and not parts & {
+            if path.is_file() and path.suffix in SUFFIXES and path.name != THIS and not parts & {
                     "_build", "generated", "auto_examples", "__pycache__"}:
                 yield path
 
@@ -37,6 +39,7 @@ def test_no_reference_to_files_outside_the_repository():
 def test_the_check_sees_the_sources_and_the_pages():
     names = {p.relative_to(ROOT).as_posix() for p in _files()}
     assert {"docs/theory.md", "src/roughvib/scene.py", "src/roughvib/cli/report.py",
-            "src/roughvib/scenes/paper.toml"} <= names
+            "src/roughvib/scenes/paper.toml", "tests/physics/test_plate.py",
+            "benchmarks/bench_paper.py", "examples/01_quickstart.py"} <= names
     assert FORBIDDEN.search("see physics.md §2.4") and FORBIDDEN.search("ida-notes §3")
     assert not FORBIDDEN.search("roughvib sweep v.toml --out /shared/runs/velocity")

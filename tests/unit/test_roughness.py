@@ -1,7 +1,7 @@
 """Roughness profiles: synthesis, 3-D -> 2-D reduction, files, filter, contact points.
 
 References are closed forms written out here (the target PSD and its band integrals, the
-filter transfer, the continuous width average of physics.md §5.2 integrated numerically, the
+filter transfer, the continuous width average of docs/theory.md integrated numerically, the
 correlation function of the areal PSD), never numbers taken from the code's own output.
 """
 
@@ -28,7 +28,7 @@ BLOCK = Block()
 
 
 # --------------------------------------------------------------------------------------------
-# independent model spectra (physics.md §5.1, §5.2)
+# independent model spectra (docs/theory.md, The roughness input)
 # --------------------------------------------------------------------------------------------
 
 

@@ -45,7 +45,7 @@ def test_paper_defaults_follow_physics_brief():
     assert s.excitation.frequency == 7.0
     assert s.excitation.target_rms_velocity == 0.01
     assert s.output.step == 1e-5
-    # B' = E h^3 / (12 (1 - nu^2)) = 519.2 N m, m'' = 23.55 kg/m^2 (physics.md §2.2)
+    # B' = E h^3 / (12 (1 - nu^2)) = 519.2 N m, m'' = 23.55 kg/m^2 (docs/theory.md, The plate)
     assert math.isclose(s.plate.bending_stiffness, 519.2, rel_tol=1e-3)
     assert math.isclose(s.plate.mass_per_area, 23.55, rel_tol=1e-12)
 

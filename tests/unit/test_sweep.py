@@ -539,9 +539,12 @@ def test_report_fits_db_per_doubling_per_seed(small_run, capsys):
         assert f"{f['db_per_doubling']:.2f}" in md.read_text()
     html = (out / "report" / "report.html").read_text()
     assert "dB per doubling" in html and 'src="velocity.png"' not in html
-    # self-contained like the run report: the study figure is embedded, byte for byte
+    # self-contained like the run report: the study figure and (two roughness seeds) the
+    # ensemble figure are embedded, byte for byte
     uris = re.findall(r'<img src="data:image/png;base64,([^"]+)"', html)
-    assert [base64.b64decode(u, validate=True) for u in uris] == [png.read_bytes()]
+    ens = out / "report" / "ensemble.png"
+    assert [base64.b64decode(u, validate=True) for u in uris] == [png.read_bytes(),
+                                                                   ens.read_bytes()]
     assert "](velocity.png)" in md.read_text()  # the Markdown keeps its link to the file
 
 
@@ -552,11 +555,11 @@ def test_report_in_headless_chromium(small_run, tmp_path):
         sw.sweep_report(out)
     seen = inspect_page(page, tmp_path)
     assert seen["ready"] == "complete" and seen["title"].startswith("Sweep report")
-    assert len(seen["images"]) == 1
-    img = seen["images"][0]
-    assert img["decoded"] and img["width"] > 0 and img["height"] > 0, img
-    assert img["inked_pixels"] > 100, img  # not a blank picture
-    assert img["shown_width"] > 0 and img["shown_height"] > 0, img
+    assert [img["alt"] for img in seen["images"]] == ["velocity.png", "ensemble.png"]
+    for img in seen["images"]:
+        assert img["decoded"] and img["width"] > 0 and img["height"] > 0, img
+        assert img["inked_pixels"] > 100, img  # not a blank picture
+        assert img["shown_width"] > 0 and img["shown_height"] > 0, img
     assert seen["links"] and all(link["href"].startswith("#") and link["resolves"]
                                  and link["shown"] for link in seen["links"]), seen["links"]
 

@@ -126,7 +126,7 @@ def initial_phase_events(system: System, t: float, y: np.ndarray, reg: np.ndarra
     stick : bool
         The run starts in stick (else in slip).
     regime_text : str
-        :meth:`Regime.describe` of the initial regime (``regime_after``).
+        :meth:`~roughvib.model.regimes.Regime.describe` of the initial regime (``regime_after``).
     """
     if not system.tangential:
         return []

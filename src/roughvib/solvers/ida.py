@@ -225,12 +225,12 @@ def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, fl
     ``atol_acceleration`` [m/s^2]; ``scale`` is the magnitude whose round-off sets the floor.
 
     * ``atol``: the contact compression z - w_k + h is a difference of terms as large as
-      L = |z| + max |w_k| + max |h| [m] (block position, plate displacement at the contacts,
+      ``L = |z| + max |w_k| + max |h|`` [m] (block position, plate displacement at the contacts,
       roughness height), so it is known to eps L, and a closing contact's force only to
       s_k eps L, while its tolerance weight tends to atol s_k. The floor is
       ``ATOL_FLOOR_ULPS`` eps L.
     * ``atol_acceleration``: each mode balances w_r^2 q_r against its modal force per unit
-      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to eps max |u_r|.
+      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to ``eps max |u_r|``.
       Below that floor both event-driven solvers slow down (1.6x at the floor, 4x at 4x the
       floor, 100x and more for block.mass >= 1e9 kg) and finally stall.
     """
@@ -362,7 +362,7 @@ def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
     """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
 
     ``progress`` None means the scene's ``output.progress``. When stderr is not a terminal
-    (a log file), a few whole lines instead (:mod:`roughvib._progress`).
+    (a log file), a few whole lines instead (``roughvib._progress``).
     """
     from roughvib._progress import progress_bar as bar
 
