@@ -73,18 +73,21 @@ def cache_dir() -> Path | None:
     if os.environ.get(CACHE_ENV, "").strip().lower() in ("off", "0", "no", "false"):
         return None
     given = os.environ.get(CACHE_DIR_ENV)
-    if given:
-        return Path(given).expanduser()
-    if sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Caches"
-    else:
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    try:
+        if given:
+            return Path(given).expanduser()
+        if sys.platform == "win32":
+            base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+        elif sys.platform == "darwin":
+            base = Path.home() / "Library" / "Caches"
+        else:
+            base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    except RuntimeError:  # no home directory (e.g. a batch job without HOME): no cache
+        return None
     return base / "roughvib"
 
 
-def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict:
+def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict | None:
     """What, besides its inputs, decides a cached value: the code and the libraries.
 
     Parameters
@@ -94,14 +97,19 @@ def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict:
 
     Returns
     -------
-    dict
+    dict or None
         JSON-ready: ``sources`` (file name -> SHA-256), ``python``, ``platform`` and the
-        versions of numpy, scipy, numba and llvmlite.
+        versions of numpy, scipy, numba and llvmlite. None if a source file cannot be read
+        (e.g. a package inside a zip file): then the cache is not used, since a change of
+        the code could not be detected.
     """
     sources = {}
-    for f in files:
-        p = Path(f)
-        sources[p.name] = hashlib.sha256(p.read_bytes()).hexdigest()
+    try:
+        for f in files:
+            p = Path(f)
+            sources[p.name] = hashlib.sha256(p.read_bytes()).hexdigest()
+    except OSError:
+        return None
     # the top-level packages only (numba has imported them all; scipy's alone costs ~30 ms)
     libs = {name: import_module(name).__version__
             for name in ("numpy", "scipy", "numba", "llvmlite")}
@@ -165,7 +173,7 @@ def _write(path: Path, record: dict, arrays: dict[str, np.ndarray]) -> bool:
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, **{_KEY: np.array(_canonical(record))}, **arrays)
         os.replace(tmp, path)
-    except (OSError, ValueError):
+    except Exception:  # noqa: BLE001 - full disk, permissions, anything: only the saving is lost
         if tmp is not None:
             try:
                 os.unlink(tmp)
@@ -177,7 +185,7 @@ def _write(path: Path, record: dict, arrays: dict[str, np.ndarray]) -> bool:
 
 
 def cached_arrays(kind: str, inputs: dict, compute: Callable[[], dict[str, np.ndarray]], *,
-                  code: dict) -> tuple[dict[str, np.ndarray], str]:
+                  code: dict | None) -> tuple[dict[str, np.ndarray], str]:
     """Arrays of ``compute()`` for these inputs: from the cache, or computed and stored.
 
     Parameters
@@ -189,8 +197,8 @@ def cached_arrays(kind: str, inputs: dict, compute: Callable[[], dict[str, np.nd
         array through :func:`array_digest`).
     compute : callable
         ``compute() -> dict[str, ndarray]`` (numeric arrays), called on a miss.
-    code : dict
-        :func:`code_fingerprint` of the computation.
+    code : dict or None
+        :func:`code_fingerprint` of the computation (None: the cache is not used).
 
     Returns
     -------
@@ -198,10 +206,10 @@ def cached_arrays(kind: str, inputs: dict, compute: Callable[[], dict[str, np.nd
         Exactly what ``compute()`` returns (or returned when the entry was stored).
     status : {"hit", "miss", "off"}
         Read from the cache; computed (and stored if the directory is writable); computed
-        with the cache switched off.
+        with the cache switched off (or without a home directory or readable sources).
     """
     directory = cache_dir()
-    if directory is None:
+    if directory is None or code is None:
         return compute(), "off"
     record = {"format": FORMAT, "kind": kind, "inputs": inputs, "code": code}
     digest = hashlib.sha256(_canonical(record).encode()).hexdigest()
@@ -215,7 +223,7 @@ def cached_arrays(kind: str, inputs: dict, compute: Callable[[], dict[str, np.nd
 
 
 def cached_values(kind: str, inputs: dict, compute: Callable[[], dict[str, float]], *,
-                  code: dict) -> tuple[dict[str, float], str]:
+                  code: dict | None) -> tuple[dict[str, float], str]:
     """:func:`cached_arrays` for a few floats: ``compute() -> dict[str, float]``.
 
     Returns

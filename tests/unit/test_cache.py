@@ -268,3 +268,87 @@ def test_cached_spline_coefficients_are_the_spline_exactly(cache, kind):
     assert again.flags.c_contiguous  # the layout numba compiled the kernels for
     assert cached_coefficients(z, 2e-5, kind)[1] == "miss"
     assert cached_coefficients(z, 1e-5, "linear")[1] == "not used"  # needs no scipy
+
+
+# --------------------------------------------------------------------------------------------
+# whole runs: the cache changes nothing but the time, and never fails a run
+# --------------------------------------------------------------------------------------------
+
+TINY_RUN = {"plate.max_frequency": 2000.0, "output.duration": 0.004,
+            "solver.method": "adaptive-modal", "output.progress": False}
+
+
+def _run_arrays(result):
+    ds = result.dataset
+    out = {name: ds[name].values.tobytes() for name in [*ds.data_vars, *ds.coords]}
+    out["force_amplitude"] = result.summary["force_amplitude"].hex()
+    out["events"] = result.events.to_csv(float_format="%.17g")
+    return out
+
+
+def _cache_states(result):
+    return result.summary["calibration"].get("cache")
+
+
+def test_a_run_is_bit_identical_with_and_without_the_cache(cache, monkeypatch):
+    import warnings
+
+    import roughvib
+    from roughvib.physics import plate
+
+    def run():
+        plate._li_coefficients.cache_clear()  # in-process memo: read the file (or compute)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the short window's validity warnings
+            return roughvib.simulate(roughvib.load_scene("paper", TINY_RUN))
+
+    monkeypatch.setenv("ROUGHVIB_CACHE", "off")
+    off = run()
+    monkeypatch.delenv("ROUGHVIB_CACHE")
+    cold, warm = run(), run()
+    assert [_cache_states(r) for r in (off, cold, warm)] == ["off", "miss", "hit"]
+    kinds = {p.parent.name for p in _files(cache)}
+    assert {"force-calibration", "polylog-coefficients", "profile-interpolant"} <= kinds
+    # every cache file damaged: computed again, the same numbers
+    for p in _files(cache):
+        p.write_bytes(p.read_bytes()[: len(p.read_bytes()) // 2])
+    damaged = run()
+    assert _cache_states(damaged) == "miss"
+    want = _run_arrays(off)
+    for r in (cold, warm, damaged):
+        assert _run_arrays(r) == want
+    plate._li_coefficients.cache_clear()
+
+
+def test_a_run_with_an_unwritable_cache_directory_succeeds(tmp_path, monkeypatch):
+    import roughvib
+
+    blocker = tmp_path / "file"  # a directory below a file can be neither made nor written,
+    blocker.write_text("")  # even by root (who ignores permission bits)
+    monkeypatch.setenv("ROUGHVIB_CACHE_DIR", str(blocker / "cache"))
+    monkeypatch.delenv("ROUGHVIB_CACHE", raising=False)
+    with pytest.warns(Warning):  # the short window's validity warnings
+        result = roughvib.simulate(roughvib.load_scene("paper", TINY_RUN))
+    assert result.ok and _cache_states(result) == "miss"
+    assert blocker.read_text() == ""
+
+
+def test_no_home_directory_or_unreadable_source_switches_the_cache_off(monkeypatch, tmp_path):
+    monkeypatch.delenv("ROUGHVIB_CACHE_DIR", raising=False)
+    monkeypatch.delenv("ROUGHVIB_CACHE", raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    monkeypatch.setattr(_cache.sys, "platform", "linux")
+
+    def no_home():
+        raise RuntimeError("Could not determine home directory.")
+
+    monkeypatch.setattr(_cache.Path, "home", staticmethod(no_home))
+    assert _cache.cache_dir() is None
+    compute = Counter({"v": 1.0})
+    assert cached_values("k", {"x": 1.0}, compute, code=CODE) == ({"v": 1.0}, "off")
+    # a source that cannot be read: a change of code could not be seen, so no cache
+    monkeypatch.setenv("ROUGHVIB_CACHE_DIR", str(tmp_path / "cache"))
+    code = code_fingerprint([tmp_path / "missing.py"])
+    assert code is None
+    assert cached_values("k", {"x": 1.0}, compute, code=code) == ({"v": 1.0}, "off")
+    assert compute.calls == 2 and not (tmp_path / "cache").exists()
