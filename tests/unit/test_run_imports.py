@@ -220,3 +220,46 @@ def test_event_counts_keep_pandas_order_for_ties(logs):
     want = events_frame(records)["kind"].value_counts().to_dict()
     assert list(_events_by_kind(records).items()) == list(want.items())
     assert _events_by_kind([]) == {}
+
+
+@pytest.mark.parametrize("failed", [False, True])
+def test_saved_files_are_those_xarray_and_pandas_write(tmp_path, failed):
+    """The files of a saved run against the writing code they replace: the Dataset with its
+    JSON-encoded provenance through ``to_netcdf(engine="h5netcdf")`` and the event table
+    through ``to_csv`` (contact as Int64), for a complete and a failed run (partial.nc)."""
+    import json
+    import warnings
+
+    from roughvib.results import _jsonable
+
+    stop = {"solver.max_events": 1, "solver.event_window": 1.0} if failed else {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = roughvib.simulate(roughvib.load_scene("paper-handset", {
+            "output.duration": 0.01, "plate.max_frequency": 2000.0,
+            "solver.method": "adaptive-modal", "output.progress": False, **stop}))
+    assert result.ok is not failed
+    result.save(tmp_path / "run")
+    run_id = result.summary["run_id"]
+    nc = "partial.nc" if failed else "result.nc"
+    assert isinstance(result.__dict__["_dataset"], RunData)  # written without xarray
+    assert isinstance(result.__dict__["_events"], list)  # and without pandas
+
+    ds = result.dataset.copy()  # the reference: xarray and pandas, as saving used to be
+    assert ds.sizes["time"] > 0 and len(result.events) > 0
+    ds.attrs = {k: (json.dumps(_jsonable(v)) if isinstance(v, dict | list) else v)
+                for k, v in ds.attrs.items()}
+    assert {"roughvib_version", "software", "scene_toml", "solver_method"} <= set(ds.attrs)
+    if failed:
+        ds.attrs.update(status=result.status, message=str(result.summary.get("message", "")))
+    ds.attrs["run_id"] = run_id
+    ds.to_netcdf(tmp_path / "xarray.nc", engine="h5netcdf")
+    a, b = _h5_tree(tmp_path / "xarray.nc"), _h5_tree(tmp_path / "run" / nc)
+    assert list(a) == list(b)
+    for name in a:
+        assert repr(a[name]) == repr(b[name]), name
+    ev = result.events.copy()
+    ev["contact"] = ev["contact"].astype("Int64")
+    ev.to_csv(tmp_path / "pandas.csv", index=False, float_format="%.12g")
+    assert (tmp_path / "run" / "events.csv").read_bytes() == \
+        (tmp_path / "pandas.csv").read_bytes()
