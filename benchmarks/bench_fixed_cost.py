@@ -1,30 +1,38 @@
-"""Benchmark: the fixed cost of a run (everything but the integration), cold and warm caches.
+"""Benchmark: the fixed cost of a run (everything but the integration), by stage and cache state.
 
 Run on demand, not by the tests:
 
-    python benchmarks/bench_fixed_cost.py [--repeat 5] [--duration 0.01]
-                                          [--method adaptive-modal] [--method ida]
+    python benchmarks/bench_fixed_cost.py [--repeat 3] [--duration 0.01]
+                                          [--method ida] [--method adaptive-modal]
                                           [--src path/to/other/src]
 
 For each solver method the script runs ``python -m roughvib run paper`` over a short duration
-in fresh subprocesses, three ways:
+in fresh subprocesses, ``--repeat`` times in each of three cache states:
 
 * **cold**: empty numba and roughvib cache directories (``NUMBA_CACHE_DIR``,
   ``ROUGHVIB_CACHE_DIR`` pointed at new temporary directories): every kernel is compiled and
   every cached preprocessing result computed, as in the first run after an install;
-* **warm**: the same cache directories after that first run, as in every later run;
-* **instrumented** (warm): the same command run by this script in ``--child`` mode, which
-  times each stage of the run with ``time.perf_counter`` (exclusive times: a stage's own time
-  without the stages and imports nested in it): imports by top-level package, scene load,
-  profile synthesis, contact module, plate modes, residual compliance, force calibration,
-  numba dispatch and cache loading per kernel module, integration, dataset, summary, energy
-  audit, saving. "unattributed" is the subprocess's wall time minus everything timed inside
-  it: interpreter start-up and shut-down, argument parsing.
+* **new inputs**: numba's cache filled, roughvib's empty: a run of a scene (or a sweep case)
+  whose calibration, contact and spline inputs have not been seen before;
+* **warm**: both caches filled by an earlier run of the same scene, as in every later run.
 
-The uninstrumented runs give the headline: fixed cost = subprocess wall time - the solver's own
-``wall_time`` from summary.json. Each figure is the median over ``--repeat`` runs; the load
-average before the runs is printed, because other processes on the machine inflate the
-timings. A ``python -X importtime`` run lists the slowest imports of a warm run.
+Each run is instrumented (this script in ``--child`` mode): each stage is timed with
+``time.perf_counter`` (exclusive times: a stage's own time without the stages and imports
+nested in it): imports by top-level package, scene load, profile synthesis, contact module,
+plate modes, residual compliance, force calibration, numba dispatch and cache loading per
+kernel module, integration, dataset, summary, energy audit, saving. "interpreter start +
+exit" is the subprocess's wall time minus everything timed inside it (interpreter start-up and
+shut-down, argument parsing). The stages are summed into the groups of docs/performance.md's
+table.
+
+The headline: fixed cost = subprocess wall time - the integration stage (the solver's own
+time without the numba kernels it loads or compiles on its first call; summary.json's solver
+``wall_time`` includes them and is printed too). Each figure is the median over ``--repeat``
+runs; the load average before and after is printed, because other processes on the machine
+inflate the timings. The same difference in CPU seconds (the subprocess's user + system time
+minus the integration's) is printed too: it is far less sensitive to such load. A few
+uninstrumented warm runs show the instrumentation's own cost, and a ``python -X importtime``
+run lists the slowest imports of a warm run.
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -87,17 +96,21 @@ class _Clock:
 
     def __init__(self) -> None:
         self.totals: dict[str, float] = {}
-        self.stack: list[list] = []  # [label, start, nested time]
+        self.cpu: dict[str, float] = {}  # the same for the process's CPU time
+        self.stack: list[list] = []  # [label, start, nested time, cpu start, nested cpu]
 
     def enter(self, label: str) -> None:
-        self.stack.append([label, time.perf_counter(), 0.0])
+        self.stack.append([label, time.perf_counter(), 0.0, time.process_time(), 0.0])
 
     def leave(self) -> None:
-        label, start, nested = self.stack.pop()
+        label, start, nested, cpu_start, cpu_nested = self.stack.pop()
         elapsed = time.perf_counter() - start
+        cpu = time.process_time() - cpu_start
         self.totals[label] = self.totals.get(label, 0.0) + elapsed - nested
+        self.cpu[label] = self.cpu.get(label, 0.0) + cpu - cpu_nested
         if self.stack:
             self.stack[-1][2] += elapsed
+            self.stack[-1][4] += cpu
 
     def wrap(self, fn, label):
         def timed(*args, **kwargs):
@@ -169,6 +182,7 @@ def child(out: str, argv: list[str]) -> int:
         bootstrap._find_and_load = find_and_load
     clock.totals["child total (perf_counter)"] = time.perf_counter() - t_start
     Path(out).write_text(json.dumps(clock.totals))
+    Path(out + ".cpu").write_text(json.dumps(clock.cpu))  # CPU seconds per stage
     return status
 
 
@@ -177,10 +191,16 @@ def child(out: str, argv: list[str]) -> int:
 # --------------------------------------------------------------------------------------------
 
 
+_CPU: list[float] = []  # CPU seconds (user + system) of each subprocess run by _run
+
+
 def _run(cmd: list[str], env: dict) -> float:
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    _CPU.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr}")
     return wall
@@ -211,6 +231,43 @@ def _import_top(cmd: list[str], env: dict, n: int = 12) -> list[tuple[str, float
     return rows[:n], pk, total
 
 
+# the stages of docs/performance.md's table: each label of the instrumented run goes to one
+GROUPS = [
+    ("interpreter start + exit", lambda k: k.startswith("unattributed")),
+    ("imports", lambda k: k.startswith("import ")),
+    ("scene load + output directory", lambda k: k in ("scene load + validation",
+                                                       "run directory check + lock")),
+    ("force calibration (T0)", lambda k: k == "force calibration"),
+    ("assembly + preprocessing", lambda k: k in (
+        "profile synthesis", "profile checks + validity warnings", "contact module",
+        "plate modes + mode shapes", "residual compliance", "profile interpolant",
+        "assembly (rest)")),
+    ("numba cache load / compilation", lambda k: k.startswith("numba load/compile")),
+    ("integration", lambda k: k == "integration"),
+    ("result, summary + saving", lambda k: k in (
+        "dataset", "event table", "energy audit", "summary (metrics, provenance, scene.toml)",
+        "saving files", "printing the summary")),
+    ("rest (CLI, simulate glue)", lambda k: True),
+]
+
+# cache states measured: (name, fresh numba cache per run, fresh roughvib cache per run)
+MODES = [
+    ("cold: first run after an install (empty numba and roughvib caches)", True, True),
+    ("new inputs (numba cache warm, roughvib cache empty)", False, True),
+    ("warm (both caches filled)", False, False),
+]
+
+
+def _grouped(parts: dict[str, float]) -> dict[str, float]:
+    out = {name: 0.0 for name, _ in GROUPS}
+    for k, v in parts.items():
+        for name, match in GROUPS:
+            if match(k):
+                out[name] += v
+                break
+    return out
+
+
 def main() -> None:
     if sys.argv[1:2] == ["--child"]:  # the instrumented run: --child JSON run ARGS...
         sys.exit(child(sys.argv[2], sys.argv[3:]))
@@ -218,23 +275,21 @@ def main() -> None:
     p.add_argument("--scene", default="paper")
     p.add_argument("--duration", type=float, default=0.01, help="simulated time [s]")
     p.add_argument("--method", action="append", default=None,
-                   help="solver method(s) (default: adaptive-modal and ida)")
-    p.add_argument("--repeat", type=int, default=5, help="runs per measurement (median)")
-    p.add_argument("--cold-repeat", type=int, default=2, help="cold runs (each from empty "
-                   "caches; median)")
+                   help="solver method(s) (default: ida, the default, and adaptive-modal)")
+    p.add_argument("--repeat", type=int, default=3, help="runs per cache state (median)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--src", default=str(HERE.parent / "src"),
                    help="the roughvib sources to measure (default: this checkout's src/; e.g. "
                         "an export of an earlier commit, for a before/after comparison)")
     a = p.parse_args()
-    methods = a.method or ["adaptive-modal", "ida"]
+    methods = a.method or ["ida", "adaptive-modal"]
     # as a user runs it: this checkout's sources, byte-code cached (the sandbox sets
     # PYTHONDONTWRITEBYTECODE, which makes every import of roughvib compile its sources)
     env0 = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env0["PYTHONPATH"] = str(Path(a.src).resolve())
     base = Path(tempfile.mkdtemp(prefix="bench_fixed_cost_"))
     report = {"src": env0["PYTHONPATH"], "load_average_before": os.getloadavg(),
-              "cpus": os.cpu_count(),
+              "cpus": os.cpu_count(), "repeat": a.repeat,
               "python": sys.version.split()[0], "runs": {}}
     t_py = [_run([sys.executable, "-c", "pass"], env0) for _ in range(a.repeat)]
     t_np = [_run([sys.executable, "-c", "import numpy"], env0) for _ in range(a.repeat)]
@@ -250,61 +305,86 @@ def main() -> None:
         args = ["run", a.scene, *sets, "--out", str(out), "--no-progress", "--quiet"]
         cmd = [sys.executable, "-m", "roughvib", *args]
         rec = {}
-        cold_wall, cold_fixed = [], []
-        for i in range(a.cold_repeat):
-            env = {**env0, "NUMBA_CACHE_DIR": str(base / f"numba-{method}-{i}"),
-                   "ROUGHVIB_CACHE_DIR": str(base / f"rv-{method}-{i}")}
-            w = _run(cmd, env)
-            cold_wall.append(w)
-            cold_fixed.append(w - _solver_wall(out))
-        env = {**env0, "NUMBA_CACHE_DIR": str(base / f"numba-{method}-0"),
-               "ROUGHVIB_CACHE_DIR": str(base / f"rv-{method}-0")}
-        warm_wall, warm_fixed, solver = [], [], []
+        warm_env = {**env0, "NUMBA_CACHE_DIR": str(base / f"numba-{method}-warm"),
+                    "ROUGHVIB_CACHE_DIR": str(base / f"rv-{method}-warm")}
+        _run(cmd, warm_env)  # fills the caches of the warm and new-input runs
+        for mode, fresh_numba, fresh_rv in MODES:
+            walls, fixed, solver, fixed_cpu = [], [], [], []
+            parts: dict[str, list[float]] = {}
+            for i in range(a.repeat):
+                tag = f"{method}-{len(rec)}-{i}"
+                env = dict(warm_env)
+                if fresh_numba:
+                    env["NUMBA_CACHE_DIR"] = str(base / f"numba-{tag}")
+                if fresh_rv:
+                    env["ROUGHVIB_CACHE_DIR"] = str(base / f"rv-{tag}")
+                js = base / f"child-{tag}.json"
+                w = _run([sys.executable, str(Path(__file__).resolve()), "--child", str(js),
+                          *args], env)
+                walls.append(w)
+                solver.append(_solver_wall(out))
+                got = json.loads(js.read_text())
+                got["unattributed"] = w - got.pop("child total (perf_counter)")
+                # the solver's wall_time includes the numba kernels it loads (or compiles) on
+                # first call: the integration proper is the instrumented stage without them
+                fixed.append(w - got.get("integration", 0.0))
+                # CPU seconds, much less sensitive to other processes than wall time
+                cpu_int = json.loads(Path(str(js) + ".cpu").read_text()).get("integration", 0.0)
+                fixed_cpu.append(_CPU[-1] - cpu_int)
+                for k, v in _grouped(got).items():
+                    parts.setdefault(k, []).append(v)
+                for k, v in got.items():
+                    parts.setdefault("detail: " + k, []).append(v)
+            rec[mode] = {
+                "wall": statistics.median(walls), "walls": walls,
+                "solver wall_time": statistics.median(solver),
+                "fixed cost": statistics.median(fixed), "fixed costs": fixed,
+                "fixed cost, CPU": statistics.median(fixed_cpu), "fixed costs, CPU": fixed_cpu,
+                "stages": {k: statistics.median(v) for k, v in parts.items()
+                           if not k.startswith("detail: ")},
+                "detail": dict(sorted(((k.removeprefix("detail: "), statistics.median(v))
+                                       for k, v in parts.items() if k.startswith("detail: ")),
+                                      key=lambda kv: -kv[1])),
+            }
+        plain = []  # uninstrumented warm runs: the instrumentation's own cost
         for _ in range(a.repeat):
-            w = _run(cmd, env)
-            warm_wall.append(w)
-            solver.append(_solver_wall(out))
-            warm_fixed.append(w - solver[-1])
-        rec["cold wall"] = statistics.median(cold_wall)
-        rec["cold fixed cost"] = statistics.median(cold_fixed)
-        rec["warm wall"] = statistics.median(warm_wall)
-        rec["warm fixed cost"] = statistics.median(warm_fixed)
-        rec["warm fixed cost min..max"] = (min(warm_fixed), max(warm_fixed))
-        rec["solver wall_time"] = statistics.median(solver)
-        parts: dict[str, list[float]] = {}
-        walls = []
-        for i in range(a.repeat):
-            js = base / f"child-{method}-{i}.json"
-            walls.append(_run([sys.executable, str(Path(__file__).resolve()), "--child",
-                               str(js), *args], env))
-            for k, v in json.loads(js.read_text()).items():
-                parts.setdefault(k, []).append(v)
-        med = {k: statistics.median(v) for k, v in parts.items()}
-        med["unattributed (interpreter start/exit, arguments)"] = (
-            statistics.median(walls) - med.pop("child total (perf_counter)"))
-        rec["instrumented wall"] = statistics.median(walls)
-        rec["breakdown"] = dict(sorted(med.items(), key=lambda kv: -kv[1]))
-        top, pkgs, imp_total = _import_top(cmd, env)
+            w = _run(cmd, warm_env)
+            plain.append(w - _solver_wall(out))  # an upper bound of the integration
+        rec["warm fixed cost, uninstrumented"] = statistics.median(plain)
+        top, pkgs, imp_total = _import_top(cmd, warm_env)
         rec["importtime total self"] = imp_total
         rec["importtime by package"] = pkgs
         rec["importtime top-level imports"] = top
         report["runs"][method] = rec
-        print(f"\n== {a.scene}, {a.duration} s, {method} "
-              f"(median of {a.repeat} warm, {a.cold_repeat} cold runs)")
-        print(f"  cold: wall {rec['cold wall']:.2f} s, fixed cost {rec['cold fixed cost']:.2f} s")
-        print(f"  warm: wall {rec['warm wall']:.2f} s, fixed cost {rec['warm fixed cost']:.2f} s "
-              f"(min {min(warm_fixed):.2f}, max {max(warm_fixed):.2f}), solver "
-              f"{rec['solver wall_time']:.3f} s")
-        print(f"  instrumented warm run: wall {rec['instrumented wall']:.2f} s")
-        for k, v in rec["breakdown"].items():
-            print(f"    {k:<52} {v:7.3f} s")
+        print(f"\n== {a.scene}, {a.duration} s, {method} (median of {a.repeat} runs each)")
+        names = [m for m, _, _ in MODES]
+        print(f"  {'stage [s]':<34}" + "".join(f"{n.split(':')[0].split(' (')[0]:>14}"
+                                               for n in names))
+        for g, _ in GROUPS:
+            print(f"  {g:<34}" + "".join(f"{rec[n]['stages'][g]:14.3f}" for n in names))
+        print(f"  {'wall time':<34}" + "".join(f"{rec[n]['wall']:14.3f}" for n in names))
+        print(f"  {'solver wall_time':<34}" + "".join(f"{rec[n]['solver wall_time']:14.3f}"
+                                                      for n in names))
+        print(f"  {'FIXED COST (wall - integration)':<34}"
+              + "".join(f"{rec[n]['fixed cost']:14.3f}" for n in names))
+        print(f"  {'fixed cost in CPU seconds':<34}"
+              + "".join(f"{rec[n]['fixed cost, CPU']:14.3f}" for n in names))
+        print(f"  warm run without instrumentation, wall - solver wall_time: "
+              f"{rec['warm fixed cost, uninstrumented']:.3f} s (runs: "
+              + ", ".join(f"{x:.2f}" for x in plain) + ")")
+        for n in names:
+            print(f"  {n}: fixed costs " + ", ".join(f"{x:.2f}" for x in rec[n]["fixed costs"])
+                  + " s; CPU " + ", ".join(f"{x:.2f}" for x in rec[n]["fixed costs, CPU"]))
+        print("  warm run in detail: " + ", ".join(
+            f"{k} {v:.3f}" for k, v in list(rec[names[-1]]["detail"].items())[:14]))
         print(f"  -X importtime: {imp_total:.2f} s of module code in all; by package:")
         print("    " + ", ".join(f"{k} {v:.2f}" for k, v in pkgs))
         print("  slowest top-level imports (cumulative): "
               + ", ".join(f"{n} {c:.2f}" for n, _, c in top[:8]))
     report["load_average_after"] = os.getloadavg()
     print(f"\nload average after: {report['load_average_after']}")
-    print(json.dumps(report, indent=1, default=str))
+    (base / "report.json").write_text(json.dumps(report, indent=1, default=str))
+    print(f"full report: {base / 'report.json'}")
 
 
 if __name__ == "__main__":

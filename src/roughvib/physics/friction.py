@@ -11,7 +11,7 @@ This module owns
   no roughness), integrated with the trapezoidal rule and a scalar Newton iteration per step
   (:func:`simulate_tangential`), and the calibration of the force amplitude T0 to a target rms
   velocity (:func:`calibrate_force_amplitude`; :func:`calibrated_force_amplitude` keeps each
-  result in the on-disk cache of :mod:`roughvib._cache`).
+  result in the on-disk cache of ``roughvib._cache``).
 
 Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h) F_N``, with
 ``s = +1`` after a velocity maximum (decelerating branch) and ``s = -1`` after a velocity minimum
@@ -427,7 +427,7 @@ def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal
 
     The calibration integrates the tangential model about ten times (about a second); its
     result depends only on the arguments, the friction law's parameters and this module's code,
-    so it is stored once per distinct input (:mod:`roughvib._cache`: exact floats, keyed by the
+    so it is stored once per distinct input (``roughvib._cache``: exact floats, keyed by the
     inputs, this file's SHA-256 and the library versions) and read back by later runs.
 
     Parameters

@@ -182,7 +182,7 @@ def _li_coefficients(s: int) -> np.ndarray:
     """Taylor coefficients c_k of Li_s(e^mu) - mu^(s-1)/(s-1)! (-ln(-mu)), k = 0.._LI_TERMS-1.
 
     c_k = zeta(s - k) / k! for k != s - 1 and c_(s-1) = H_(s-1) / (s-1)! (harmonic number).
-    Kept in the on-disk cache (:mod:`roughvib._cache`, exact): computing them needs
+    Kept in the on-disk cache (``roughvib._cache``, exact): computing them needs
     ``scipy.special``, whose import costs a run more than the whole residual compliance.
     """
     arrays, _ = cached_arrays("polylog-coefficients", {"s": int(s), "terms": _LI_TERMS},

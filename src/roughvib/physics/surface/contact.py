@@ -303,7 +303,7 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
 def _solve_contact_cached(load: float, density: float, radius: float, std: float, area: float,
                           modulus: float, model: str) -> ContactSolution:
     """:func:`solve_contact` (Gaussian summits) through the on-disk cache of
-    :mod:`roughvib._cache`: its special functions and root finder need ``scipy.special`` and
+    ``roughvib._cache``: its special functions and root finder need ``scipy.special`` and
     ``scipy.optimize``, whose imports cost a short run more than the solution. Exact; an
     input the model cannot carry raises (and is not stored) as before."""
     inputs = {"load": float(load), "density": float(density), "radius": float(radius),

@@ -73,7 +73,7 @@ def build_coefficients(z: np.ndarray, dx: float, kind: str = "cubic") -> np.ndar
 
 def cached_coefficients(z: np.ndarray, dx: float, kind: str = "cubic"
                         ) -> tuple[np.ndarray, str]:
-    """:func:`build_coefficients` through the on-disk cache (:mod:`roughvib._cache`).
+    """:func:`build_coefficients` through the on-disk cache (``roughvib._cache``).
 
     The splines need ``scipy.interpolate``, whose import (with scipy.optimize, linalg and
     special) costs a short run more than the spline itself; the coefficients of a profile are
