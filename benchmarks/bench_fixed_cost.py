@@ -29,10 +29,12 @@ The headline: fixed cost = subprocess wall time - the integration stage (the sol
 time without the numba kernels it loads or compiles on its first call; summary.json's solver
 ``wall_time`` includes them and is printed too). Each figure is the median over ``--repeat``
 runs; the load average before and after is printed, because other processes on the machine
-inflate the timings. The same difference in CPU seconds (the subprocess's user + system time
-minus the integration's) is printed too: it is far less sensitive to such load. A few
+inflate the timings. The same difference in CPU seconds (the subprocess's user + system
+time minus the integration's) is printed too: it is far less sensitive to such load. A few
 uninstrumented warm runs show the instrumentation's own cost, and a ``python -X importtime``
-run lists the slowest imports of a warm run.
+run lists the slowest imports of a warm run. Finally ``--repeat`` further runs in one
+process, after a first one, show what a run costs a sweep worker that keeps its imports and
+loaded kernels between cases (wall time minus the solver's ``wall_time``).
 """
 
 from __future__ import annotations
@@ -210,6 +212,32 @@ def _solver_wall(out_dir: Path) -> float:
     return json.loads((out_dir / "summary.json").read_text())["solver"]["wall_time"]
 
 
+_IN_PROCESS = """
+import json, shutil, sys, time
+from roughvib.cli import main
+args, out, n = json.loads(sys.argv[1]), sys.argv[2], int(sys.argv[3])
+fixed = []
+for _ in range(n + 1):  # the first run pays the imports and kernel loading
+    shutil.rmtree(out, ignore_errors=True)
+    t = time.perf_counter()
+    assert main(args) == 0
+    wall = time.perf_counter() - t
+    with open(out + "/summary.json") as fh:
+        fixed.append(wall - json.load(fh)["solver"]["wall_time"])
+print(json.dumps(fixed[1:]))
+"""
+
+
+def _in_process(args: list[str], out: Path, env: dict, n: int) -> list[float]:
+    """Fixed costs of runs 2..n+1 in one process (as in a sweep worker, which keeps its imports
+    and loaded kernels between cases): wall time minus the solver's wall_time."""
+    proc = subprocess.run([sys.executable, "-c", _IN_PROCESS, json.dumps(args), str(out),
+                           str(n)], env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"in-process runs failed:\n{proc.stderr}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 def _import_top(cmd: list[str], env: dict, n: int = 12) -> list[tuple[str, float, float]]:
     """The slowest imports of a run (-X importtime): (module, self s, cumulative s)."""
     proc = subprocess.run([sys.executable, "-X", "importtime", *cmd[1:]], env=env,
@@ -278,11 +306,15 @@ def main() -> None:
                    help="solver method(s) (default: ida, the default, and adaptive-modal)")
     p.add_argument("--repeat", type=int, default=3, help="runs per cache state (median)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--warm-only", action="store_true",
+                   help="measure only the warm state (a quick check; the caches are filled by "
+                        "one unmeasured run first)")
     p.add_argument("--src", default=str(HERE.parent / "src"),
                    help="the roughvib sources to measure (default: this checkout's src/; e.g. "
                         "an export of an earlier commit, for a before/after comparison)")
     a = p.parse_args()
     methods = a.method or ["ida", "adaptive-modal"]
+    modes = MODES[-1:] if a.warm_only else MODES
     # as a user runs it: this checkout's sources, byte-code cached (the sandbox sets
     # PYTHONDONTWRITEBYTECODE, which makes every import of roughvib compile its sources)
     env0 = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
@@ -308,7 +340,7 @@ def main() -> None:
         warm_env = {**env0, "NUMBA_CACHE_DIR": str(base / f"numba-{method}-warm"),
                     "ROUGHVIB_CACHE_DIR": str(base / f"rv-{method}-warm")}
         _run(cmd, warm_env)  # fills the caches of the warm and new-input runs
-        for mode, fresh_numba, fresh_rv in MODES:
+        for mode, fresh_numba, fresh_rv in modes:
             walls, fixed, solver, fixed_cpu = [], [], [], []
             parts: dict[str, list[float]] = {}
             for i in range(a.repeat):
@@ -351,13 +383,14 @@ def main() -> None:
             w = _run(cmd, warm_env)
             plain.append(w - _solver_wall(out))  # an upper bound of the integration
         rec["warm fixed cost, uninstrumented"] = statistics.median(plain)
+        rec["in-process fixed costs"] = _in_process(args, out, warm_env, a.repeat)
         top, pkgs, imp_total = _import_top(cmd, warm_env)
         rec["importtime total self"] = imp_total
         rec["importtime by package"] = pkgs
         rec["importtime top-level imports"] = top
         report["runs"][method] = rec
         print(f"\n== {a.scene}, {a.duration} s, {method} (median of {a.repeat} runs each)")
-        names = [m for m, _, _ in MODES]
+        names = [m for m, _, _ in modes]
         print(f"  {'stage [s]':<34}" + "".join(f"{n.split(':')[0].split(' (')[0]:>14}"
                                                for n in names))
         for g, _ in GROUPS:
@@ -372,6 +405,8 @@ def main() -> None:
         print(f"  warm run without instrumentation, wall - solver wall_time: "
               f"{rec['warm fixed cost, uninstrumented']:.3f} s (runs: "
               + ", ".join(f"{x:.2f}" for x in plain) + ")")
+        print("  later runs in one process (as in a sweep worker), wall - solver wall_time: "
+              + ", ".join(f"{x:.3f}" for x in rec["in-process fixed costs"]) + " s")
         for n in names:
             print(f"  {n}: fixed costs " + ", ".join(f"{x:.2f}" for x in rec[n]["fixed costs"])
                   + " s; CPU " + ", ".join(f"{x:.2f}" for x in rec[n]["fixed costs, CPU"]))
