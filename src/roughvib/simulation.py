@@ -15,15 +15,15 @@ import tomllib
 from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import System, assemble, estimate_travel
-from roughvib.results import FORMAT_VERSION, VARIABLES, Result, events_frame
+from roughvib.results import FORMAT_VERSION, VARIABLES, Result, RunData, events_frame
 from roughvib.scene import (
     FIXED_STEP_METHODS,
     Scene,
@@ -34,7 +34,9 @@ from roughvib.scene import (
     scene_to_toml,
 )
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
-from roughvib.solvers.ida import RawSolution, solve_ida
+
+if TYPE_CHECKING:
+    from roughvib.solvers.ida import RawSolution
 
 __all__ = ["checkpoint_scene", "energy_audit", "resume", "simulate", "verification_scene",
            "verify_result"]
@@ -72,34 +74,31 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
     }
 
 
-def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
+def _build_dataset(system: System, raw: RawSolution) -> RunData:
+    """The time series of a run with their units (``Result.dataset`` is built from it)."""
     K = system.n_contacts
     n = raw.extra.get("rows_filled", raw.time.size)
     t = raw.time[:n]
     out = raw.outputs[:n]
-    data = {}
-    for j, name in enumerate(kn.OUT_NAMES):
-        data[name] = ("time", out[:, j])
+    ds = RunData()
     n0 = kn.N_OUT_FIXED
-    data["contact_force"] = (("time", "contact"), out[:, n0:n0 + K])
-    data["roughness_input"] = (("time", "contact"), out[:, n0 + K:n0 + 2 * K])
-    coords = {
-        "time": ("time", t, {"units": "s", "long_name": "time"}),
-        "contact": ("contact", np.arange(K), {"long_name": "contact index"}),
-        "contact_x": ("contact", system.contact_xy[:, 0],
-                      {"units": "m", "long_name": "contact x position on the plate"}),
-        "contact_y": ("contact", system.contact_xy[:, 1],
-                      {"units": "m", "long_name": "contact y position on the plate"}),
-        "contact_profile_position": ("contact", system.contact_s,
-                                     {"units": "m", "long_name": "profile coordinate at x=0"}),
-    }
-    ds = xr.Dataset(data, coords=coords)
-    for name, (units, long) in VARIABLES.items():
-        if name in ds:
-            ds[name].attrs.update(units=units, long_name=long)
-    if not system.tangential:
-        ds["friction_force"].attrs["comment"] = "prescribed tangential motion: no friction model"
-        ds["friction_coefficient"].attrs["comment"] = ds["friction_force"].attrs["comment"]
+    columns = [(name, "time", out[:, j]) for j, name in enumerate(kn.OUT_NAMES)]
+    columns += [("contact_force", ("time", "contact"), out[:, n0:n0 + K]),
+                ("roughness_input", ("time", "contact"), out[:, n0 + K:n0 + 2 * K])]
+    no_friction = {"comment": "prescribed tangential motion: no friction model"}
+    for name, dims, values in columns:
+        units, long = VARIABLES[name]
+        extra = no_friction if not system.tangential and name in (
+            "friction_force", "friction_coefficient") else {}
+        ds.add(name, dims, values, {"units": units, "long_name": long, **extra})
+    ds.add("time", "time", t, {"units": "s", "long_name": "time"}, coord=True)
+    ds.add("contact", "contact", np.arange(K), {"long_name": "contact index"}, coord=True)
+    ds.add("contact_x", "contact", system.contact_xy[:, 0],
+           {"units": "m", "long_name": "contact x position on the plate"}, coord=True)
+    ds.add("contact_y", "contact", system.contact_xy[:, 1],
+           {"units": "m", "long_name": "contact y position on the plate"}, coord=True)
+    ds.add("contact_profile_position", "contact", system.contact_s,
+           {"units": "m", "long_name": "profile coordinate at x=0"}, coord=True)
     ds.attrs.update(
         title="roughvib simulation result",
         convention="vertical quantities are positive downward (direction of gravity); "
@@ -113,23 +112,33 @@ def _build_dataset(system: System, raw: RawSolution) -> xr.Dataset:
     return ds
 
 
-def _add_regimes(ds: xr.Dataset, system: System, events) -> None:
+def _events_by_kind(records: list) -> dict[str, int]:
+    """Number of events of each kind, most frequent first (ties in order of appearance), as
+    ``events_frame(records)["kind"].value_counts().to_dict()`` gives them."""
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r.kind] = counts.get(r.kind, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: -kv[1]))  # sorted() is stable
+
+
+def _add_regimes(ds: RunData, system: System, events) -> None:
     """``contact_closed(time, contact)`` and ``stick(time)`` from the event log, on the grid."""
     from roughvib.analysis.events import regime_series
     from roughvib.model.regimes import initial_regime
 
     _, closed0 = system.static_equilibrium()  # the start of every solver
     start = initial_regime(closed0, system.fp, system.tangential, system.coulomb)
-    closed, stick = regime_series(events, ds["time"].values, closed0,
+    closed, stick = regime_series(events, ds["time"], closed0,
                                   start.stick and system.tangential)
-    ds["contact_closed"] = (("time", "contact"), closed)
-    ds["stick"] = ("time", stick)
-    for name, meanings in (("contact_closed", "open closed"), ("stick", "slip stick")):
+    for name, dims, values, meanings in (("contact_closed", ("time", "contact"), closed,
+                                          "open closed"),
+                                         ("stick", "time", stick, "slip stick")):
         units, long = VARIABLES[name]
-        ds[name].attrs.update(units=units, long_name=long, flag_values=np.array([0, 1], np.int8),
-                              flag_meanings=meanings)
-    if not system.tangential:
-        ds["stick"].attrs["comment"] = "prescribed tangential motion: the block never sticks"
+        attrs = {"units": units, "long_name": long, "flag_values": np.array([0, 1], np.int8),
+                 "flag_meanings": meanings}
+        if name == "stick" and not system.tangential:
+            attrs["comment"] = "prescribed tangential motion: the block never sticks"
+        ds.add(name, dims, values, attrs)
 
 
 def _attr(value):
@@ -163,9 +172,9 @@ def _provenance(scene: Scene, scene_toml: str) -> dict:
     return attrs
 
 
-def _metrics(system: System, ds: xr.Dataset) -> dict:
+def _metrics(system: System, ds: RunData) -> dict:
     scene = system.scene
-    t = ds["time"].values
+    t = ds["time"]
     if t.size < 2:
         return {}
     transient = scene.output.transient
@@ -178,20 +187,20 @@ def _metrics(system: System, ds: xr.Dataset) -> dict:
     for name in ("block_vertical_acceleration", "plate_vertical_acceleration",
                  "block_tangential_velocity", "block_tangential_displacement", "normal_force",
                  "friction_force"):
-        v = ds[name].values[win]
+        v = ds[name][win]
         if np.all(np.isnan(v)):
             continue
         metrics[f"{name}_rms"] = float(rms(v - np.mean(v)) if name.endswith("displacement")
                                        else rms(v))
-    metrics["normal_force_mean"] = float(np.mean(ds["normal_force"].values[win]))
-    metrics["normal_force_min"] = float(np.min(ds["normal_force"].values[win]))
-    v = ds["block_tangential_velocity"].values[win]
+    metrics["normal_force_mean"] = float(np.mean(ds["normal_force"][win]))
+    metrics["normal_force_min"] = float(np.min(ds["normal_force"][win]))
+    v = ds["block_tangential_velocity"][win]
     metrics["stick_fraction"] = float(stick_fraction(v, scene.friction.stick_velocity))
     for name in ("block_vertical_acceleration", "plate_vertical_acceleration"):
         r = metrics.get(f"{name}_rms")
         if r:
             metrics[f"{name}_level_db_re_1e-6"] = 20 * math.log10(r / 1e-6)
-    cf = ds["contact_force"].values[win]
+    cf = ds["contact_force"][win]
     metrics["active_contacts_mean"] = float(np.mean(np.sum(cf > 0, axis=1)))
     return metrics
 
@@ -266,7 +275,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
     raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=_resume_from)
     ds = _build_dataset(system, raw)
-    events = events_frame(raw.events)
+    events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
 
     # the saved scene repeats the run: the solver section as it ran (concrete method, the
@@ -287,7 +296,7 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     _add_regimes(ds, system, events)
     ds.attrs.update(_provenance(resolved, scene_toml))
 
-    by_kind = events["kind"].value_counts().to_dict() if len(events) else {}
+    by_kind = _events_by_kind(events)
     summary = {
         "format_version": FORMAT_VERSION,
         "status": raw.status,
@@ -315,9 +324,9 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "warnings": list(system.warnings),
     }
     if raw.status != "success":
-        summary["last_events"] = events.tail(20).to_dict(orient="records")
+        summary["last_events"] = events_frame(events[-20:]).to_dict(orient="records")
         summary["partial_result"] = {
-            "file": "partial.nc", "t_end": float(ds["time"].values[-1]) if ds.sizes["time"]
+            "file": "partial.nc", "t_end": float(ds["time"][-1]) if ds.sizes["time"]
             else None, "note": "time series up to the failure; load_result(dir, partial=True)"}
     if system.tangential and scene.excitation.target_rms_velocity is not None and \
             raw.status == "success":
@@ -382,7 +391,10 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
 def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> RawSolution:
     """Run the system's solver (``system.scene.solver.method``)."""
     method = system.scene.solver.method
+    # each solver is imported when it runs: IDA brings scikit-sundae and scipy.sparse
     if method == "ida":
+        from roughvib.solvers.ida import solve_ida
+
         return solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
                          resume=resume)
     if method == "adaptive-modal":

@@ -35,7 +35,7 @@ def nothing_expensive(monkeypatch):
         raise AssertionError("expensive work started before every input check")
 
     monkeypatch.setattr(system_mod, "plate_modes", expensive)
-    monkeypatch.setattr(system_mod, "calibrate_force_amplitude", expensive)
+    monkeypatch.setattr(system_mod, "calibrated_force_amplitude", expensive)
 
 
 def _profile_file(tmp_path, scale: float):

@@ -11,9 +11,12 @@ written before it was added) is recognised from the first event of the pair.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["GUARD_KINDS", "lift_off_intervals", "phase_table", "regime_series",
            "stick_intervals"]
@@ -123,6 +126,8 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
             row[f"lift_off_time_{k}"] = _overlap(lifts[k], a, b)
         row["guard_activations"] = int(np.sum((guards >= a) & (guards < b_ev)))
         rows.append(row)
+    import pandas as pd
+
     return pd.DataFrame(rows)
 
 
@@ -134,14 +139,15 @@ def _step_series(times: np.ndarray, values: np.ndarray, initial: int, grid: np.n
     return states[np.searchsorted(times, grid, side="right")]
 
 
-def regime_series(events: pd.DataFrame, time: np.ndarray, closed0: np.ndarray, stick0: bool
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def regime_series(events: pd.DataFrame | list, time: np.ndarray, closed0: np.ndarray,
+                  stick0: bool) -> tuple[np.ndarray, np.ndarray]:
     """The contacts' open/closed state and the block's stick flag on a time grid.
 
     Parameters
     ----------
-    events : DataFrame
-        Event log (columns time, kind, contact).
+    events : DataFrame or list
+        Event log (columns time, kind, contact), or the solver's event records (attributes
+        time, kind, contact; contact -1 for block-level events).
     time : ndarray, shape (n,)
         Output grid [s].
     closed0 : ndarray of int, shape (K,)
@@ -157,10 +163,17 @@ def regime_series(events: pd.DataFrame, time: np.ndarray, closed0: np.ndarray, s
     stick : ndarray of int8, shape (n,)
         1 in a stick phase: ``stick0`` switched by the ``stick`` and ``slip`` events.
     """
-    ev = events.sort_values("time", kind="stable")
-    t = ev["time"].to_numpy(dtype=float)
-    kind = ev["kind"].to_numpy(dtype=object)
-    contact = ev["contact"].to_numpy(dtype=float, na_value=-1.0)
+    if isinstance(events, list):  # records: no pandas needed
+        t = np.array([r.time for r in events], dtype=float)
+        order = np.argsort(t, kind="stable")
+        t = t[order]
+        kind = np.array([r.kind for r in events], dtype=object)[order]
+        contact = np.array([r.contact for r in events], dtype=float)[order]
+    else:
+        ev = events.sort_values("time", kind="stable")
+        t = ev["time"].to_numpy(dtype=float)
+        kind = ev["kind"].to_numpy(dtype=object)
+        contact = ev["contact"].to_numpy(dtype=float, na_value=-1.0)
     grid = np.asarray(time, dtype=float)
     closed = np.empty((grid.size, len(closed0)), dtype=np.int8)
     for k, c0 in enumerate(closed0):

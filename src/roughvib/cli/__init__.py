@@ -51,8 +51,33 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _no_collection_at_exit() -> None:
+    """Let the interpreter skip its last garbage collection when the process exits.
+
+    At exit Python collects every object that is still alive; after a run (numba, scipy,
+    xarray, pandas loaded) that takes about half a second on the 2-core machine
+    (docs/performance.md, "Fixed cost of a run"), for memory the operating system frees at once
+    anyway. ``gc.freeze()`` as the last exit handler moves those objects out of the collector's
+    sight. The exit handlers registered after it (those of the libraries imported during the
+    run) run before it, and reference counting still frees and finalises every object that is
+    not part of a reference cycle while the modules are torn down; Python does not promise to
+    finalise cycles at exit in any case.
+    """
+    global _EXIT_REGISTERED
+    if not _EXIT_REGISTERED:
+        import atexit
+        import gc
+
+        atexit.register(gc.freeze)
+        _EXIT_REGISTERED = True
+
+
+_EXIT_REGISTERED = False
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console entry point ``roughvib``; returns the exit status."""
+    _no_collection_at_exit()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

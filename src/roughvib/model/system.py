@@ -19,10 +19,10 @@ import numpy as np
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
-from roughvib.physics.friction import calibrate_force_amplitude
+from roughvib.physics.friction import calibrated_force_amplitude
 from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
 from roughvib.physics.surface.contact import contact_layout
-from roughvib.physics.surface.interp import build_coefficients
+from roughvib.physics.surface.interp import cached_coefficients
 from roughvib.physics.surface.roughness import Profile, build_profile
 from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
 
@@ -428,20 +428,20 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         calibration = {"method": "scene"}
     else:
         try:
-            T0 = float(calibrate_force_amplitude(
+            T0, cache = calibrated_force_amplitude(
                 exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
-                exc.omega, fr))
+                exc.omega, fr)
         except (RuntimeError, ValueError) as err:
             raise SceneError(
                 f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
                 f"friction law ({err}); check the friction keys or give "
                 f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
         calibration = {"method": "tangential model (F_N = m g)",
-                       "target_rms_velocity": exc.target_rms_velocity}
+                       "target_rms_velocity": exc.target_rms_velocity, "cache": cache}
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
 
-    coeffs = build_coefficients(profile.z, profile.dx, scene.roughness.interpolation)
+    coeffs, _ = cached_coefficients(profile.z, profile.dx, scene.roughness.interpolation)
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass
     fp[kn.FP_GRAV] = GRAVITY

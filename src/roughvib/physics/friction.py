@@ -10,7 +10,8 @@ This module owns
 * the tangential-only reference model (block under a constant normal force,
   no roughness), integrated with the trapezoidal rule and a scalar Newton iteration per step
   (:func:`simulate_tangential`), and the calibration of the force amplitude T0 to a target rms
-  velocity (:func:`calibrate_force_amplitude`).
+  velocity (:func:`calibrate_force_amplitude`; :func:`calibrated_force_amplitude` keeps each
+  result in the on-disk cache of ``roughvib._cache``).
 
 Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h) F_N``, with
 ``s = +1`` after a velocity maximum (decelerating branch) and ``s = -1`` after a velocity minimum
@@ -24,12 +25,13 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.optimize import brentq
 
+from roughvib._cache import cached_values, code_fingerprint
 from roughvib.scene import Friction
 
 __all__ = [
     "calibrate_force_amplitude",
+    "calibrated_force_amplitude",
     "feldmann_mu",
     "feldmann_mu_law",
     "latch_margin",
@@ -412,6 +414,46 @@ def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_
         if not (g_lo < 0.0 < g_hi):
             raise RuntimeError(f"no bracket for target_rms={target_rms} m/s found "
                                f"(T0 in [{lo}, {hi}] N)")
+        from scipy.optimize import brentq
+
         return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12, maxiter=100))
     except _Converged as c:
         return c.T0
+
+
+def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal_force: float,
+                               omega: float, friction: Friction) -> tuple[float, str]:
+    """:func:`calibrate_force_amplitude` at its default settings, through the on-disk cache.
+
+    The calibration integrates the tangential model about ten times (about a second); its
+    result depends only on the arguments, the friction law's parameters and this module's code,
+    so it is stored once per distinct input (``roughvib._cache``: exact floats, keyed by the
+    inputs, this file's SHA-256 and the library versions) and read back by later runs.
+
+    Parameters
+    ----------
+    target_rms, mass, r2, normal_force, omega, friction
+        As in :func:`calibrate_force_amplitude` [m/s, kg, N s/m, N, rad/s].
+
+    Returns
+    -------
+    T0 : float
+        Force amplitude [N], bit-identical to ``calibrate_force_amplitude(...)``.
+    cache : {"hit", "miss", "off"}
+        Read from the cache, computed now, or computed with the cache switched off
+        (``ROUGHVIB_CACHE=off``).
+    """
+    mu_slip, mu_stick, a1, a2 = law_parameters(friction)
+    inputs = {"target_rms": float(target_rms), "mass": float(mass), "r2": float(r2),
+              "normal_force": float(normal_force), "omega": float(omega),
+              "mu_slip": mu_slip, "mu_stick": mu_stick, "a1": a1, "a2": a2,
+              "hysteresis_velocity": float(friction.hysteresis_velocity),
+              "effective_latch_velocity": float(friction.effective_latch_velocity)}
+
+    def compute() -> dict[str, float]:
+        return {"T0": calibrate_force_amplitude(target_rms, mass, r2, normal_force, omega,
+                                                friction)}
+
+    values, status = cached_values("force-calibration", inputs, compute,
+                                   code=code_fingerprint([__file__]))
+    return values["T0"], status

@@ -30,8 +30,8 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.special import zeta
 
+from roughvib._cache import cached_arrays, code_fingerprint
 from roughvib.scene import Plate
 
 __all__ = [
@@ -182,7 +182,18 @@ def _li_coefficients(s: int) -> np.ndarray:
     """Taylor coefficients c_k of Li_s(e^mu) - mu^(s-1)/(s-1)! (-ln(-mu)), k = 0.._LI_TERMS-1.
 
     c_k = zeta(s - k) / k! for k != s - 1 and c_(s-1) = H_(s-1) / (s-1)! (harmonic number).
+    Kept in the on-disk cache (``roughvib._cache``, exact): computing them needs
+    ``scipy.special``, whose import costs a run more than the whole residual compliance.
     """
+    arrays, _ = cached_arrays("polylog-coefficients", {"s": int(s), "terms": _LI_TERMS},
+                              lambda: {"c": _li_coefficients_computed(s)},
+                              code=code_fingerprint([__file__]))
+    return arrays["c"]
+
+
+def _li_coefficients_computed(s: int) -> np.ndarray:
+    from scipy.special import zeta  # only when the coefficients are not in the cache
+
     k = np.arange(_LI_TERMS)
     c = np.empty(_LI_TERMS)
     for kk in k:

@@ -29,10 +29,9 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-import sksundae as sun
 
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
@@ -52,6 +51,12 @@ from roughvib.solvers.events import (
     stall_failure,
     step_budget,
 )
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+# scikit-sundae and scipy.sparse are imported where IDA runs: the other solvers import this
+# module for RawSolution, the tolerances and the output grid, and need neither
 
 __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 
@@ -107,6 +112,8 @@ class _IdaCounters:
         self._mem = None
         self._lib = None
         try:
+            import sksundae as sun
+
             libdir = os.path.join(os.path.dirname(os.path.dirname(sun.__file__)),
                                   "scikit_sundae.libs")
             cands = glob.glob(os.path.join(libdir, "libsundials_ida*.so*"))
@@ -270,6 +277,8 @@ def check_tolerances(system: System, y: np.ndarray) -> None:
 
 
 def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
+    import scipy.sparse as sp
+
     rows, cols = kn.jacobian_pattern(system.off)
     n = system.layout.size
     nnz = rows.size
@@ -314,6 +323,8 @@ def _krylov_options(system: System, args: tuple) -> dict:
     Both callbacks evaluate the Newton matrix at IDA's current iterate, so the preconditioned
     system is the identity and one Krylov iteration solves it.
     """
+    import sksundae as sun
+
     (off, fpa, omega2, cdamp, phi, _phi_obs, stiff, cres, spos, prof, reg, _rf, work) = args
     ws = krylov_workspace(system.layout.size, system.n_modes, system.n_contacts)
     pwork = np.zeros_like(work)  # keeps the factorised iterate's compressions between calls
@@ -388,6 +399,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
         Grid outputs, event log, statistics; ``status`` is ``"success"`` or the failure cause
         (then the outputs end where the integration stopped).
     """
+    import sksundae as sun
+
     scene = system.scene
     out_cfg = scene.output
     scfg = scene.solver

@@ -202,8 +202,6 @@ def plot_events(result: Result, *, axes=None):
     axes[1].set_ylabel("normal force [N]")
     axes[1].set_title("total normal contact force")
     plot_regime_timeline(result, ax=axes[2])
-    for ax in axes[:-1]:  # one shared time axis: label it once, at the bottom
-        ax.set_xlabel("")
     return axes
 
 

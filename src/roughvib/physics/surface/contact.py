@@ -42,11 +42,11 @@ s >= -1) gives F_n = Gamma(n+1) exp(-(h+1)) and exactly k = P / sigma_s.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy import optimize, special
 
+from roughvib._cache import cached_values, code_fingerprint
 from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
 from roughvib.scene import MAX_CONTACTS, Scene, SceneError
 
@@ -99,6 +99,8 @@ def gw_integral(n: float, h: float | np.ndarray, distribution: str = "gaussian"
     float or ndarray
         F_n(h) [-].
     """
+    from scipy import special  # here, not at the top: a run with a cached contact needs none
+
     h = np.asarray(h, dtype=float)
     if distribution == "gaussian":
         d, _ = special.pbdv(-n - 1.0, h)
@@ -282,6 +284,8 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
         if hi > 64.0:
             raise ValueError(f"load {load} N is too small for the {model.upper()} model "
                              f"(separation h > 64)")
+    from scipy import optimize
+
     h = optimize.brentq(f, lo, hi, xtol=1e-14, rtol=1e-14, maxiter=200)
     F = lambda n: gw_integral(n, h, distribution)  # noqa: E731
     if model == "gw":
@@ -294,6 +298,25 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
         a_r = math.pi**2 * (density * radius * std) ** 2 * area * F(2.0)
     return ContactSolution(h=float(h), stiffness=float(k), micro_contacts=float(n_c),
                      real_area=float(a_r))
+
+
+def _solve_contact_cached(load: float, density: float, radius: float, std: float, area: float,
+                          modulus: float, model: str) -> ContactSolution:
+    """:func:`solve_contact` (Gaussian summits) through the on-disk cache of
+    ``roughvib._cache``: its special functions and root finder need ``scipy.special`` and
+    ``scipy.optimize``, whose imports cost a short run more than the solution. Exact; an
+    input the model cannot carry raises (and is not stored) as before."""
+    inputs = {"load": float(load), "density": float(density), "radius": float(radius),
+              "std": float(std), "area": float(area), "modulus": float(modulus),
+              "model": model, "distribution": "gaussian"}
+
+    def compute() -> dict[str, float]:
+        sol = solve_contact(load, density, radius, std, area, modulus, model=model)
+        return {f.name: getattr(sol, f.name) for f in fields(sol)}
+
+    values, _ = cached_values("contact-solution", inputs, compute,
+                              code=code_fingerprint([__file__]))
+    return ContactSolution(**values)
 
 
 # --------------------------------------------------------------------------------------------
@@ -470,7 +493,7 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     load = blk.mass * GRAVITY
     beta = rad if c.model == "gw" else 2.0 * rad
     try:
-        sol = solve_contact(load, eta, beta, std, area, e_star, model=c.model)
+        sol = _solve_contact_cached(load, eta, beta, std, area, e_star, c.model)
     except ValueError as err:
         raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
                          f"on these summits ({err}), got summit density {eta:.4g} 1/m^2, "

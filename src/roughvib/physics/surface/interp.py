@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.interpolate import CubicSpline, make_interp_spline
 
-__all__ = ["build_coefficients", "profile_eval", "profile_eval_many"]
+from roughvib._cache import array_digest, cached_arrays, code_fingerprint
+
+__all__ = ["build_coefficients", "cached_coefficients", "profile_eval", "profile_eval_many"]
 
 _DEGREE = {"linear": 1, "cubic": 3, "quintic": 5}
 
@@ -49,6 +50,9 @@ def build_coefficients(z: np.ndarray, dx: float, kind: str = "cubic") -> np.ndar
         c[:, 0] = z[:-1]
         c[:, 1] = np.diff(z) / dx
         return c
+    # scipy.interpolate (which imports scipy.optimize and scipy.linalg) only for the splines
+    from scipy.interpolate import CubicSpline, make_interp_spline
+
     s = np.arange(n) * dx
     if kind == "cubic":
         spl = CubicSpline(s, z, bc_type="not-a-knot")
@@ -65,6 +69,30 @@ def build_coefficients(z: np.ndarray, dx: float, kind: str = "cubic") -> np.ndar
         # the derivative just right of each node picks the polynomial piece of that cell
         c[:, k] = spl(left, nu=k) / fact
     return c
+
+
+def cached_coefficients(z: np.ndarray, dx: float, kind: str = "cubic"
+                        ) -> tuple[np.ndarray, str]:
+    """:func:`build_coefficients` through the on-disk cache (``roughvib._cache``).
+
+    The splines need ``scipy.interpolate``, whose import (with scipy.optimize, linalg and
+    special) costs a short run more than the spline itself; the coefficients of a profile are
+    therefore stored once, keyed by the profile's SHA-256, ``dx``, ``kind`` and this module's
+    code, and read back exactly. ``linear`` needs no scipy and is computed directly.
+
+    Returns
+    -------
+    coefficients : ndarray, shape (n - 1, degree + 1)
+        Bit-identical to ``build_coefficients(z, dx, kind)``.
+    cache : {"hit", "miss", "off", "not used"}
+    """
+    if kind == "linear":
+        return build_coefficients(z, dx, kind), "not used"
+    z = np.asarray(z, dtype=float)
+    arrays, status = cached_arrays(
+        "profile-interpolant", {"z": array_digest(z), "dx": float(dx), "kind": kind},
+        lambda: {"c": build_coefficients(z, dx, kind)}, code=code_fingerprint([__file__]))
+    return arrays["c"], status
 
 
 @njit(cache=True)
