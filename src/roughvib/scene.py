@@ -30,6 +30,9 @@ __all__ = [
     "Roughness",
     "Scene",
     "SceneError",
+    "ACCURACY_LEVELS",
+    "ACCURACY_PRESETS",
+    "FIXED_STEP_METHODS",
     "SOLVER_METHODS",
     "Solver",
     "builtin_scenes",
@@ -629,8 +632,49 @@ class Excitation:
         return 2.0 * math.pi * self.frequency
 
 
-#: every value of ``solver.method`` (validated here, offered by ``roughvib compare``)
+#: every solver (``solver.method`` may also be ``"auto"``; validated here, offered by
+#: ``roughvib compare``)
 SOLVER_METHODS = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
+#: the methods driven by a fixed step (``solver.step``); the others by tolerances
+FIXED_STEP_METHODS = ("exact-modal", "newmark", "paper", "moreau")
+
+#: the accuracy presets, from the most accurate to the cheapest (docs/accuracy.md)
+ACCURACY_LEVELS = ("reference", "standard", "draft")
+
+#: tolerances of each accuracy preset per method: what ``solver.accuracy`` stands for when
+#: ``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration`` and ``solver.step`` are not
+#: given. ``atol_acceleration_relative`` scales the plate modes' tolerance with the run's own
+#: acceleration level, measured by a short pilot solve (docs/accuracy.md);
+#: ``atol_acceleration`` is the absolute value used when no level can be measured. The
+#: measured cost and error of every entry are in docs/accuracy.md; ``reference`` meets the
+#: accuracy contract on the built-in scenes for every method that can.
+ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
+    "adaptive-modal": {
+        "reference": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8,
+                      "atol_acceleration_relative": 1e-6},
+        "standard": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-7,
+                     "atol_acceleration_relative": 1e-5},
+        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
+                  "atol_acceleration_relative": 1e-4},
+    },
+    "ida": {
+        "reference": {"rtol": 1e-7, "atol": 1e-12, "atol_acceleration": 1e-10,
+                      "atol_acceleration_relative": 1e-8},
+        "standard": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8,
+                     "atol_acceleration_relative": 1e-6},
+        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
+                  "atol_acceleration_relative": 1e-4},
+    },
+    # fixed steps divide the default 1e-5 s output step: 1e-5 s is the coarsest that runs
+    "exact-modal": {"reference": {"step": 2.5e-6}, "standard": {"step": 5e-6},
+                    "draft": {"step": 1e-5}},
+    "newmark": {"reference": {"step": 1e-6}, "standard": {"step": 5e-6},
+                "draft": {"step": 1e-5}},
+    # the paper's scheme is defined by its 1e-5 s step; no preset changes it
+    "paper": {"reference": {"step": 1e-5}, "standard": {"step": 1e-5}, "draft": {"step": 1e-5}},
+    "moreau": {"reference": {"step": 1e-6}, "standard": {"step": 5e-6}, "draft": {"step": 1e-5}},
+}
+_TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "atol_acceleration_relative", "step")
 #: the methods that write checkpoints (``output.checkpoint_interval``)
 CHECKPOINTED = ("ida", "adaptive-modal")
 
@@ -641,31 +685,46 @@ class Solver:
 
     Attributes
     ----------
-    method : {"ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau"}
-        ``ida``: event-driven adaptive DAE solver (the reference). ``adaptive-modal``: exact
+    method : {"auto", "ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau"}
+        ``auto`` (default): ``adaptive-modal`` where it can run (the Feldmann law or prescribed
+        motion, underdamped plate modes), otherwise ``ida`` (e.g. ``friction.law =
+        "coulomb"``); :meth:`Scene.resolved_solver` makes the choice.
+        ``ida``: event-driven adaptive DAE solver (SUNDIALS IDA). ``adaptive-modal``: exact
         per-mode propagation with error-controlled dyadic steps (step doubling, IDA's
-        tolerances) and located events (the fast reference; Feldmann law or prescribed
-        motion). Fixed-step baselines
-        (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
-        piecewise-linear force and an implicit contact/block step (docs/theory.md);
-        ``newmark`` average-acceleration Newmark on the modal model; ``paper`` the paper's
-        scheme: backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
+        tolerances) and located events (Feldmann law or prescribed motion). Fixed-step
+        baselines (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
+        piecewise-linear force and an implicit contact/block step; ``newmark``
+        average-acceleration Newmark on the modal model; ``paper`` the paper's scheme:
+        backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
         convolution of its impulse response (explicit in the plate, O(N^2) cost); ``moreau``
         Moreau-Jean time-stepping of the set-valued Coulomb law (``friction.law =
         "coulomb"``) with the exact-modal plate.
-    step : float
-        Time step of the fixed-step methods [s].
-    rtol : float
-        Relative tolerance.
-    atol : float
+    accuracy : {"reference", "standard", "draft"}
+        Accuracy preset: the tolerances (``rtol``, ``atol``, ``atol_acceleration``) or the step
+        each method uses unless they are given explicitly (:data:`ACCURACY_PRESETS`).
+        ``reference`` (default) meets the accuracy contract of docs/accuracy.md.
+    step : float or None
+        Time step of the fixed-step methods [s]; ``None``: from the preset.
+    rtol : float or None
+        Relative tolerance; ``None``: from the preset.
+    atol : float or None
         Absolute tolerance of the block's displacements [m]; block velocities and contact
-        forces get tolerances scaled from it (docs/theory.md).
-    atol_acceleration : float
+        forces get tolerances scaled from it (docs/theory.md); ``None``: from the preset.
+    atol_acceleration : float or None
         Absolute tolerance of the plate modes expressed as an acceleration [m/s^2]: mode r
         gets atol_q = a / w_r^2 and atol_dq = a / w_r, so high modes stay error-controlled
-        down to this acceleration (what spectra to 50 kHz need). The event-driven solvers
-        refuse ``atol`` and ``atol_acceleration`` below the round-off floors of the scene
-        (docs/robustness.md; they grow with the static load m g).
+        down to this acceleration (what spectra to 50 kHz need); ``None``: from the preset,
+        scaled with the run's acceleration level (``atol_acceleration_relative``).
+    atol_acceleration_relative : float or None
+        Plate-mode tolerance relative to the run's vertical acceleration level [-]: unless
+        ``atol_acceleration`` is given, a pilot solve (the first 0.02 s, or a quarter of a
+        shorter run, at draft tolerances) measures the larger rms vertical acceleration of
+        block and plate, L, and the run uses ``atol_acceleration`` = this x max(L, 1e-6
+        m/s^2). Quiet scenes get a tight tolerance, loud ones a loose one, so that the bands
+        the accuracy contract checks (within 80 dB of the strongest) are resolved alike.
+        ``None``: from the preset. The event-driven solvers refuse ``atol`` and
+        ``atol_acceleration`` below the round-off floors of the scene (docs/robustness.md;
+        they grow with the static load m g).
     max_order : int
         Highest BDF order (1..5). Default 2: orders >= 3 are not A-stable and were measured
         to excite the lightly damped top plate modes spuriously (docs/theory.md).
@@ -680,13 +739,21 @@ class Solver:
         Event-storm guard: at most this many events within ``event_window``.
     event_window : float
         Window of the event-storm guard [s].
+
+    Notes
+    -----
+    An explicit value is one that is not ``None``: a scene file or ``--set`` that names
+    ``solver.rtol`` (or ``atol``, ``atol_acceleration``, ``step``) overrides the preset for
+    that key only; the other keys still come from the preset. :meth:`resolved` fills them in.
     """
 
-    method: str = "ida"
-    step: float = 1e-5
-    rtol: float = 1e-6
-    atol: float = 1e-12
-    atol_acceleration: float = 1e-8
+    method: str = "auto"
+    accuracy: str = "reference"
+    step: float | None = None
+    rtol: float | None = None
+    atol: float | None = None
+    atol_acceleration: float | None = None
+    atol_acceleration_relative: float | None = None
     max_order: int = 2
     max_step: float = 0.0
     linear_solver: str = "sparse"
@@ -695,18 +762,65 @@ class Solver:
 
     def __post_init__(self) -> None:
         p = "solver"
-        _set(self, "method", _choice(f"{p}.method", self.method, SOLVER_METHODS))
-        _set(self, "step", _positive(f"{p}.step", self.step, "s"))
-        _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
-        _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))
-        _set(self, "atol_acceleration",
-             _positive(f"{p}.atol_acceleration", self.atol_acceleration, "m/s^2"))
+        _set(self, "method", _choice(f"{p}.method", self.method, ("auto",) + SOLVER_METHODS))
+        _set(self, "accuracy", _choice(f"{p}.accuracy", self.accuracy, ACCURACY_LEVELS))
+        if self.step is not None:
+            _set(self, "step", _positive(f"{p}.step", self.step, "s"))
+        if self.rtol is not None:
+            _set(self, "rtol", _range(f"{p}.rtol", self.rtol, 1e-14, 1e-2, ""))
+        if self.atol is not None:
+            _set(self, "atol", _positive(f"{p}.atol", self.atol, "m"))
+        if self.atol_acceleration is not None:
+            _set(self, "atol_acceleration",
+                 _positive(f"{p}.atol_acceleration", self.atol_acceleration, "m/s^2"))
+        if self.atol_acceleration_relative is not None:
+            _set(self, "atol_acceleration_relative",
+                 _range(f"{p}.atol_acceleration_relative", self.atol_acceleration_relative,
+                        0.0, 1.0, "", lo_open=True))
         _set(self, "max_order", _integer(f"{p}.max_order", self.max_order, 1, 5))
         _set(self, "max_step", _nonneg(f"{p}.max_step", self.max_step, "s"))
         _set(self, "linear_solver", _choice(f"{p}.linear_solver", self.linear_solver,
                                             ("sparse", "gmres")))
         _set(self, "max_events", _integer(f"{p}.max_events", self.max_events, 1))
         _set(self, "event_window", _positive(f"{p}.event_window", self.event_window, "s"))
+
+    def resolved(self, method: str | None = None) -> Solver:
+        """This section with a concrete method and every tolerance and step filled in.
+
+        Parameters
+        ----------
+        method : str, optional
+            The method to resolve ``"auto"`` to (:meth:`Scene.resolved_solver` knows the
+            scene); required when ``self.method == "auto"``.
+
+        Returns
+        -------
+        Solver
+            ``method`` concrete; ``rtol``, ``atol``, ``atol_acceleration`` and ``step`` the
+            explicit values where given, else those of ``ACCURACY_PRESETS[method][accuracy]``,
+            else those of the IDA preset of the same accuracy (tolerances) or 1e-5 s (step), so
+            that every key holds a number whatever the method uses.
+            ``atol_acceleration_relative`` is None for the fixed-step methods. Where
+            ``atol_acceleration`` was not given, the run replaces it by
+            ``atol_acceleration_relative`` times the level a pilot solve measures
+            (:func:`roughvib.simulation.simulate`).
+        """
+        m = self.method if self.method != "auto" else method
+        if m not in SOLVER_METHODS:
+            raise ValueError(f"Solver.resolved needs a concrete method, got {m!r}")
+        preset = {"step": 1e-5, **ACCURACY_PRESETS["ida"][self.accuracy],
+                  **ACCURACY_PRESETS[m][self.accuracy]}
+        values = {k: getattr(self, k) if getattr(self, k) is not None else preset[k]
+                  for k in _TOLERANCE_KEYS}
+        if m in FIXED_STEP_METHODS:
+            values["atol_acceleration_relative"] = None
+        return replace(self, method=m, **values)
+
+    def from_preset(self) -> tuple[str, ...]:
+        """Names of the tolerance keys (rtol, atol, atol_acceleration,
+        atol_acceleration_relative, step) not given explicitly, i.e. taken from the accuracy
+        preset."""
+        return tuple(k for k in _TOLERANCE_KEYS if getattr(self, k) is None)
 
 
 @dataclass(frozen=True)
@@ -796,10 +910,12 @@ class Scene:
                 by + hw >= self.plate.width:
             raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
-        if self.output.checkpoint_interval > 0 and self.solver.method not in CHECKPOINTED:
+        if (self.output.checkpoint_interval > 0
+                and self.solver.method not in CHECKPOINTED + ("auto",)):
             raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' or "
-                             f"'adaptive-modal' (the event-driven solvers are checkpointed), "
-                             f"got {self.solver.method!r}")
+                             f"'adaptive-modal' (or 'auto', which picks one of them: the "
+                             f"event-driven solvers are checkpointed), got "
+                             f"{self.solver.method!r}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:
@@ -813,6 +929,22 @@ class Scene:
         for key, value in items.items():
             _assign(data, key, value)
         return scene_from_dict(data, base_dir=self.base_dir)
+
+    def resolved_solver(self) -> Solver:
+        """The solver section as it runs: ``method = "auto"`` replaced by the method chosen
+        for this scene, every tolerance and step filled in from the accuracy preset unless
+        given explicitly (:meth:`Solver.resolved`).
+
+        ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
+        docs/accuracy.md) unless the scene needs what only ``ida`` offers: the set-valued
+        Coulomb law or overdamped plate modes (``plate.loss_factor >= 2``).
+        """
+        s = self.solver
+        if s.method != "auto":
+            return s.resolved()
+        needs_ida = (self.friction.law == "coulomb"
+                     or (self.plate.kind == "modal" and self.plate.loss_factor >= 2.0))
+        return s.resolved("ida" if needs_ida else "adaptive-modal")
 
     @property
     def period(self) -> float:
@@ -893,8 +1025,10 @@ def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scen
             sec["force_amplitude"] = None
         # "none" clears an optional value (TOML has no null)
         for k, v in list(sec.items()):
-            if v == "none" and k in ("force_amplitude", "target_rms_velocity", "summit_density",
-                                     "summit_radius", "summit_std", "stribeck_velocity"):
+            if v == "none" and (k in ("force_amplitude", "target_rms_velocity",
+                                      "summit_density", "summit_radius", "summit_std",
+                                      "stribeck_velocity")
+                                or (cls is Solver and k in _TOLERANCE_KEYS)):
                 sec[k] = None
         try:
             kwargs[key] = cls(**sec)

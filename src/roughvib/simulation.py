@@ -12,6 +12,7 @@ import math
 import os
 import time
 import tomllib
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -24,8 +25,10 @@ from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import System, assemble, estimate_travel
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, RunData, events_frame
 from roughvib.scene import (
+    FIXED_STEP_METHODS,
     Scene,
     SceneError,
+    Solver,
     replace_section,
     scene_from_dict,
     scene_to_toml,
@@ -35,7 +38,8 @@ from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_input
 if TYPE_CHECKING:
     from roughvib.solvers.ida import RawSolution
 
-__all__ = ["energy_audit", "resume", "simulate"]
+__all__ = ["checkpoint_scene", "energy_audit", "resume", "simulate", "verification_scene",
+           "verify_result"]
 
 
 def energy_audit(system: System, raw: RawSolution) -> dict:
@@ -227,7 +231,7 @@ def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
 
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
-             checkpoint_dir: str | os.PathLike | None = None,
+             checkpoint_dir: str | os.PathLike | None = None, verify: bool = False,
              _resume_from: Checkpoint | None = None) -> Result:
     """Run a scene and return its :class:`~roughvib.results.Result`.
 
@@ -242,6 +246,11 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     checkpoint_dir : path, optional
         With ``output.checkpoint_interval > 0``: write ``checkpoint.pkl`` there (replaced
         atomically at each checkpoint); continue a stopped run with :func:`resume`.
+    verify : bool
+        After a successful run, solve the scene a second, independent way
+        (:func:`verification_scene`) and write the deviations and a verdict against the
+        accuracy contract into ``summary["accuracy"]`` (:func:`verify_result`). Costs a second
+        run, usually the slower solver's.
 
     Returns
     -------
@@ -259,34 +268,25 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     t0 = time.perf_counter()
     system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
     t_pre = time.perf_counter() - t0
-    # each solver is imported when it runs: IDA brings scikit-sundae and scipy.sparse
-    if scene.solver.method == "ida":
-        from roughvib.solvers.ida import solve_ida
-
-        raw = solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
-                        resume=_resume_from)
-    elif scene.solver.method == "adaptive-modal":
-        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
-
-        raw = solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
-                                   resume=_resume_from)
-    elif scene.solver.method == "paper":
-        from roughvib.solvers.paper_scheme import solve_paper_scheme
-
-        raw = solve_paper_scheme(system, progress=progress)
-    else:
-        from roughvib.solvers.fixed_step import solve_fixed_step
-
-        raw = solve_fixed_step(system, progress=progress)
+    pilot = None
+    if (scene.solver.atol_acceleration is None and _resume_from is None
+            and system.scene.solver.atol_acceleration_relative is not None):
+        system, pilot = _scale_atol_acceleration(system)
+    solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
+    raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=_resume_from)
     ds = _build_dataset(system, raw)
     events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
 
-    resolved = scene
+    # the saved scene repeats the run: the solver section as it ran (concrete method, the
+    # preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run
+    # (whose checkpoint holds that section) writes the same scene.toml as an uninterrupted one
+    resolved = replace(scene, solver=solver)
     comments = {}
     if system.tangential:
         exc = scene.excitation
-        resolved = replace_section(scene, "excitation", force_amplitude=system.force_amplitude,
+        resolved = replace_section(resolved, "excitation",
+                                   force_amplitude=system.force_amplitude,
                                    target_rms_velocity=None)
         if exc.target_rms_velocity is not None:
             comments["excitation.force_amplitude"] = (
@@ -302,8 +302,12 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         "status": raw.status,
         "message": raw.message,
         "scene": scene.name,
-        "solver": {"method": scene.solver.method, "rtol": scene.solver.rtol,
-                   "atol": scene.solver.atol, **raw.stats,
+        "solver": {"method": solver.method, "accuracy": solver.accuracy,
+                   "rtol": solver.rtol, "atol": solver.atol,
+                   "atol_acceleration": solver.atol_acceleration, "step": solver.step,
+                   "atol_acceleration_relative": solver.atol_acceleration_relative,
+                   "from_preset": list(scene.solver.from_preset()),
+                   **({"pilot": pilot} if pilot else {}), **raw.stats,
                    "preprocessing_time": t_pre},
         "force_amplitude": system.force_amplitude,
         "calibration": system.calibration,
@@ -330,8 +334,167 @@ def simulate(scene: Scene, *, progress: bool | None = None,
         got = summary["metrics"].get("block_tangential_velocity_rms", float("nan"))
         summary["calibration"]["achieved_rms_velocity"] = got
         summary["calibration"]["relative_deviation"] = (got - target) / target
-    return Result(ds, events, summary, scene_toml,
-                  extra={"system": system, "checkpoint_dir": checkpoint_dir})
+    result = Result(ds, events, summary, scene_toml,
+                    extra={"system": system, "checkpoint_dir": checkpoint_dir})
+    if verify and result.ok:
+        verify_result(result, scene, progress=progress)
+    return result
+
+
+#: longest pilot solve that measures the acceleration level for a scaled atol_acceleration [s]
+PILOT_DURATION = 0.02
+#: level floor of the scaled atol_acceleration [m/s^2] (0 dB re 1e-6 m/s^2)
+PILOT_LEVEL_FLOOR = 1e-6
+
+
+def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
+    """The system with ``atol_acceleration`` = relative x the level a pilot solve measures.
+
+    The pilot solves the first ``PILOT_DURATION`` (at most a quarter of the run) with
+    adaptive-modal (IDA where it cannot run) at the draft tolerances, and takes the larger
+    rms vertical acceleration of block and plate. A failed pilot leaves the preset's absolute
+    ``atol_acceleration``. Returns the system and what the pilot did (for the summary).
+    """
+    scene = system.scene
+    s = scene.solver
+    out = scene.output
+    n = max(10, int(round(min(PILOT_DURATION, out.duration / 4) / out.step)))
+    pscene = replace(scene, output=replace(out, duration=n * out.step, progress=False,
+                                           checkpoint_interval=0.0),
+                     solver=replace(s, method="auto", accuracy="draft", rtol=None, atol=None,
+                                    atol_acceleration=None, atol_acceleration_relative=None,
+                                    step=None))
+    pscene = replace(pscene, solver=pscene.resolved_solver())
+    method = pscene.solver.method
+    t0 = time.perf_counter()
+    info = {"method": method, "duration": n * out.step}
+    try:
+        raw = _solve(replace(system, scene=pscene), progress=False)
+    except Exception as exc:  # noqa: BLE001 - the run goes on with the absolute preset value
+        raw = None
+        info["message"] = f"{type(exc).__name__}: {exc}"
+    info["wall_time"] = time.perf_counter() - t0
+    if raw is None or raw.status != "success":
+        info.update(level=None, atol_acceleration=s.atol_acceleration,
+                    note="pilot failed: the preset's absolute atol_acceleration is used")
+        return system, info
+    rows = raw.extra.get("rows_filled", raw.time.size)
+    cols = [kn.OUT_NAMES.index(v) for v in ("block_vertical_acceleration",
+                                            "plate_vertical_acceleration")]
+    acc = raw.outputs[:rows, cols]
+    level = float(np.max(np.sqrt(np.mean(acc * acc, axis=0))))
+    atol = s.atol_acceleration_relative * max(level, PILOT_LEVEL_FLOOR)
+    info.update(level=level, atol_acceleration=atol)
+    return replace(system, scene=replace(scene, solver=replace(s, atol_acceleration=atol))), info
+
+
+def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> RawSolution:
+    """Run the system's solver (``system.scene.solver.method``)."""
+    method = system.scene.solver.method
+    # each solver is imported when it runs: IDA brings scikit-sundae and scipy.sparse
+    if method == "ida":
+        from roughvib.solvers.ida import solve_ida
+
+        return solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                         resume=resume)
+    if method == "adaptive-modal":
+        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
+
+        return solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                                    resume=resume)
+    if method == "paper":
+        from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+        return solve_paper_scheme(system, progress=progress)
+    from roughvib.solvers.fixed_step import solve_fixed_step
+
+    return solve_fixed_step(system, progress=progress)
+
+
+def verification_scene(scene: Scene) -> tuple[Scene, str]:
+    """The second, independent solve that checks a run of ``scene`` (``verify=True``).
+
+    The other event-driven solver at its ``reference`` preset: IDA checks adaptive-modal and
+    adaptive-modal checks IDA. Where adaptive-modal cannot run (the Coulomb law, overdamped
+    modes), IDA checks IDA at 100x tighter rtol, atol and atol_acceleration. The fixed-step
+    schemes are checked by the ``auto`` method at ``reference``.
+
+    Returns
+    -------
+    Scene
+        The scene of the second solve (no checkpoints, explicit method and tolerances).
+    str
+        How it solves, for the report (e.g. ``"ida at accuracy 'reference'"``).
+    """
+    run = scene.resolved_solver()
+    base = replace_section(scene, "output", checkpoint_interval=0.0)
+    base = replace_section(base, "solver", method="auto", accuracy="reference", rtol=None,
+                           atol=None, atol_acceleration=None, step=None)
+    auto = base.resolved_solver().method  # adaptive-modal where it can run, else ida
+    if run.method == "adaptive-modal":
+        other, how = replace(base.solver, method="ida").resolved(), "ida at accuracy 'reference'"
+    elif run.method == "ida" and auto == "ida":  # the only event-driven solver of this scene
+        other = replace(run, rtol=max(run.rtol / 100, 1e-14), atol=run.atol / 100,
+                        atol_acceleration=run.atol_acceleration / 100)
+        how = "ida at 100x tighter tolerances"
+    else:
+        other = base.resolved_solver()
+        how = f"{other.method} at accuracy 'reference'"
+    return replace(base, solver=other), how
+
+
+def _tol_text(s: Solver) -> str:
+    if s.method in FIXED_STEP_METHODS:
+        return f"step {s.step:g} s"
+    return f"rtol {s.rtol:g}, atol {s.atol:g} m, atol_acceleration {s.atol_acceleration:g} m/s^2"
+
+
+def verify_result(result: Result, scene: Scene, *, progress: bool | None = None) -> dict:
+    """Solve ``scene`` a second, independent way and judge ``result`` by the accuracy contract.
+
+    The second solve is :func:`verification_scene`'s, with the run's force amplitude (no
+    second calibration). Writes the measurement
+    (:func:`~roughvib.analysis.accuracy.measure_accuracy`) into ``result.summary["accuracy"]``
+    and returns it; the second solve's
+    method, tolerances, wall time and status are in its ``verification`` entry. A failed
+    second solve gives the verdict ``"unverified"``.
+
+    Parameters
+    ----------
+    result : Result
+        A successful run of ``scene``.
+    scene : Scene
+        The scene of that run.
+    progress : bool, optional
+        Progress bar for the second solve (default: the scene's ``output.progress``).
+
+    Returns
+    -------
+    dict
+        The ``accuracy`` section.
+    """
+    from roughvib.analysis.accuracy import measure_accuracy
+
+    vscene, label = verification_scene(scene)
+    system = result.extra.get("system")
+    t0 = time.perf_counter()
+    ref = simulate(vscene, progress=progress,
+                   force_amplitude=result.summary.get("force_amplitude")
+                   if system is None or system.tangential else None)
+    info = {"method": ref.summary["solver"]["method"], "how": label,
+            "settings": _tol_text(vscene.solver), "status": ref.status,
+            "wall_time": time.perf_counter() - t0}
+    if ref.ok:
+        acc = measure_accuracy(result, ref, period=scene.period,
+                               transient=scene.output.transient, reference_label=label)
+    else:
+        acc = {"reference": label, "verdict": "unverified",
+               "failures": [f"the verification run failed ({ref.status}): "
+                            f"{ref.summary.get('message')}"]}
+    acc["verification"] = info
+    result.summary["accuracy"] = acc
+    result.extra["verification"] = ref
+    return acc
 
 
 def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:
@@ -361,10 +524,26 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
         checkpoint was written.
     """
     cp = read_checkpoint(directory)
+    return simulate(_scene_of_checkpoint(cp, directory), progress=progress,
+                    checkpoint_dir=directory, _resume_from=cp)
+
+
+def checkpoint_scene(directory: str | os.PathLike) -> Scene:
+    """The scene of the checkpointed run in ``directory`` (what :func:`resume` continues).
+
+    Raises
+    ------
+    SceneError
+        No checkpoint, or one whose scene cannot be read.
+    """
+    return _scene_of_checkpoint(read_checkpoint(directory), directory)
+
+
+def _scene_of_checkpoint(cp: Checkpoint, directory) -> Scene:
     try:
         data = tomllib.loads(cp.scene_toml)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{directory}: the checkpoint's scene is not valid TOML ({exc})") from None
     scene = scene_from_dict(data, base_dir=cp.base_dir)
     check_inputs(cp, scene, Path(directory) / CHECKPOINT_NAME)
-    return simulate(scene, progress=progress, checkpoint_dir=directory, _resume_from=cp)
+    return scene

@@ -13,7 +13,7 @@ SIGNALS = ("plate_vertical_acceleration", "block_tangential_velocity", "normal_f
 
 def _run(linear_solver, rtol, **extra):
     over = {"output.duration": 0.02, "output.progress": False, "plate.max_frequency": 8e3,
-            "solver.linear_solver": linear_solver, "solver.rtol": rtol,
+            "solver.method": "ida", "solver.linear_solver": linear_solver, "solver.rtol": rtol,
             "solver.atol_acceleration": rtol * 1e-2}
     over.update(extra)
     return roughvib.simulate(roughvib.load_scene("paper-handset", over))

@@ -1,7 +1,8 @@
 """Error metrics between a run and a reference run (work-precision studies).
 
-* :func:`band_level_errors` — third-octave band level differences [dB] of two signals, reduced
-  to the largest ``|dB|`` over a frequency range;
+* :func:`band_levels`, :func:`band_level_errors` — third-octave band levels of two signals and
+  their differences [dB], reduced to the largest ``|dB|`` over a frequency range by
+  :func:`max_abs_db` (a band lost by the tested signal is an infinite error);
 * :func:`relative_rms_error` — rms(x - x_ref) / rms(x_ref) on a common grid;
 * :func:`match_events` — one-to-one matching of events of the same kind and contact by time
   (greedy by closeness within a window), returning the time errors and the unmatched count.
@@ -18,7 +19,7 @@ import pandas as pd
 
 from roughvib.analysis.spectra import band_powers, third_octave_bands
 
-__all__ = ["band_level_errors", "common_grid", "match_events", "max_abs_db",
+__all__ = ["band_level_errors", "band_levels", "common_grid", "match_events", "max_abs_db",
            "relative_rms_error"]
 
 
@@ -49,43 +50,62 @@ def common_grid(t_a: np.ndarray, t_b: np.ndarray) -> tuple[slice, slice, float]:
     return slice(0, (n - 1) * ma + 1, ma), slice(0, (n - 1) * mb + 1, mb), dt
 
 
+def band_levels(x: np.ndarray, x_ref: np.ndarray, fs: float, *, fmin: float = 100.0,
+                fmax: float = 50e3, window: str = "hann", ref_value: float = 1e-6
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Third-octave band levels of a signal and of its reference [dB re ``ref_value``].
+
+    Bands are those of :func:`roughvib.analysis.spectra.third_octave_bands` with the upper edge
+    below fs/2. Both records are tapered with ``window``
+    (:func:`roughvib.analysis.spectra.band_powers`): the Hann default keeps the leakage of loud
+    bands out of quiet ones, which with ``"boxcar"`` can mask an error in a band 60 dB below
+    its neighbour. A band without power has the level -inf.
+
+    Returns
+    -------
+    centres : ndarray [Hz]
+    level, level_ref : ndarray [dB]
+    """
+    fc, lo, hi = third_octave_bands(fmin, fmax)
+    keep = hi <= fs / 2 * (1 + 1e-12)
+    fc, lo, hi = fc[keep], lo[keep], hi[keep]
+    pa = band_powers(np.asarray(x, float), fs, lo, hi, window=window)
+    pr = band_powers(np.asarray(x_ref, float), fs, lo, hi, window=window)
+    with np.errstate(divide="ignore"):
+        return (fc, 10.0 * np.log10(pa / ref_value**2), 10.0 * np.log10(pr / ref_value**2))
+
+
 def band_level_errors(x: np.ndarray, x_ref: np.ndarray, fs: float, *, fmin: float = 100.0,
                       fmax: float = 50e3, window: str = "hann", floor_db: float | None = None,
                       ref_value: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """Third-octave band level difference L(x) - L(x_ref) [dB] per band.
+    """Third-octave band level difference L(x) - L(x_ref) [dB] per band (:func:`band_levels`).
 
-    Bands are those of :func:`roughvib.analysis.spectra.third_octave_bands` with the upper edge
-    below fs/2. A band where the reference has no power gives NaN. Both records are tapered
-    with ``window`` (:func:`roughvib.analysis.spectra.band_powers`): the Hann default keeps
-    the leakage of loud bands out of quiet ones, which with ``"boxcar"`` can mask an error
-    in a band 60 dB below its neighbour.
+    A band where the reference has no power gives NaN (nothing to compare). A band where the
+    reference has power and ``x`` has none gives -inf: the largest possible error, which
+    :func:`max_abs_db` reports as inf.
 
     ``floor_db`` (dB re ``ref_value``, in the signal's unit) also gives NaN for bands whose
-    reference level lies below it: the resolution a tolerance promises (docs/theory.md: the
-    default rtol keeps bands above about 30 dB re 1e-6 m/s^2 within 1 dB).
+    reference level lies below it: the resolution a tolerance promises.
 
     Returns
     -------
     centres : ndarray [Hz]
     diff_db : ndarray [dB]
     """
-    fc, lo, hi = third_octave_bands(fmin, fmax)
-    keep = hi <= fs / 2 * (1 + 1e-12)
-    fc, lo, hi = fc[keep], lo[keep], hi[keep]
-    pa = band_powers(x, fs, lo, hi, window=window)
-    pr = band_powers(x_ref, fs, lo, hi, window=window)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d = 10.0 * np.log10(pa / pr)
-    d[(pr <= 0) | ~np.isfinite(d)] = np.nan
+    fc, level, level_ref = band_levels(x, x_ref, fs, fmin=fmin, fmax=fmax, window=window,
+                                       ref_value=ref_value)
+    with np.errstate(invalid="ignore"):
+        d = level - level_ref
+    d[~np.isfinite(level_ref)] = np.nan
     if floor_db is not None:
-        with np.errstate(divide="ignore"):
-            d[10.0 * np.log10(pr / ref_value**2) < floor_db] = np.nan
+        d[level_ref < floor_db] = np.nan
     return fc, d
 
 
 def max_abs_db(centres: np.ndarray, diff_db: np.ndarray, f_lo: float, f_hi: float) -> float:
-    """Largest ``|dB|`` over bands with centres in [f_lo, f_hi]; NaN if none is available."""
-    sel = (centres >= f_lo * 0.999) & (centres <= f_hi * 1.001) & np.isfinite(diff_db)
+    """Largest ``|dB|`` over bands with centres in [f_lo, f_hi]; inf if a band there was lost
+    (-inf, see :func:`band_level_errors`); NaN if no band is available."""
+    sel = (centres >= f_lo * 0.999) & (centres <= f_hi * 1.001) & ~np.isnan(diff_db)
     return float(np.max(np.abs(diff_db[sel]))) if sel.any() else float("nan")
 
 

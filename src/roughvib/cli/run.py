@@ -65,6 +65,11 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     if a:
         lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
                      f"(relative {a.get('relative_residual', 0):.2e})")
+    acc = summary.get("accuracy")
+    if acc:
+        from roughvib.analysis.accuracy import verdict_line
+
+        lines.append(f"accuracy         {verdict_line(acc)}")
     print("\n".join(lines))
 
 
@@ -110,12 +115,32 @@ def _run_ensemble(args: argparse.Namespace) -> int:
     return EXIT_OK if run.failed == 0 else EXIT_SOLVER
 
 
+def _verify(result, scene, out_dir: Path, args: argparse.Namespace) -> None:
+    """``--verify``: solve the scene a second way, judge the saved run by the accuracy contract
+    and save it again with its ``accuracy`` section."""
+    from roughvib.simulation import verification_scene, verify_result
+
+    _, how = verification_scene(scene)
+    print(f"verifying: solving the scene again with {how}", file=sys.stderr)
+    try:
+        verify_result(result, scene, progress=False if args.no_progress else None)
+    except KeyboardInterrupt:
+        print(f"roughvib: verification interrupted; the run itself is saved in {out_dir}",
+              file=sys.stderr)
+        raise
+    result.save(out_dir, overwrite=args.overwrite)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
     if args.seeds is not None:
+        if args.verify:
+            raise InputError("--verify checks one run; give no --seeds with it (verify a draw "
+                             "of the ensemble with 'roughvib run SCENE --set "
+                             "roughness.seed=N --verify')")
         return _run_ensemble(args)
     if args.resume:
         if args.scene is not None or args.set or args.out:
@@ -138,6 +163,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             from roughvib.api import resume, simulate
 
             if args.resume:
+                if args.verify:  # read before the run: a finished run removes its checkpoint
+                    from roughvib.simulation import checkpoint_scene
+
+                    scene = checkpoint_scene(out_dir)
                 result = resume(out_dir, progress=False if args.no_progress else None)
             else:
                 result = simulate(scene, checkpoint_dir=cp_dir)
@@ -153,6 +182,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         result.save(rundir)
     finally:
         rundir.close()
+    if args.verify and result.ok:
+        # the run is saved first: an interrupted or failed second solve loses nothing
+        _verify(result, scene, out_dir, args)
     if not args.quiet:
         _print_summary(result.summary, out_dir)
     if not result.ok:
@@ -191,6 +223,7 @@ def add_parsers(sub) -> None:
                "--set output.duration=0.2\n"
                "  roughvib run paper-100mms --out runs/long --set output.checkpoint_interval=0.05\n"
                "  roughvib run --resume runs/long      # after Ctrl-C, SIGTERM or a crash\n"
+               "  roughvib run --verify                # and check it by a second solver\n"
                "  roughvib run my_scene.toml --out ~/notes --overwrite  # among other files\n"
                "  roughvib run paper --seeds 10        # ensemble: 10 roughness draws, mean "
                "and spread\n")
@@ -203,6 +236,11 @@ def add_parsers(sub) -> None:
     r.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scene name>)")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a scene value, e.g. --set block.mass=0.543 (repeatable)")
+    r.add_argument("--verify", action="store_true",
+                   help="after the run, solve the scene a second, independent way (the other "
+                        "event-driven solver at accuracy 'reference') and write the deviations "
+                        "and a verdict against the accuracy contract into summary.json "
+                        "('accuracy') and the report; costs a second run")
     r.add_argument("--overwrite", action="store_true",
                    help="write into a directory that holds files roughvib did not write: the "
                         "run's files replace files of the same names, the others are kept "

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -360,6 +360,10 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     validity warnings (issued as :class:`~roughvib.scene.ModelValidityWarning` and kept in
     ``System.warnings``) and, with ``travel``, the coverage of the profile.
 
+    The system's ``scene`` carries the resolved solver section (``Scene.resolved_solver``:
+    a concrete method, tolerances and step from the accuracy preset unless given), which is
+    what the solvers read.
+
     Parameters
     ----------
     scene : Scene
@@ -369,6 +373,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         Check that the profile covers this tangential travel of the contacts [m] (see
         :func:`estimate_travel`).
     """
+    scene = replace(scene, solver=scene.resolved_solver())
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
     tangential = exc.kind == "force"
 

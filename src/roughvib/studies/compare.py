@@ -1,52 +1,56 @@
-"""Work-precision study: the tolerance-driven solvers (IDA, adaptive-modal) over a ladder of
-tolerances and the fixed-step schemes over a ladder of steps, measured against a reference run
-on the same scene.
+"""Work-precision study: every solver over a ladder of settings and at its accuracy presets,
+measured against a reference run of the same scene by the accuracy contract's metrics.
 
-For each run: wall and CPU time, steps and residual evaluations, and errors against the
-reference over the same whole-period window: (a) third-octave band level error of block and
-plate acceleration, largest ``|dB|`` over 100 Hz–20 kHz and over 20–50 kHz; (b) relative rms error
-of the tangential velocity; (c) event-time error (stick, slip, lift-off, touch-down matched one
-to one; unmatched counted); (d) the run's own energy-audit residual. Runs are started from
-cheap to expensive, round-robin over the methods, while the time budget lasts; a run that
-fails is a row with its status. Writes ``work_precision.csv``, ``work_precision.md`` and
+The tolerance-driven solvers (IDA, adaptive-modal) run a ladder of rtol (with
+``atol_acceleration`` = rtol x 1e-2 m/s^2, so that one knob traces the whole trade), the
+fixed-step schemes a ladder of steps, and each method also runs its three accuracy presets
+(``solver.accuracy``; :data:`roughvib.scene.ACCURACY_PRESETS`). Every run is measured against
+the reference with :func:`roughvib.analysis.accuracy.measure_accuracy`, the code that
+``roughvib run --verify`` uses: the largest band deviation of block and plate (the contract's
+bands), the tangential velocity's relative rms error, the largest event-time error after
+one-to-one matching (unmatched counted), the run's own energy-audit residual, the largest
+ratio of an error to its contract limit and the verdict. Runs go from cheap to expensive,
+round-robin over the methods.
+
+The time budget bounds the whole study, the reference included: the reference and every
+run execute in a worker process that is stopped when the budget is spent (a stopped run is a
+row with status ``over_budget``; a stopped reference ends the study with
+:class:`BudgetExceeded`). Writes ``work_precision.csv``, ``work_precision.md`` and
 ``work_precision.png`` and reports where each method's error/time line crosses IDA's.
-
-The plate-mode tolerance of the tolerance-driven solvers follows their rtol on the ladder
-(``atol_acceleration`` = rtol x 1e-2 m/s^2), so that one knob traces the whole trade.
 """
 
 from __future__ import annotations
 
 import math
+import multiprocessing as mp
+import shutil
+import sys
+import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from roughvib.analysis.compare import (
-    band_level_errors,
-    common_grid,
-    match_events,
-    max_abs_db,
-    relative_rms_error,
-)
-from roughvib.analysis.levels import whole_period_window
+from roughvib.analysis.accuracy import CONTRACT, contract_ratio, measure_accuracy
 from roughvib.results import Result, load_result
-from roughvib.scene import Scene
+from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene
 from roughvib.simulation import simulate
 
-__all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS", "crossings",
-           "errors_against", "run_study"]
+__all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS",
+           "BudgetExceeded", "crossings", "errors_against", "run_study"]
 
 DEFAULT_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 DEFAULT_STEPS = (1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 1e-6, 5e-7, 2e-7, 1e-7)
 TOLERANCE_METHODS = ("ida", "adaptive-modal")  # driven by rtol, the others by their step
 FIXED_METHODS = ("exact-modal", "newmark", "paper")  # moreau: coulomb scenes only
-METRICS = ("block_band_db_100_20k", "block_band_db_20k_50k", "plate_band_db_100_20k",
-           "plate_band_db_20k_50k", "velocity_rel_rms", "event_dt_max", "events_unmatched",
-           "energy_rel_residual")
+METRICS = ("block_band_db", "plate_band_db", "velocity_rel_rms", "event_dt_max",
+           "events_unmatched", "energy_rel_residual", "contract_ratio")
+
+
+class BudgetExceeded(RuntimeError):
+    """The reference run did not finish within the study's time budget."""
 
 
 @dataclass
@@ -54,39 +58,63 @@ class _Run:
     method: str
     setting: float
     overrides: dict
+    preset: str = ""
 
 
 def _overrides(method: str, value: float, out_step: float) -> dict:
-    if method in TOLERANCE_METHODS:
+    if method not in FIXED_STEP_METHODS:
         return {"solver.method": method, "solver.rtol": value,
                 "solver.atol_acceleration": value * 1e-2}
     step_out = out_step if value <= out_step else value
     return {"solver.method": method, "solver.step": value, "output.step": step_out}
 
 
+def _preset_run(scene: Scene, method: str, level: str) -> _Run:
+    over = {"solver.method": method, "solver.accuracy": level, "solver.rtol": None,
+            "solver.atol": None, "solver.atol_acceleration": None, "solver.step": None}
+    s = scene.with_overrides(over).resolved_solver()
+    if method in FIXED_STEP_METHODS:
+        if s.step > scene.output.step:
+            over["output.step"] = s.step
+        return _Run(method, s.step, over, level)
+    return _Run(method, s.rtol, over, level)
+
+
+def _key(scene: Scene, run: _Run) -> tuple:
+    """What a run computes: its resolved solver settings and output step."""
+    sc = scene.with_overrides(run.overrides)
+    s = sc.resolved_solver()
+    if s.method in FIXED_STEP_METHODS:
+        return (s.method, s.step, sc.output.step)
+    return (s.method, s.rtol, s.atol, s.atol_acceleration)
+
+
 def errors_against(result: Result, reference: Result, period: float, transient: float
                    ) -> dict:
-    """Error metrics of a run against a reference (see the module docstring)."""
-    ds, dr = result.dataset, reference.dataset
-    sa, sr, dt = common_grid(ds["time"].values, dr["time"].values)
-    t = ds["time"].values[sa]
-    win = whole_period_window(t, period, transient if transient < t[-1] else 0.0)
+    """Error metrics of a run against a reference (the accuracy contract's measurement).
+
+    Returns
+    -------
+    dict
+        ``block_band_db`` and ``plate_band_db`` (largest absolute deviation over the contract's
+        bands, inf for a lost band) with ``block_band_hz`` / ``plate_band_hz``,
+        ``velocity_rel_rms``, ``event_dt_max`` [s], ``events_unmatched``,
+        ``energy_rel_residual``, ``contract_ratio`` (largest error / its limit) and
+        ``verdict``.
+    """
+    acc = measure_accuracy(result, reference, period=period, transient=transient)
     out: dict = {}
-    fs = 1.0 / dt
-    for body, var in (("block", "block_vertical_acceleration"),
-                      ("plate", "plate_vertical_acceleration")):
-        x = ds[var].values[sa][win]
-        xr = dr[var].values[sr][win]
-        fc, d = band_level_errors(x, xr, fs)
-        out[f"{body}_band_db_100_20k"] = max_abs_db(fc, d, 100.0, 20e3)
-        out[f"{body}_band_db_20k_50k"] = max_abs_db(fc, d, 20e3, 50e3)
-    v = ds["block_tangential_velocity"].values[sa][win]
-    vr = dr["block_tangential_velocity"].values[sr][win]
-    out["velocity_rel_rms"] = relative_rms_error(v, vr)
-    dts, unmatched = match_events(result.events, reference.events)
-    out["event_dt_max"] = float(np.max(np.abs(dts))) if dts.size else float("nan")
-    out["events_unmatched"] = int(unmatched)
-    out["energy_rel_residual"] = abs(result.summary["energy_audit"]["relative_residual"])
+    for name, b in acc["bands"].items():
+        d = b["deviation_db"]
+        out[f"{name}_band_db"] = (math.inf if isinstance(d, str) else
+                                  abs(d) if d is not None else math.nan)
+        out[f"{name}_band_hz"] = b["worst_band_hz"]
+    v = acc["velocity_rel_rms"]
+    out.update(velocity_rel_rms=v if v is not None else math.nan,
+               event_dt_max=acc["events"]["max_dt"],
+               events_unmatched=acc["events"]["unmatched"],
+               energy_rel_residual=acc["energy_rel_residual"],
+               contract_ratio=contract_ratio(acc), verdict=acc["verdict"])
     return out
 
 
@@ -100,20 +128,20 @@ def crossings(table: pd.DataFrame, metric: str, against: str = "ida") -> list[di
         log-log between measured points); empty when the lines do not cross in their common
         wall-time range.
     """
-    ok = table[(table["status"] == "success") & np.isfinite(table[metric])
-               & (table[metric] > 0)]
+    ok = table[(table["status"] == "success") & np.isfinite(table[metric].astype(float))
+               & (table[metric].astype(float) > 0)]
     ref = ok[ok["method"] == against].sort_values("wall_time")
     out = []
     if len(ref) < 2:
         return out
-    lx_r = np.log(ref["wall_time"].to_numpy())
-    ly_r = np.log(ref[metric].to_numpy())
+    lx_r = np.log(ref["wall_time"].to_numpy(float))
+    ly_r = np.log(ref[metric].to_numpy(float))
     for method in sorted(set(ok["method"]) - {against}):
         m = ok[ok["method"] == method].sort_values("wall_time")
         if len(m) < 2:
             continue
-        lx = np.log(m["wall_time"].to_numpy())
-        ly = np.log(m[metric].to_numpy())
+        lx = np.log(m["wall_time"].to_numpy(float))
+        ly = np.log(m[metric].to_numpy(float))
         grid = np.linspace(max(lx.min(), lx_r.min()), min(lx.max(), lx_r.max()), 400)
         if grid[0] >= grid[-1]:
             continue
@@ -126,40 +154,97 @@ def crossings(table: pd.DataFrame, metric: str, against: str = "ida") -> list[di
     return out
 
 
-def _plot(table: pd.DataFrame, path: Path, title: str) -> None:
-    import matplotlib
+# --------------------------------------------------------------------------------------------
+# bounded runs: in a worker process, stopped when the budget is spent
+# --------------------------------------------------------------------------------------------
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
 
-    panels = [("plate_band_db_100_20k", "plate band error 100 Hz-20 kHz [dB]"),
-              ("block_band_db_100_20k", "block band error 100 Hz-20 kHz [dB]"),
-              ("plate_band_db_20k_50k", "plate band error 20-50 kHz [dB]"),
-              ("velocity_rel_rms", "tangential velocity rel. rms error [-]"),
-              ("event_dt_max", "largest event-time error [s]"),
-              ("energy_rel_residual", "energy-audit relative residual [-]")]
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7))
-    ok = table[table["status"] == "success"]
-    for ax, (metric, label) in zip(axes.ravel(), panels, strict=True):
-        for i, method in enumerate(sorted(ok["method"].unique())):
-            m = ok[(ok["method"] == method) & np.isfinite(ok[metric]) & (ok[metric] > 0)]
-            m = m.sort_values("setting", ascending=False)  # along the ladder, coarse to fine
-            if len(m):
-                ax.loglog(m["wall_time"], m[metric], "o-", color=f"C{i}", label=method, ms=4)
-        ax.set_xlabel("wall time [s]")
-        ax.set_ylabel(label, fontsize=8)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0, 0].legend(fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def _serve(conn) -> None:  # pragma: no cover - runs in the worker process
+    """The worker's loop: run each scene it is sent, save the result, report the times."""
+    while True:
+        job = conn.recv()
+        if job is None:
+            return
+        scene, save_to, progress = job
+        try:
+            t0 = time.perf_counter()
+            c0 = time.process_time()
+            res = simulate(scene, progress=progress)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            if save_to:
+                res.save(save_to)
+            conn.send({"wall_time": wall, "cpu_time": cpu, "status": res.status,
+                       "message": res.summary.get("message", "")})
+        except Exception as exc:  # noqa: BLE001 - reported as the run's row
+            conn.send({"status": "error", "message": f"{type(exc).__name__}: {exc}"})
+
+
+class _Worker:
+    """A child process that runs the study's scenes one after another, so that a run can be
+    stopped when the budget is spent. It is started with ``spawn`` (a fresh interpreter:
+    forking a process with threads can copy a held lock into the child and hang it) and
+    restarted after a stop."""
+
+    def __init__(self) -> None:
+        self.proc = None
+        self.conn = None
+
+    def run(self, scene: Scene, save_to: Path | None, timeout: float,
+            progress: bool = False) -> dict:
+        """Run ``scene`` for at most ``timeout`` seconds; save its result into ``save_to``.
+
+        Returns ``status``, ``message``, ``wall_time`` and ``cpu_time`` (of the simulation
+        in the worker; status ``over_budget`` when it was stopped)."""
+        if self.proc is None or not self.proc.is_alive():
+            ctx = mp.get_context("spawn")
+            self.conn, child = ctx.Pipe()
+            self.proc = ctx.Process(target=_serve, args=(child,), daemon=True)
+            self.proc.start()
+            child.close()
+        t0 = time.perf_counter()
+        self.conn.send((scene, str(save_to) if save_to else "", progress))
+        if self.conn.poll(max(timeout, 0.0)):
+            try:
+                return self.conn.recv()
+            except EOFError:
+                self.close()
+                return {"status": "error", "wall_time": time.perf_counter() - t0,
+                        "message": "the worker process ended unexpectedly"}
+        self.close()
+        spent = time.perf_counter() - t0
+        return {"status": "over_budget", "wall_time": spent,
+                "message": f"stopped after {spent:.0f} s: the budget was spent"}
+
+    def close(self) -> None:
+        if self.proc is not None:
+            if self.proc.is_alive():
+                try:
+                    self.conn.send(None)
+                except (BrokenPipeError, OSError):
+                    pass
+                self.proc.join(timeout=0.5)
+            if self.proc.is_alive():
+                self.proc.terminate()
+                self.proc.join()
+            self.conn.close()
+        self.proc = self.conn = None
+
+
+def _reference_scene(base: Scene, method: str, rtol: float) -> Scene:
+    if method == "auto":
+        method = base.with_overrides({"solver.method": "auto",
+                                      "output.checkpoint_interval": 0.0}
+                                     ).resolved_solver().method
+    return base.with_overrides({**_overrides(method, rtol, base.output.step),
+                                "solver.atol": min(1e-12, 1e-2 * rtol),
+                                "output.checkpoint_interval": 0.0})
 
 
 def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
               reference: str | Path | None = None,
               methods=TOLERANCE_METHODS + FIXED_METHODS,
               rtols=DEFAULT_RTOLS, steps=DEFAULT_STEPS, reference_rtol: float = 1e-10,
+              reference_method: str = "auto", presets: bool = True,
               progress: bool = True) -> pd.DataFrame:
     """Run the work-precision study and write its table, markdown and figure.
 
@@ -170,105 +255,174 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
     out_dir : str or Path
         Output directory.
     budget : float
-        Wall-time budget for the ladder runs [s] (the reference is not counted). A run whose
-        predicted cost exceeds the remaining budget is not started.
+        Wall-time budget of the whole study, the reference included [s]. A run whose
+        predicted cost exceeds the remaining budget is not started, a running one is stopped
+        when the budget is spent.
     reference : path, optional
         A result directory to use as reference instead of computing one.
     methods, rtols, steps
         What to run.
     reference_rtol : float
-        rtol (and 1e-2 x rtol m/s^2 modal atol) of the IDA reference.
+        rtol of the reference (``atol_acceleration`` = 1e-2 x rtol m/s^2, ``atol`` =
+        min(1e-12, 1e-2 x rtol) m).
+    reference_method : {"auto", "ida", "adaptive-modal"}
+        Solver of the reference; ``auto``: adaptive-modal where it can run, else IDA.
+    presets : bool
+        Also run each method at its accuracy presets.
+    progress : bool
+        Progress bars (the reference's solver, then the runs) on stderr.
 
     Returns
     -------
     DataFrame
-        One row per run (including failed and skipped runs).
-    """
-    from roughvib._progress import progress_bar
+        One row per run (including failed, stopped and skipped runs).
 
+    Raises
+    ------
+    BudgetExceeded
+        If the reference does not finish within the budget.
+    RuntimeError
+        If the reference run fails.
+    """
+    t_start = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    base = scene.with_overrides({"output.progress": False})
+    base = scene.with_overrides({"output.progress": False, "output.checkpoint_interval": 0.0})
+
+    def remaining() -> float:
+        return budget - (time.perf_counter() - t_start)
+
+    worker = _Worker()
+    try:
+        return _study(scene, base, out, worker, budget, remaining, t_start, reference, methods,
+                      rtols, steps, reference_rtol, reference_method, presets, progress)
+    finally:
+        worker.close()
+
+
+def _study(scene, base, out, worker, budget, remaining, t_start, reference, methods, rtols,
+           steps, reference_rtol, reference_method, presets, progress) -> pd.DataFrame:
+    from roughvib._progress import progress_bar
+
     if reference is not None:
         ref = load_result(reference)
+        ref_label = f"given {reference}"
     else:
-        ref = simulate(base.with_overrides(_overrides("ida", reference_rtol, 0.0)))
-        ref.save(out / "reference")
+        rscene = _reference_scene(base, reference_method, reference_rtol)
+        rs = rscene.resolved_solver()
+        ref_label = (f"{rs.method} rtol {rs.rtol:g}, atol {rs.atol:g} m, atol_acceleration "
+                     f"{rs.atol_acceleration:g} m/s^2")
+        print(f"reference: {ref_label} (within the budget of {budget:g} s)", file=sys.stderr,
+              flush=True)
+        info = worker.run(rscene, out / "reference", remaining(), progress=progress)
+        if info["status"] == "over_budget":
+            raise BudgetExceeded(
+                f"the reference run ({ref_label}) did not finish within --budget {budget:g} s; "
+                f"give a larger --budget, a looser --reference-rtol or --reference DIR")
+        if info["status"] != "success":
+            raise RuntimeError(f"reference run failed ({info['status']}): {info['message']}")
+        ref = load_result(out / "reference")
     if not ref.ok:
         raise RuntimeError(f"reference run failed: {ref.summary.get('message')}")
-    # loose tolerances and long steps first: cheap first
-    ladders = {m: sorted(rtols if m in TOLERANCE_METHODS else steps, reverse=True)
-               for m in methods}
-    queue: list[_Run] = []
-    while any(ladders.values()):
-        for m in methods:
-            if ladders[m]:
-                v = ladders[m].pop(0)
-                queue.append(_Run(m, v, _overrides(m, v, base.output.step)))
+    queue = _queue(base, methods, rtols, steps, presets)
     # warm-up: compile (or load) every method's numba kernels before anything is timed
     for m in methods:
-        tiny = {**_overrides(m, rtols[0] if m in TOLERANCE_METHODS else base.output.step,
+        tiny = {**_overrides(m, rtols[0] if m not in FIXED_STEP_METHODS else base.output.step,
                              base.output.step),
                 "output.duration": 20 * base.output.step}
-        try:
-            simulate(base.with_overrides(tiny))
-        except Exception:  # noqa: BLE001 - the timed run will report the problem
-            pass
+        worker.run(base.with_overrides(tiny), None, remaining())  # a failure shows later
     rows = []
     last_cost: dict[str, float] = {}
-    spent = 0.0
-    period = base.period if math.isfinite(base.period) else 0.0
+    period = base.period
     bar = progress_bar(len(queue), desc="work-precision runs", disable=not progress, unit="run")
-    for run in queue:
-        row = {"method": run.method, "setting": run.setting,
-               "setting_name": "rtol" if run.method in TOLERANCE_METHODS else "step [s]"}
-        predicted = last_cost.get(run.method, 0.0) * (
-            3.0 if run.method in TOLERANCE_METHODS else 2.5)
-        if spent + predicted > budget:
-            row.update(status="skipped", message=f"predicted {predicted:.0f} s exceeds the "
-                                                 f"remaining budget")
+    with tempfile.TemporaryDirectory(prefix="wp-", dir=out) as scratch:
+        for i, run in enumerate(queue):
+            row = {"method": run.method, "setting": run.setting, "preset": run.preset,
+                   "setting_name": "step [s]" if run.method in FIXED_STEP_METHODS else "rtol"}
+            predicted = last_cost.get(run.method, 0.0) * (
+                2.5 if run.method in FIXED_STEP_METHODS else 3.0)
+            if predicted > remaining():
+                row.update(status="skipped", message=f"predicted {predicted:.0f} s exceeds "
+                                                     f"the remaining budget")
+                rows.append(row)
+                bar.update(1)
+                continue
+            save_to = Path(scratch) / f"run{i}"
+            info = worker.run(base.with_overrides(run.overrides), save_to, remaining())
+            row.update(status=info["status"], message=info.get("message", ""),
+                       wall_time=info.get("wall_time"), cpu_time=info.get("cpu_time"))
+            if save_to.exists():
+                res = load_result(save_to, partial=info["status"] != "success")
+                s = res.summary.get("solver", {})
+                row.update(steps=s.get("steps"),
+                           residual_evaluations=s.get("residual_evaluations"))
+                if res.ok:
+                    row.update(errors_against(res, ref, period, base.output.transient))
+                shutil.rmtree(save_to, ignore_errors=True)
+            last_cost[run.method] = float(info.get("wall_time") or 0.0)
             rows.append(row)
             bar.update(1)
-            continue
-        t0 = time.perf_counter()
-        c0 = time.process_time()
-        try:
-            res = simulate(base.with_overrides(run.overrides))
-            row.update(status=res.status, message=res.summary.get("message", ""))
-            s = res.summary["solver"]
-            row.update(steps=s.get("steps"), residual_evaluations=s.get("residual_evaluations"))
-            if res.ok:
-                row.update(errors_against(res, ref, period, base.output.transient))
-        except Exception as exc:  # noqa: BLE001 - a failed run is a row, not the end
-            row.update(status="error", message=f"{type(exc).__name__}: {exc}")
-        wall = time.perf_counter() - t0
-        row.update(wall_time=wall, cpu_time=time.process_time() - c0)
-        last_cost[run.method] = wall
-        spent += wall
-        rows.append(row)
-        bar.update(1)
     bar.close()
     table = pd.DataFrame(rows)
-    for col in METRICS + ("wall_time", "cpu_time", "steps", "residual_evaluations"):
+    for col in METRICS + ("wall_time", "cpu_time", "steps", "residual_evaluations",
+                          "block_band_hz", "plate_band_hz", "verdict"):
         if col not in table:
             table[col] = np.nan
     table.to_csv(out / "work_precision.csv", index=False, float_format="%.6g")
-    cols = ["method", "setting", "status", "wall_time", "steps", *METRICS]
+    _write_markdown(table, out / "work_precision.md", scene.name, ref_label,
+                    time.perf_counter() - t_start, budget)
+    from roughvib.views.work_precision import plot_work_precision
+
+    plot_work_precision(table, out / "work_precision.png", f"work-precision, scene {scene.name}",
+                        contract=asdict(CONTRACT))
+    return table
+
+
+def _queue(base: Scene, methods, rtols, steps, presets: bool) -> list[_Run]:
+    """The runs, cheap first: per method its ladder and presets ordered from coarse to fine
+    (a preset that equals a ladder rung replaces it), then round-robin over the methods."""
+    per: dict[str, list[_Run]] = {}
+    for m in methods:
+        ladder = [_Run(m, v, _overrides(m, v, base.output.step))
+                  for v in (steps if m in FIXED_STEP_METHODS else rtols)]
+        runs: dict[tuple, _Run] = {}
+        for r in ladder:
+            runs[_key(base, r)] = r
+        if presets:
+            for level in ACCURACY_LEVELS:
+                p = _preset_run(base, m, level)
+                k = _key(base, p)
+                if k in runs and runs[k].preset:
+                    runs[k].preset += f"/{level}"  # two presets with one setting
+                else:
+                    runs[k] = p
+        per[m] = sorted(runs.values(), key=lambda r: -r.setting)
+    queue: list[_Run] = []
+    while any(per.values()):
+        for m in methods:
+            if per[m]:
+                queue.append(per[m].pop(0))
+    return queue
+
+
+def _write_markdown(table: pd.DataFrame, path: Path, name: str, ref_label: str, spent: float,
+                    budget: float) -> None:
+    cols = ["method", "setting", "preset", "status", "wall_time", "cpu_time", "steps",
+            "block_band_db", "block_band_hz", "plate_band_db", "plate_band_hz",
+            "velocity_rel_rms", "event_dt_max", "events_unmatched", "energy_rel_residual",
+            "contract_ratio", "verdict"]
     md = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for _, r in table.iterrows():
         md.append("| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |")
     cross = []
-    for metric in ("plate_band_db_100_20k", "block_band_db_100_20k", "velocity_rel_rms"):
+    for metric in ("plate_band_db", "block_band_db", "velocity_rel_rms"):
         cross += crossings(table, metric)
-    (out / "work_precision.md").write_text(
-        f"# Work-precision: scene {scene.name}\n\nReference: "
-        f"{'given ' + str(reference) if reference else f'IDA rtol {reference_rtol:g}'}.\n\n"
-        + "\n".join(md) + "\n\n## Crossings with IDA\n\n"
+    path.write_text(
+        f"# Work-precision: scene {name}\n\nReference: {ref_label}. Whole study: {spent:.0f} s "
+        f"of a {budget:g} s budget.\n\n" + "\n".join(md) + "\n\n## Crossings with IDA\n\n"
         + ("\n".join(f"- {c['method']} ({c['metric']}): {c['wall_time']:.3g} s at error "
                      f"{c['error']:.3g}" for c in cross) or "none in the measured range")
         + "\n")
-    _plot(table, out / "work_precision.png", f"work-precision, scene {scene.name}")
-    return table
 
 
 def _fmt(v) -> str:

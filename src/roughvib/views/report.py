@@ -2,7 +2,8 @@
 
 ``write_report(DIR)`` reads a result directory written by ``roughvib run`` and writes
 ``DIR/report.html``: the scene, the summary tables (levels, calibration, model, contact
-resonance, third-octave band levels), the solver statistics, the energy audit, the per-cycle
+resonance, third-octave band levels), the solver statistics, the energy audit, the accuracy
+section of a verified run (``roughvib run --verify``), the per-cycle
 event phase table and every figure of :data:`roughvib.views.figures.FIGURES`, embedded as
 base64 PNG data URIs. The report of a failed run opens with a banner and shows what the run
 recorded up to the failure (``partial.nc`` and the event log). The page needs no server, no
@@ -96,7 +97,67 @@ def _model_section(summary: dict) -> str:
     return kv_table(rows)
 
 
-_SOLVER_UNITS = {"rtol": "-", "atol": "m", "wall_time": "s", "preprocessing_time": "s"}
+_SOLVER_UNITS = {"rtol": "-", "atol": "m", "atol_acceleration": "m/s²", "step": "s",
+                 "method": "", "accuracy": "", "wall_time": "s", "preprocessing_time": "s"}
+
+
+def _accuracy_section(summary: dict) -> str:
+    from roughvib.analysis.accuracy import verdict_line
+    from roughvib.analysis.spectra import nominal_centre
+
+    acc = summary.get("accuracy")
+    if not acc:
+        return ("<p class='note'>This run was not verified. <code>roughvib run --verify</code> "
+                "(or <code>simulate(scene, verify=True)</code>) solves the scene a second, "
+                "independent way and states the deviations against the accuracy contract "
+                "(docs/accuracy.md).</p>")
+    ok = acc.get("verdict") == "pass"
+    head = (f"<p><b class='{'status-success' if ok else 'status-failed'}'>"
+            f"{esc(verdict_line(acc))}</b></p>")
+    fails = acc.get("failures") or []
+    if fails:
+        head += "<ul>" + "".join(f"<li>{esc(f)}</li>" for f in fails) + "</ul>"
+    info = acc.get("verification", {})
+    rows = [("second solve", acc.get("reference"), ""),
+            ("second solve settings", info.get("settings"), ""),
+            ("second solve status", info.get("status"), ""),
+            ("second solve wall time", info.get("wall_time"), "s")]
+    if "bands" not in acc:
+        return head + kv_table(rows)
+    c = acc.get("contract", {})
+    win = acc.get("window", [None, None])
+    rows += [("analysis window start", win[0], "s"), ("analysis window end", win[1], "s")]
+    for name, b in acc["bands"].items():
+        rows += [(f"{name}: largest band deviation", b.get("deviation_db"), "dB"),
+                 (f"{name}: in band", b.get("worst_band_hz"), "Hz"),
+                 (f"{name}: bands checked (within {c.get('dynamic_range_db', 80):g} dB of "
+                  f"the strongest)", b.get("bands_checked"), "-")]
+    ev = acc.get("events", {})
+    rows += [("events matched one to one", ev.get("matched"), "-"),
+             ("events without a partner", ev.get("unmatched"), "-"),
+             ("largest event-time deviation", ev.get("max_dt"), "s"),
+             ("tangential velocity, relative rms deviation", acc.get("velocity_rel_rms"), "-"),
+             ("energy audit, relative residual (this run)", acc.get("energy_rel_residual"),
+              "-"),
+             ("energy audit, relative residual (second solve)",
+              acc.get("reference_energy_rel_residual"), "-")]
+    limits = (f"<p class='note'>contract: bands {c.get('f_min', 100):g} Hz to "
+              f"{c.get('f_max', 50e3):g} Hz within {c.get('band_db', 1):g} dB where the "
+              f"reference lies within {c.get('dynamic_range_db', 80):g} dB of its strongest "
+              f"band; event times within {c.get('event_dt', 1e-6):g} s; velocity within "
+              f"{c.get('velocity_rel_rms', 1e-4):g} rms; energy audit within "
+              f"{c.get('energy_rel_residual', 1e-6):g} (docs/accuracy.md).</p>")
+    per = {name: {f: (r, d) for f, r, d in b.get("per_band", [])}
+           for name, b in acc["bands"].items()}
+    freqs = sorted(set().union(*[set(v) for v in per.values()]))
+    data = {"band centre [Hz]": nominal_centre(np.array(freqs, float))}
+    for name in per:
+        data[f"{name} reference [dB]"] = [per[name].get(f, (None, None))[0] for f in freqs]
+        data[f"{name} deviation [dB]"] = [per[name].get(f, (None, None))[1] for f in freqs]
+    df = pd.DataFrame(data)
+    fmt = {col: (lambda v: num(v, ".3g")) for col in df.columns[1:]}
+    fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
+    return head + kv_table(rows) + limits + frame_table(df, fmt)
 
 
 def _solver_section(summary: dict) -> str:
@@ -301,6 +362,8 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
     sections.append(("model", "Model", _model_section(s)))
     sections.append(("solver", "Solver statistics", _solver_section(s)))
     sections.append(("energy", "Energy audit", _energy_section(s)))
+    if ok:
+        sections.append(("accuracy", "Accuracy", _safe(_accuracy_section, s)))
     if not ok:
         sections.append(("last-events", "Last events before the failure",
                          _safe(_last_events_section, result)))

@@ -1,0 +1,128 @@
+"""Benchmark: cost and accuracy of the accuracy presets (docs/accuracy.md's tables).
+
+Run on demand, not by the tests:
+
+    python benchmarks/bench_presets.py paper --out runs/presets
+    python benchmarks/bench_presets.py paper-100mms --out runs/presets \
+        --methods ida,adaptive-modal
+
+For one built-in scene at its default length it
+
+1. solves the converged pair: ``adaptive-modal`` and ``ida`` at rtol 1e-9, atol 1e-14 m and
+   ``atol_acceleration`` 1e-11 m/s^2 (``--no-pair`` reuses them from ``--out``), and measures
+   one against the other by the accuracy contract;
+2. solves every ``--methods`` x ``--levels`` preset, each in its own process (so every run pays
+   its own fixed cost, as a user's run does), saving the result to ``OUT/SCENE/METHOD-LEVEL``;
+3. prints a Markdown table: wall and CPU time of the ``simulate`` call (pilot, calibration and
+   assembly included), the largest band deviation per signal with its band, the event-time and
+   velocity deviations, the run's energy audit and the verdict against the tight
+   ``adaptive-modal`` run (:func:`roughvib.analysis.accuracy.measure_accuracy`).
+
+Runs that exist in ``OUT`` (a ``timing.json`` next to the result) are not solved again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+TIGHT = {"solver.rtol": 1e-9, "solver.atol": 1e-14, "solver.atol_acceleration": 1e-11}
+FIXED = ("exact-modal", "newmark", "paper", "moreau")
+
+
+def solve_one(scene_name: str, out: Path, overrides: dict) -> None:
+    """Solve a scene with ``overrides``; save the result and timing.json to ``out``."""
+    import roughvib
+
+    over = {"output.progress": False, **overrides}
+    scene = roughvib.load_scene(scene_name, over)
+    t0, c0 = time.perf_counter(), time.process_time()
+    result = roughvib.simulate(scene)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    result.save(out, overwrite=True)
+    info = {"scene": scene_name, "overrides": over, "wall": wall, "cpu": cpu,
+            "status": result.status, "solver": result.summary["solver"]}
+    (out / "timing.json").write_text(json.dumps(info, indent=1, default=str))
+
+
+def _run(scene_name: str, out: Path, overrides: dict) -> dict:
+    if not (out / "timing.json").exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run([sys.executable, __file__, "--child", scene_name, str(out),
+                        json.dumps(overrides)], check=True)
+    return json.loads((out / "timing.json").read_text())
+
+
+def _fmt_band(b: dict) -> str:
+    d = b["deviation_db"]
+    if d is None:
+        return "–"
+    if isinstance(d, str):
+        return d
+    f = b["worst_band_hz"]
+    return f"{d:+.2g} dB @ " + (f"{f / 1e3:.3g} kHz" if f >= 1e3 else f"{f:.0f} Hz")
+
+
+def _g(x) -> str:
+    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.2g}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("scene", nargs="?", default="paper", help="built-in scene (default: paper)")
+    p.add_argument("--out", default="runs/presets", help="directory of the runs")
+    p.add_argument("--methods", default="adaptive-modal,ida,exact-modal,newmark,paper")
+    p.add_argument("--levels", default="reference,standard,draft")
+    p.add_argument("--no-pair", action="store_true", help="do not solve the converged pair")
+    p.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+    if args.child:
+        solve_one(args.child[0], Path(args.child[1]), json.loads(args.child[2]))
+        return 0
+
+    import roughvib
+    from roughvib.analysis.accuracy import measure_accuracy
+    from roughvib.results import load_result
+
+    scene = roughvib.load_scene(args.scene)
+    base = Path(args.out) / args.scene
+    window = {"period": scene.period, "transient": scene.output.transient}
+    ref_dir, ida_dir = base / "tight-adaptive-modal", base / "tight-ida"
+    if not args.no_pair:
+        _run(args.scene, ref_dir, {"solver.method": "adaptive-modal", **TIGHT})
+        _run(args.scene, ida_dir, {"solver.method": "ida", **TIGHT})
+    ref = load_result(ref_dir)
+    rows = []
+    if ida_dir.exists():
+        rows.append(("ida", "tight (rtol 1e-9)", ida_dir))
+    for method in args.methods.split(","):
+        for level in args.levels.split(","):
+            d = base / f"{method}-{level}"
+            _run(args.scene, d, {"solver.method": method, "solver.accuracy": level})
+            rows.append((method, level, d))
+    print(f"\n{args.scene}: against {ref_dir}\n")
+    print("| method | preset | as run | wall [s] | CPU [s] | block | plate | event dt [s] | "
+          "v rel. rms | energy audit | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for method, level, d in rows:
+        t = json.loads((d / "timing.json").read_text())
+        s = t["solver"]
+        acc = measure_accuracy(load_result(d), ref, **window)
+        as_run = (f"step {s['step']:g} s" if method in FIXED
+                  else f"rtol {s['rtol']:g}, aa {s['atol_acceleration']:.2g}")
+        e = acc["events"]
+        ev = _g(e["max_dt"]) + (f" ({e['unmatched']} unmatched)" if e["unmatched"] else "")
+        print(f"| `{method}` | `{level}` | {as_run} | {t['wall']:.0f} | {t['cpu']:.1f} | "
+              f"{_fmt_band(acc['bands']['block'])} | {_fmt_band(acc['bands']['plate'])} | "
+              f"{ev} | {_g(acc['velocity_rel_rms'])} | {_g(acc['energy_rel_residual'])} | "
+              f"**{acc['verdict']}** |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

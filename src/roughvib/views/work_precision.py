@@ -1,0 +1,139 @@
+"""The work-precision figure of ``roughvib compare``: error against cost, one panel per metric.
+
+Takes the plain table :func:`roughvib.studies.compare.run_study` writes
+(``work_precision.csv``) and never imports the study. Each method's points are joined in order
+of cost and labelled with their setting (rtol, or step in s); the accuracy presets are drawn
+as stars labelled with their name; the contract's limit is a dashed line in every panel.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["PANELS", "log_ticks", "plot_work_precision"]
+
+#: (column, axis label, contract limit key) of each panel
+PANELS = (
+    ("plate_band_db", "plate: largest band deviation [dB]", "band_db"),
+    ("block_band_db", "block: largest band deviation [dB]", "band_db"),
+    ("velocity_rel_rms", "tangential velocity rel. rms error [-]", "velocity_rel_rms"),
+    ("event_dt_max", "largest event-time error [s]", "event_dt"),
+    ("energy_rel_residual", "energy-audit relative residual [-]", "energy_rel_residual"),
+    ("contract_ratio", "largest error / contract limit [-]", None),
+)
+
+
+def log_ticks(lo: float, hi: float, max_ticks: int = 6) -> list[float]:
+    """Tick positions for a log axis over [lo, hi] that leave room for their labels.
+
+    The candidates are 1, 2, 5 x 10^k, then 1 x 10^k, then every n-th decade, whichever is the
+    densest set with at most ``max_ticks`` ticks in the range; at least the two ends' decades
+    when the range is narrower than one candidate step.
+    """
+    if not (lo > 0 and hi > 0 and math.isfinite(lo) and math.isfinite(hi)):
+        return []
+    lo, hi = min(lo, hi), max(lo, hi)
+    k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+    for subs in ((1, 2, 5), (1,)):
+        ticks = [m * 10.0**k for k in range(k0, k1 + 1) for m in subs
+                 if lo * (1 - 1e-9) <= m * 10.0**k <= hi * (1 + 1e-9)]
+        if 2 <= len(ticks) <= max_ticks:
+            return ticks
+    decades = [10.0**k for k in range(k0, k1 + 1)]
+    step = max(1, math.ceil(len(decades) / max_ticks))
+    return decades[::step] if len(decades) >= 2 else [10.0**k0, 10.0**k1]
+
+
+def _fmt_tick(v: float) -> str:
+    return f"{v:g}"
+
+
+def _set_ticks(ax, axis: str) -> None:
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    lo, hi = (ax.get_xlim() if axis == "x" else ax.get_ylim())
+    ticks = log_ticks(lo, hi, max_ticks=5 if axis == "x" else 6)
+    a = ax.xaxis if axis == "x" else ax.yaxis
+    a.set_major_locator(FixedLocator(ticks))
+    a.set_major_formatter(FuncFormatter(lambda v, _pos: _fmt_tick(v)))
+    a.set_minor_locator(NullLocator())
+    a.set_minor_formatter(NullFormatter())
+
+
+def _setting_label(row) -> str:
+    if isinstance(row.get("preset"), str) and row["preset"]:
+        return str(row["preset"])
+    v = row["setting"]
+    return f"{v:g}" if row.get("setting_name") == "rtol" else f"{v:g} s"
+
+
+def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
+                        contract: dict | None = None, *, dpi: int = 110) -> None:
+    """Draw the work-precision figure and write it as PNG.
+
+    Parameters
+    ----------
+    table : DataFrame
+        One row per run: ``method``, ``setting``, ``setting_name`` (``"rtol"`` or
+        ``"step [s]"``), ``preset`` (name or empty), ``status``, ``wall_time`` [s] and the
+        metric columns of :data:`PANELS`.
+    path : str or Path
+        PNG file.
+    title : str
+        Figure title.
+    contract : dict, optional
+        The contract's limits (``band_db``, ``event_dt``, ...), drawn as dashed lines.
+    dpi : int
+        Resolution [dots per inch].
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    contract = contract or {}
+    fig = Figure(figsize=(15, 9), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3)
+    ok = table[table["status"] == "success"]
+    methods = sorted(ok["method"].unique())
+    for ax, (metric, label, limit_key) in zip(axes.ravel(), PANELS, strict=True):
+        drawn = False
+        for i, method in enumerate(methods):
+            m = ok[(ok["method"] == method) & np.isfinite(ok[metric].astype(float))
+                   & (ok[metric].astype(float) > 0)]
+            m = m.sort_values("wall_time")  # in order of cost
+            if not len(m):
+                continue
+            drawn = True
+            color = f"C{i % 10}"
+            ax.loglog(m["wall_time"], m[metric], "-", color=color, lw=1, label=method)
+            is_preset = m["preset"].fillna("").astype(str) != ""
+            ax.plot(m["wall_time"][~is_preset], m[metric][~is_preset], "o", color=color, ms=4)
+            ax.plot(m["wall_time"][is_preset], m[metric][is_preset], "*", color=color, ms=11,
+                    mec="k", mew=0.5)
+            for _, row in m.iterrows():
+                ax.annotate(_setting_label(row), (row["wall_time"], row[metric]),
+                            textcoords="offset points", xytext=(4, 3), fontsize=6,
+                            color=color)
+        limit = 1.0 if limit_key is None else contract.get(limit_key)
+        if limit:
+            ax.axhline(limit, color="k", ls="--", lw=0.8)
+        ax.set_xlabel("wall time [s]")
+        ax.set_ylabel(label, fontsize=8)
+        ax.grid(True, which="major", alpha=0.3)
+        if drawn:
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.margins(x=0.15, y=0.15)
+            _set_ticks(ax, "x")
+            _set_ticks(ax, "y")
+        ax.tick_params(labelsize=7)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8)
+    fig.suptitle(f"{title}  (points: rtol or step; stars: accuracy presets; dashed: contract "
+                 f"limit)", fontsize=10)
+    fig.savefig(path, dpi=dpi)
