@@ -202,6 +202,21 @@ class EventBook:
                     self.stats[f"guard_{tr.guard}"] += 1
         regime.pack(reg, rf)
         y, yp = system.consistent(te, ye, reg, rf)
+        for _ in range(2 * K):
+            # a contact whose margin is at or below zero and falling in the new regime would
+            # never see the downward crossing its root watches for (contacts in phase reach
+            # their margins together, and the solver may report only some of them): switch it
+            # at the same instant
+            c = self._unseen_crossing(te, y, yp, ev_args)
+            if c is None:
+                break
+            for tr in switch(regime, c, te, ye, system.fp, K, lay.index("block.vx"),
+                             lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
+                             fr.chatter_window):
+                kinds.append((tr.kind, tr.contact, c))
+            self.stats["switches_at_zero_margin"] += 1
+            regime.pack(reg, rf)
+            y, yp = system.consistent(te, ye, reg, rf)
         after = regime.describe()
         evafter = np.empty(n_ev)
         kn.events(te, y, evafter, *ev_args)
@@ -237,3 +252,22 @@ class EventBook:
                 + ".", te)
         self.stats["restarts"] += 1
         return y, yp
+
+    def _unseen_crossing(self, te: float, y: np.ndarray, yp: np.ndarray, ev_args
+                         ) -> int | None:
+        """A contact whose margin a restart at ``(te, y, yp)`` leaves at or below zero and falling.
+
+        A contact margin (``kernels.events``: closed, the compression; open, minus it) is
+        continuous in the state and changes sign with the contact's regime; its root is watched
+        for downward crossings only. A margin that is <= 0 right after a restart and falls
+        (its value a step of ``1e-9 max(1, t)`` s ahead, along ``yp``, is below zero) would
+        never fire. Returns the contact with the lowest margin ahead, or None. A contact the
+        restart has just switched starts with its margin rising, so it is not returned again.
+        """
+        K = self.system.n_contacts
+        dt = 1e-9 * max(1.0, te)
+        now, ahead = np.empty(K + 3), np.empty(K + 3)
+        kn.events(te, y, now, *ev_args)
+        kn.events(te + dt, y + dt * yp, ahead, *ev_args)
+        bad = [c for c in range(K) if now[c] <= 0.0 and ahead[c] < 0.0]
+        return min(bad, key=lambda c: ahead[c]) if bad else None
