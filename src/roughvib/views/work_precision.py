@@ -3,7 +3,9 @@
 Takes the plain table :func:`roughvib.studies.compare.run_study` writes
 (``work_precision.csv``) and never imports the study. Each method's points are joined in order
 of cost and labelled with their setting (rtol, or step in s); the accuracy presets are drawn
-as stars labelled with their name; the contract's limit is a dashed line in every panel.
+as stars labelled with their name; the contract's limit is a dashed line in every panel. Labels
+that would cover one another (runs of about equal cost and error) are moved up or down by a
+line until they are free.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["PANELS", "log_ticks", "plot_work_precision"]
+__all__ = ["PANELS", "label_boxes", "log_ticks", "plot_work_precision"]
 
 #: (column, axis label, contract limit key) of each panel
 PANELS = (
@@ -64,6 +66,41 @@ def _set_ticks(ax, axis: str) -> None:
     a.set_minor_formatter(NullFormatter())
 
 
+def _spread_labels(fig, axes, step: float = 7.0, tries: int = 16) -> None:
+    """Move each point label that overlaps an earlier label of its panel up or down.
+
+    Labels are visited in drawing order; each keeps its first free offset among 0, -step,
+    +step, -2 step, ... [points] (the original offset when none of ``tries`` is free).
+    """
+    fig.draw_without_rendering()  # lays the figure out: label boxes in display units
+    renderer = fig.canvas.get_renderer()
+    for ax in axes:
+        placed = []
+        for ann in ax.texts:
+            x0, y0 = ann.xyann
+            for k in range(tries):
+                ann.xyann = (x0, y0 + ((k + 1) // 2) * step * (-1) ** k)
+                box = ann.get_window_extent(renderer)
+                if not any(box.overlaps(p) for p in placed):
+                    break
+            else:
+                ann.xyann = (x0, y0)
+                box = ann.get_window_extent(renderer)
+            placed.append(box)
+
+
+def label_boxes(fig) -> list[list]:
+    """The display-unit boxes of the point labels of each panel of a drawn figure (for tests).
+
+    Returns
+    -------
+    list of list of matplotlib.transforms.Bbox
+        One list per panel, in the panels' order.
+    """
+    renderer = fig.canvas.get_renderer()
+    return [[t.get_window_extent(renderer) for t in ax.texts] for ax in fig.axes]
+
+
 def _setting_label(row) -> str:
     if isinstance(row.get("preset"), str) and row["preset"]:
         return str(row["preset"])
@@ -72,7 +109,7 @@ def _setting_label(row) -> str:
 
 
 def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
-                        contract: dict | None = None, *, dpi: int = 110) -> None:
+                        contract: dict | None = None, *, dpi: int = 110):
     """Draw the work-precision figure and write it as PNG.
 
     Parameters
@@ -89,12 +126,17 @@ def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
         The contract's limits (``band_db``, ``event_dt``, ...), drawn as dashed lines.
     dpi : int
         Resolution [dots per inch].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure as written.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     contract = contract or {}
-    fig = Figure(figsize=(15, 9), layout="constrained")
+    fig = Figure(figsize=(15, 9), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(2, 3)
     ok = table[table["status"] == "success"]
@@ -117,7 +159,7 @@ def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
             for _, row in m.iterrows():
                 ax.annotate(_setting_label(row), (row["wall_time"], row[metric]),
                             textcoords="offset points", xytext=(4, 3), fontsize=6,
-                            color=color)
+                            color=color, in_layout=False)
         limit = 1.0 if limit_key is None else contract.get(limit_key)
         if limit:
             ax.axhline(limit, color="k", ls="--", lw=0.8)
@@ -136,4 +178,6 @@ def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
         fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=8)
     fig.suptitle(f"{title}  (points: rtol or step; stars: accuracy presets; dashed: contract "
                  f"limit)", fontsize=10)
+    _spread_labels(fig, axes.ravel())
     fig.savefig(path, dpi=dpi)
+    return fig
