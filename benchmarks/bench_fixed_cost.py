@@ -303,7 +303,8 @@ def main() -> None:
     p.add_argument("--scene", default="paper")
     p.add_argument("--duration", type=float, default=0.01, help="simulated time [s]")
     p.add_argument("--method", action="append", default=None,
-                   help="solver method(s) (default: ida, the default, and adaptive-modal)")
+                   help="solver method(s) (default: ida and adaptive-modal, "
+                        "which solver.method = auto runs)")
     p.add_argument("--repeat", type=int, default=3, help="runs per cache state (median)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     p.add_argument("--warm-only", action="store_true",
