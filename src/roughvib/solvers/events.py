@@ -193,13 +193,17 @@ class EventBook:
         fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
         fr = system.scene.friction
         kinds = []
-        for idx in sorted(fired):
+
+        def switch_root(idx: int) -> None:
             for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
                              lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
                              fr.chatter_window):
                 kinds.append((tr.kind, tr.contact, idx))
                 if tr.guard:
                     self.stats[f"guard_{tr.guard}"] += 1
+
+        for idx in sorted(fired):
+            switch_root(idx)
         regime.pack(reg, rf)
         y, yp = system.consistent(te, ye, reg, rf)
         for _ in range(2 * K):
@@ -210,10 +214,7 @@ class EventBook:
             c = self._unseen_crossing(te, y, yp, ev_args)
             if c is None:
                 break
-            for tr in switch(regime, c, te, ye, system.fp, K, lay.index("block.vx"),
-                             lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
-                             fr.chatter_window):
-                kinds.append((tr.kind, tr.contact, c))
+            switch_root(c)
             self.stats["switches_at_zero_margin"] += 1
             regime.pack(reg, rf)
             y, yp = system.consistent(te, ye, reg, rf)
