@@ -20,6 +20,10 @@ The rules (docs/robustness.md, "What a run may touch"):
   the earlier roughvib run that the new run does not write are removed first, everything else
   is kept. ``load_result`` checks every file against the list in ``summary.json``, so a
   directory that a kill left half-replaced is refused, never read as a mix.
+* What is published is on disk first: every file and the staging directory are flushed
+  (``fsync``) before the rename that publishes them, and the parent directory after it, so a
+  power cut or a system crash cannot leave the output directory naming files whose contents
+  were never written (:func:`sync_tree`).
 * One run at a time per directory: an exclusive ``flock`` on ``.<name>.lock`` next to the
   output directory, released when the process ends however it ends.
 """
@@ -40,7 +44,7 @@ from roughvib.scene import SceneError
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 __all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "RunDirectory",
-           "holds_run", "remove_stale", "swap_into_place"]
+           "holds_run", "remove_stale", "swap_into_place", "sync_tree"]
 
 #: the files of a saved run (``summary.json`` lists which of them the run wrote)
 RUN_FILES = ("summary.json", "scene.toml", "result.nc", "partial.nc", "events.csv")
@@ -187,15 +191,44 @@ def remove_stale(directory: Path, final: Path, prefix: str | None = None) -> Non
             shutil.rmtree(entry, ignore_errors=True)
 
 
+def _fsync(path: Path) -> None:
+    """Flush one file or directory to disk (a file system that cannot is skipped silently)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # e.g. a directory on a file system without directory fsync
+        pass
+    finally:
+        os.close(fd)
+
+
+def sync_tree(directory: Path) -> None:
+    """Flush every file under ``directory``, then its subdirectories and itself, to disk.
+
+    A rename is atomic in the name space, not on disk: without this a system crash after the
+    rename can leave the published names pointing at files whose data was never written.
+    """
+    for root, _dirs, files in os.walk(directory, topdown=False):
+        for name in files:
+            _fsync(Path(root, name))
+        _fsync(Path(root))
+
+
 def swap_into_place(stage: Path, final: Path) -> None:
     """Rename the complete directory ``stage`` to ``final``, replacing an earlier ``final``.
 
     One atomic rename when ``final`` is missing or empty; otherwise ``final`` is renamed to
     ``.<name>.old-<id>`` first and deleted after (:func:`remove_stale` restores it if the
-    process dies between the two renames).
+    process dies between the two renames). ``stage`` is flushed to disk before the rename and
+    the parent directory after it (:func:`sync_tree`).
     """
+    sync_tree(stage)
     try:
         os.rename(stage, final)
+        _fsync(final.parent)
         return
     except OSError as exc:
         if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
@@ -203,6 +236,7 @@ def swap_into_place(stage: Path, final: Path) -> None:
     old = final.with_name(f".{final.name}.old-{secrets.token_hex(6)}")
     os.rename(final, old)
     os.rename(stage, final)
+    _fsync(final.parent)
     shutil.rmtree(old, ignore_errors=True)
 
 
@@ -462,8 +496,10 @@ class RunDirectory:
         for name in earlier:
             if name not in names:
                 (p / name).unlink(missing_ok=True)
+        sync_tree(stage)
         for name in sorted(names, key=lambda n: n == "summary.json"):
             os.replace(stage / name, p / name)
+        _fsync(p)
         os.rmdir(stage)
 
     def close(self) -> None:

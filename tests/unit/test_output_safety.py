@@ -209,6 +209,51 @@ def test_failure_between_the_two_renames_keeps_the_earlier_run(tmp_path, monkeyp
     assert _value(out) == 1.0 and _dotfiles(tmp_path) == []
 
 
+@pytest.mark.parametrize("swap", [True, False])
+def test_published_files_are_on_disk_before_their_names_are(tmp_path, monkeypatch, swap):
+    # a rename is atomic in the name space only: every file must be flushed (fsync) before the
+    # rename that publishes it, and the directory holding the new names after it
+    out = tmp_path / "run"
+    _result(1.0).save(out)
+    if not swap:  # one file at a time: the directory holds a file roughvib did not write
+        (out / "notes.txt").write_text("mine")
+    log = []
+    real_fsync, real_rename, real_replace = os.fsync, os.rename, os.replace
+
+    def fsync(fd):
+        log.append(("fsync", os.path.realpath(f"/proc/self/fd/{fd}")))
+        return real_fsync(fd)
+
+    def rename(src, dst):
+        log.append(("rename", os.path.realpath(src), os.path.realpath(dst)))
+        return real_rename(src, dst)
+
+    def replace(src, dst):
+        log.append(("rename", os.path.realpath(src), os.path.realpath(dst)))
+        return real_replace(src, dst)
+
+    if not Path("/proc/self/fd").is_dir():
+        pytest.skip("needs /proc to name the flushed descriptors")
+    monkeypatch.setattr(rd_mod.os, "fsync", fsync)
+    monkeypatch.setattr(rd_mod.os, "rename", rename)
+    monkeypatch.setattr(rd_mod.os, "replace", replace)
+    _result(2.0).save(out, overwrite=not swap)
+    monkeypatch.undo()
+    assert _value(out) == 2.0
+    synced = [e[1] for e in log if e[0] == "fsync"]
+    publish = [i for i, e in enumerate(log) if e[0] == "rename"
+               and os.path.realpath(e[2]).startswith(str(out.resolve()))]
+    assert publish, log
+    first = publish[0]
+    stage = Path(log[first][1]) if swap else Path(log[first][1]).parent
+    flushed_before = {Path(e[1]) for e in log[:first] if e[0] == "fsync"}
+    files = ["events.csv", "result.nc", "scene.toml", "summary.json"]
+    assert {stage / f for f in files} | {stage} <= flushed_before, (stage, synced)
+    # the directory that received the names is flushed after the last publishing rename
+    target = out.parent if swap else out
+    assert ("fsync", str(target.resolve())) in log[publish[-1]:], log[publish[-1]:]
+
+
 _KILL = textwrap.dedent("""
     import os, signal, sys
     import numpy as np
