@@ -117,6 +117,66 @@ def test_resume_refuses_when_the_profile_file_changed(tmp_path, capsys):
     assert not (out / CHECKPOINT_NAME).exists() and roughvib.load_result(out).ok
 
 
+def test_source_digest_sees_every_change_of_the_sources(tmp_path):
+    from roughvib.solvers.checkpoint import source_digest
+
+    (tmp_path / "pkg" / "sub").mkdir(parents=True)
+    (tmp_path / "pkg" / "a.py").write_text("x = 1\n")
+    (tmp_path / "pkg" / "sub" / "b.py").write_text("y = 2\n")
+    d0 = source_digest(tmp_path / "pkg")
+    assert d0 == source_digest(tmp_path / "pkg")  # deterministic
+    (tmp_path / "pkg" / "sub" / "b.pyc").write_bytes(b"cache")  # not a source: no change
+    (tmp_path / "pkg" / "data.txt").write_text("data")
+    assert source_digest(tmp_path / "pkg") == d0
+    (tmp_path / "pkg" / "a.py").write_text("x = 2\n")  # edited
+    d1 = source_digest(tmp_path / "pkg")
+    assert d1 != d0
+    (tmp_path / "pkg" / "c.py").write_text("")  # added, even empty
+    d2 = source_digest(tmp_path / "pkg")
+    assert d2 != d1
+    (tmp_path / "pkg" / "c.py").rename(tmp_path / "pkg" / "sub" / "c.py")  # moved
+    assert source_digest(tmp_path / "pkg") not in (d0, d1, d2)
+
+
+def test_resume_refuses_a_checkpoint_of_other_code(tmp_path, capsys):
+    from roughvib.solvers.checkpoint import code_identity
+
+    scene = roughvib.load_scene("paper", {**FAST, "plate.max_frequency": 2000.0,
+                                          "output.duration": 0.004,
+                                          "output.checkpoint_interval": 0.002})
+    a = simulate(scene, checkpoint_dir=tmp_path)
+    assert a.ok
+    path = tmp_path / CHECKPOINT_NAME
+    data = pickle.loads(path.read_bytes())
+    recorded = data["checkpoint"].inputs["code"]
+    assert recorded == code_identity() and len(recorded["roughvib_sources"]) == 64
+    assert recorded["roughvib"] == roughvib.__version__
+
+    def rewrite(code):
+        data["checkpoint"].inputs["code"] = code
+        if code is None:
+            del data["checkpoint"].inputs["code"]
+        path.write_bytes(pickle.dumps(data))
+
+    # the same version with edited sources (a checkout between two commits), another version,
+    # another numba: each is refused, naming what changed
+    for key, value, shown in [("roughvib_sources", "0" * 64, "roughvib_sources 000000000000..."),
+                              ("roughvib", "0.0.1", "roughvib 0.0.1 then"),
+                              ("numba", "0.1", "numba 0.1 then")]:
+        rewrite({**recorded, key: value})
+        with pytest.raises(SceneError, match="written by other code") as err:
+            resume(tmp_path)
+        assert shown in str(err.value) and "\n" not in str(err.value)
+        capsys.readouterr()
+        assert main(["run", "--resume", str(tmp_path), "--no-progress", "--quiet"]) == 2
+        assert "written by other code" in capsys.readouterr().err
+    rewrite(None)  # an older roughvib did not record its code
+    with pytest.raises(SceneError, match="does not record the code that wrote it"):
+        resume(tmp_path)
+    rewrite(recorded)  # the code that wrote it resumes it
+    _assert_identical(a, resume(tmp_path))
+
+
 def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 

@@ -9,17 +9,20 @@ from a consistent state both in the run that wrote it and in the run that resume
 adaptive exact-modal scheme, a one-step method, stores everything its loop carries from one
 step to the next. Either way the resumed run is identical to the uninterrupted one
 (docs/robustness.md).
-It also records what the run read besides the scene (the SHA-256 of a roughness file), and
-:func:`check_inputs` refuses to resume when that has changed.
+It also records what the run read besides the scene (the SHA-256 of a roughness file) and the
+code that ran it (:func:`code_identity`), and :func:`check_inputs` refuses to resume when
+either has changed.
 
 The file is a Python pickle written by roughvib for roughvib: load only checkpoints you made.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import pickle
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +38,7 @@ if TYPE_CHECKING:  # the model (numba kernels) is needed only to start a run, no
     from roughvib.model.system import System
 
 __all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_inputs",
-           "check_resume", "input_fingerprint", "read_checkpoint", "start_state",
+           "check_resume", "code_identity", "input_fingerprint", "read_checkpoint", "start_state",
            "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
@@ -105,8 +108,54 @@ def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def source_digest(root: Path) -> str:
+    """SHA-256 over the relative path and the bytes of every ``.py`` file under ``root``.
+
+    Files are taken in path order, so the digest changes when a source file is changed,
+    added, removed or renamed, and not when only compiled caches or data files change.
+    """
+    h = hashlib.sha256()
+    for f in sorted(Path(root).rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0")
+        h.update(hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()
+
+
+@functools.cache
+def code_identity() -> dict:
+    """The code a run executes: roughvib's version and sources, and the numerical libraries.
+
+    Returns
+    -------
+    dict
+        ``roughvib`` (version), ``roughvib_sources`` (SHA-256 over the relative path and bytes
+        of every ``.py`` file of the installed package, in path order: a changed, added or
+        removed source file changes it, also between two commits of one version) and the
+        versions of numpy, scipy, numba and llvmlite (scikit-sundae's is added by
+        :func:`input_fingerprint` for IDA's checkpoints).
+    """
+    from importlib import import_module
+
+    from roughvib._version import __version__
+
+    out = {"roughvib": __version__,
+           "roughvib_sources": source_digest(Path(__file__).resolve().parents[1])}
+    for name in ("numpy", "scipy", "numba", "llvmlite"):
+        out[name] = import_module(name).__version__
+    return out
+
+
+def _sundae_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("scikit-sundae")
+    except PackageNotFoundError:
+        return "not installed"
+
+
 def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
-    """What a run depends on: the scene (its TOML text) and a roughness file's contents.
+    """What a run depends on: the scene (its TOML text), a roughness file's contents, the code.
 
     Parameters
     ----------
@@ -119,10 +168,13 @@ def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
     Returns
     -------
     dict
-        ``scene_sha256`` and, with a roughness file, ``roughness_file`` = ``{"path",
-        "sha256"}``.
+        ``scene_sha256``, ``code`` (:func:`code_identity`) and, with a roughness file,
+        ``roughness_file`` = ``{"path", "sha256"}``.
     """
-    out: dict = {"scene_sha256": _sha256(scene_toml.encode())}
+    code = dict(code_identity())
+    if "sksundae" in sys.modules:  # an IDA run
+        code["scikit-sundae"] = _sundae_version()
+    out: dict = {"scene_sha256": _sha256(scene_toml.encode()), "code": code}
     if profile_stats.get("sha256"):
         out["roughness_file"] = {"path": str(profile_stats["path"]),
                                  "sha256": profile_stats["sha256"]}
@@ -143,14 +195,33 @@ def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
     Raises
     ------
     SceneError
-        One line: the scene text is damaged, or the roughness file is missing, changed, or
-        was not recorded (a checkpoint of an older roughvib).
+        One line: the scene text is damaged; the code that wrote the checkpoint (roughvib's
+        version or sources, a numerical library's version) is not the code resuming it, or
+        was not recorded (an older roughvib); or the roughness file is missing, changed, or
+        was not recorded.
     """
     again = "start the run again without --resume"
     recorded = cp.inputs.get("scene_sha256")
     if recorded is not None and recorded != _sha256(cp.scene_toml.encode()):
         raise SceneError(f"{path}: the checkpoint's scene does not match its recorded SHA-256 "
                          f"(a damaged file); {again}")
+    then, now = cp.inputs.get("code"), dict(code_identity())
+    if then is None:
+        raise SceneError(f"{path}: the checkpoint does not record the code that wrote it (an "
+                         f"older roughvib), so the resumed run could mix the results of two "
+                         f"versions; {again}")
+    if "scikit-sundae" in then:  # IDA's checkpoint
+        now["scikit-sundae"] = _sundae_version()
+    changed = [k for k in sorted(set(then) | set(now)) if then.get(k) != now.get(k)]
+    if changed:
+        def show(v):
+            return "none" if v is None else (v[:12] + "..." if len(str(v)) > 16 else v)
+
+        what = ", ".join(f"{k} {show(then.get(k))} then, {show(now.get(k))} now"
+                         for k in changed)
+        raise SceneError(f"{path}: written by other code ({what}): the resumed run would mix "
+                         f"the results of two versions; resume with the code that wrote it or "
+                         f"{again}")
     if scene.roughness.kind != "file":
         return
     rec = cp.inputs.get("roughness_file")
