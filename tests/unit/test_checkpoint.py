@@ -175,6 +175,18 @@ def test_resume_refuses_a_checkpoint_of_other_code(tmp_path, capsys):
         resume(tmp_path)
     rewrite(recorded)  # the code that wrote it resumes it
     _assert_identical(a, resume(tmp_path))
+    # IDA's checkpoints also name scikit-sundae's version
+    from importlib.metadata import version
+
+    ida_dir = tmp_path / "ida"
+    assert simulate(scene.with_overrides({"solver.method": "ida"}), checkpoint_dir=ida_dir).ok
+    data = pickle.loads((ida_dir / CHECKPOINT_NAME).read_bytes())
+    code = data["checkpoint"].inputs["code"]
+    assert code == {**recorded, "scikit-sundae": version("scikit-sundae")}
+    data["checkpoint"].inputs["code"] = {**code, "scikit-sundae": "0.0"}
+    (ida_dir / CHECKPOINT_NAME).write_bytes(pickle.dumps(data))
+    with pytest.raises(SceneError, match="scikit-sundae 0.0 then"):
+        resume(ida_dir)
 
 
 def _cli(*args):

@@ -22,7 +22,6 @@ import functools
 import hashlib
 import os
 import pickle
-import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -154,7 +153,7 @@ def _sundae_version() -> str:
         return "not installed"
 
 
-def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
+def input_fingerprint(scene_toml: str, profile_stats: dict, *, ida: bool = False) -> dict:
     """What a run depends on: the scene (its TOML text), a roughness file's contents, the code.
 
     Parameters
@@ -164,6 +163,8 @@ def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
     profile_stats : dict
         ``Profile.stats`` of the run: ``path`` and ``sha256`` of the bytes read from a
         roughness file (absent for synthetic profiles).
+    ida : bool, optional
+        The checkpoint is IDA's: scikit-sundae's version is part of the code.
 
     Returns
     -------
@@ -172,7 +173,7 @@ def input_fingerprint(scene_toml: str, profile_stats: dict) -> dict:
         ``roughness_file`` = ``{"path", "sha256"}``.
     """
     code = dict(code_identity())
-    if "sksundae" in sys.modules:  # an IDA run
+    if ida:
         code["scikit-sundae"] = _sundae_version()
     out: dict = {"scene_sha256": _sha256(scene_toml.encode()), "code": code}
     if profile_stats.get("sha256"):
