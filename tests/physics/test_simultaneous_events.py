@@ -51,6 +51,17 @@ def test_in_phase_contacts_switch_together(runs, method):
     instant = np.cumsum(np.diff(td["time"].values, prepend=-1.0) > 1e-9)
     assert len(set(instant)) >= 2
     assert (td.groupby(instant)["contact"].nunique() == 3).all()
+    # and switches each contact once per instant: no contact switches back within round-off
+    # of its switch (before the fix of the refire rule IDA logged touch_down, lift_off,
+    # touch_down of one contact within 3e-16 s, its margin read -6e-19 m after closing)
+    sw = ev[ev["kind"].isin(["touch_down", "lift_off"])]
+    for c, g in sw.groupby("contact"):
+        t = g["time"].values
+        assert (np.diff(t) > 1e-9).all(), (c, g[["time", "kind"]])
+        assert (g["kind"].values[1:] != g["kind"].values[:-1]).all(), c
+    t_all = np.sort(sw["time"].values)
+    n_instants = int((np.diff(t_all, prepend=-1.0) > 1e-9).sum())
+    assert len(sw) == 3 * n_instants
 
 
 def test_ida_matches_adaptive_modal_on_in_phase_contacts(runs):

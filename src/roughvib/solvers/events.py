@@ -161,6 +161,9 @@ class EventBook:
     events: list[EventRecord] = field(default_factory=list)
     recent: collections.deque = field(default_factory=collections.deque)
     stats: collections.Counter = field(default_factory=collections.Counter)
+    #: root indices the latest :meth:`apply` switched: the fired ones and the contacts switched
+    #: at a zero margin
+    switched: set[int] = field(default_factory=set)
 
     def log_initial_phase(self, t: float, y: np.ndarray) -> None:
         """Log the friction phase the run starts in (see :func:`initial_phase_events`)."""
@@ -194,7 +197,10 @@ class EventBook:
         fr = system.scene.friction
         kinds = []
 
+        self.switched = set()
+
         def switch_root(idx: int) -> None:
+            self.switched.add(idx)
             for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
                              lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
                              fr.chatter_window):
