@@ -30,7 +30,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="roughvib", formatter_class=fmt,
         description="Roughness-induced vibration of a tangentially oscillating block on a "
-                    "plate (Feldmann 2012), solved event-driven with SUNDIALS IDA.",
+                    "plate (Feldmann 2012), solved event-driven: by default with the "
+                    "adaptive exact-modal scheme at reference accuracy (SUNDIALS IDA where "
+                    "that cannot run, or with --set solver.method=ida); 'run --verify' "
+                    "checks one against the other.",
         epilog="examples:\n  roughvib run\n  roughvib run paper-100mms --out runs/fast\n"
                "  roughvib scenes\n  roughvib events runs/paper\n"
                "  roughvib plot runs/paper --figure events\n"
