@@ -43,7 +43,8 @@ from pathlib import Path
 from roughvib.scene import SceneError
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
-__all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "RunDirectory",
+__all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "OutputWarning",
+           "RunDirectory",
            "holds_run", "remove_stale", "swap_into_place", "sync_tree"]
 
 #: the files of a saved run (``summary.json`` lists which of them the run wrote)
@@ -58,6 +59,10 @@ _INSIDE = ".roughvib"  # lock and staging directory inside the output directory 
 
 class OutputError(SceneError):
     """The output directory cannot be used; the message is one line (exit status 2)."""
+
+
+class OutputWarning(UserWarning):
+    """Something about the output directory the user should know; one line."""
 
 
 def _now() -> str:
@@ -75,6 +80,11 @@ class DirectoryLock:
     by a killed process does not block anybody. The file holds the holder's pid, host and
     start time, which a refused run names.
 
+    On a file system without ``flock`` (some network file systems) the lock falls back to a
+    claim file ``<lock>.held`` created exclusively (``O_EXCL``), and says so
+    (:class:`OutputWarning`). A claim left by a killed process on this host (its pid is gone)
+    is taken over; one from another host must be removed by hand, as the refusal says.
+
     Parameters
     ----------
     path : Path
@@ -90,6 +100,7 @@ class DirectoryLock:
         self.target = target
         self.what = what
         self._fd: int | None = None
+        self._claim: Path | None = None
 
     def acquire(self) -> DirectoryLock:
         """Take the lock or raise :class:`OutputError` naming the holder.
@@ -120,8 +131,15 @@ class DirectoryLock:
                     holder = os.read(fd, 500).decode(errors="replace").strip()
                     os.close(fd)
                     raise OutputError(self._busy(holder)) from None
-                except OSError:  # pragma: no cover - a filesystem without locks: go unlocked
-                    pass
+                except OSError as exc:  # a file system without flock: claim file instead
+                    self._fd = fd
+                    try:
+                        self._take_claim(exc)
+                    except BaseException:
+                        self._fd = None
+                        os.close(fd)
+                        raise
+                    return self
                 # the previous holder may have removed the file between our open and flock
                 try:
                     same = os.path.samestat(os.fstat(fd), os.stat(self.path))
@@ -131,10 +149,47 @@ class DirectoryLock:
                     os.close(fd)
                     continue
             os.ftruncate(fd, 0)
-            os.write(fd, f"pid {os.getpid()} on {socket.gethostname()} since {_now()}\n"
-                     .encode())
+            os.write(fd, self._holder_line())
             self._fd = fd
             return self
+
+    def _holder_line(self) -> bytes:
+        return f"pid {os.getpid()} on {socket.gethostname()} since {_now()}\n".encode()
+
+    def _take_claim(self, why: OSError) -> None:
+        """Hold the lock through an exclusively created claim file (no flock here)."""
+        import warnings
+
+        claim = self.path.with_name(self.path.name + ".held")
+        for _ in range(3):
+            try:
+                fd = os.open(claim, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                try:
+                    holder = claim.read_text(errors="replace").strip()
+                except FileNotFoundError:  # released in between: try again
+                    continue
+                if not _holder_gone(holder):
+                    raise OutputError(f"{self._busy(holder)} (no file locks on this file "
+                                      f"system; if no run is going on, remove {claim})"
+                                      ) from None
+                claim.unlink(missing_ok=True)  # its holder on this host has ended
+                continue
+            except OSError as exc:
+                raise OutputError(f"{self.target} cannot be used: {exc.strerror} ({claim})"
+                                  ) from None
+            try:
+                os.write(fd, self._holder_line())
+            finally:
+                os.close(fd)
+            self._claim = claim
+            warnings.warn(f"{self.path.parent} has no file locks ({why.strerror or why}): "
+                          f"{self.target} is locked by the claim file {claim} instead; a run "
+                          f"killed on another host leaves it behind", OutputWarning,
+                          stacklevel=3)
+            return
+        raise OutputError(f"{self.target} cannot be used: the claim file {claim} keeps "
+                          f"changing hands")
 
     def _busy(self, holder: str) -> str:
         return (f"{self.target} is in use by another {self.what} ({holder or 'holder unknown'}); "
@@ -145,6 +200,9 @@ class DirectoryLock:
         if self._fd is None:
             return
         try:
+            if self._claim is not None:
+                self._claim.unlink(missing_ok=True)
+                self._claim = None
             self.path.unlink(missing_ok=True)
         finally:
             os.close(self._fd)
@@ -155,6 +213,27 @@ class DirectoryLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
+
+
+def _holder_gone(holder: str) -> bool:
+    """Whether the process a holder line names (``pid N on HOST since ...``) has ended.
+
+    Only a holder on this host can be checked; any other (or an unreadable line) counts as
+    alive.
+    """
+    m = re.match(r"pid (\d+) on (\S+) ", holder + " ")
+    if not m or m.group(2) != socket.gethostname():
+        return False
+    pid = int(m.group(1))
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # exists, owned by someone else
+        return False
+    return False
 
 
 def _stale_pattern(prefix: str) -> re.Pattern:

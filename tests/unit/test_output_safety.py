@@ -361,6 +361,56 @@ def test_concurrent_runs_into_one_directory_are_refused(tmp_path, capsys):
     assert _value(out) == 2.0
 
 
+def test_without_file_locks_a_claim_file_locks_and_says_so(tmp_path, monkeypatch, capsys):
+    # some network file systems refuse flock: the lock must still hold, and say how
+    import errno
+    import fcntl
+    import warnings
+
+    def no_flock(fd, op):
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(fcntl, "flock", no_flock)
+    out = tmp_path / "run"
+    with pytest.warns(rd_mod.OutputWarning, match="has no file locks .No locks available.: "):
+        first = RunDirectory(out).open()
+    claim = tmp_path / ".run.lock.held"
+    try:
+        assert claim.read_text().startswith(f"pid {os.getpid()} on ")
+        with pytest.raises(OutputError) as info:  # a second run is refused, naming the holder
+            RunDirectory(out).open()
+        msg = str(info.value)
+        assert "\n" not in msg and f"(pid {os.getpid()} on " in msg
+        assert f"remove {claim}" in msg
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rd_mod.OutputWarning)
+            assert main(["run", "--out", str(out), *TINY]) == 2
+        assert "is in use by another roughvib run" in capsys.readouterr().err
+        _result(1.0).save(first)
+    finally:
+        first.close()
+    assert not claim.exists() and _dotfiles(tmp_path) == []  # released
+    # a claim left by a process of this host that has ended is taken over
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    import socket
+
+    claim.write_text(f"pid {gone.stdout.strip()} on {socket.gethostname()} since then\n")
+    with pytest.warns(rd_mod.OutputWarning):
+        _result(2.0).save(out)
+    assert _value(out) == 2.0 and not claim.exists()
+    # one from another host is not (its process cannot be checked from here)
+    claim.write_text("pid 1 on another-host since then\n")
+    with pytest.raises(OutputError, match="in use by another roughvib run .pid 1 on another-host"):
+        RunDirectory(out).open()
+    assert claim.exists()
+    # the command line shows the warning as one line
+    claim.unlink()
+    assert main(["run", "--out", str(out), *TINY]) == 0
+    err = capsys.readouterr().err
+    assert "roughvib: warning: " in err and "has no file locks" in err
+
+
 # --------------------------------------------------------------------------------------------
 # the command line: checks before any work, messages naming only files that exist
 # --------------------------------------------------------------------------------------------

@@ -89,12 +89,13 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import warnings
 
+    from roughvib.rundir import OutputWarning
     from roughvib.scene import ModelValidityWarning, SceneError
 
     shown = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, ModelValidityWarning):  # one line, like the errors
+        if issubclass(category, (ModelValidityWarning, OutputWarning)):  # one line
             print(f"roughvib: warning: {message}", file=sys.stderr)
         else:
             shown(message, category, filename, lineno, file, line)
