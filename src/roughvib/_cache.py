@@ -35,6 +35,7 @@ computed and nothing is read or written. Deleting the directory is always safe.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -48,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["CACHE_DIR_ENV", "CACHE_ENV", "MAX_BYTES", "array_digest", "cache_dir",
-           "cached_arrays", "cached_values", "code_fingerprint"]
+           "cached_arrays", "cached_values", "code_fingerprint", "library_versions"]
 
 #: environment variable that switches the cache off (``off``, ``0``, ``no``, ``false``)
 CACHE_ENV = "ROUGHVIB_CACHE"
@@ -110,11 +111,22 @@ def code_fingerprint(files: Iterable[str | os.PathLike]) -> dict | None:
             sources[p.name] = hashlib.sha256(p.read_bytes()).hexdigest()
     except OSError:
         return None
-    # the top-level packages only (numba has imported them all; scipy's alone costs ~30 ms)
-    libs = {name: import_module(name).__version__
-            for name in ("numpy", "scipy", "numba", "llvmlite")}
     return {"sources": sources, "python": platform.python_version(),
-            "platform": f"{sys.platform}-{platform.machine()}", **libs}
+            "platform": f"{sys.platform}-{platform.machine()}", **library_versions()}
+
+
+@functools.cache
+def library_versions() -> dict[str, str]:
+    """Versions of the numerical libraries whose change can change a computed number.
+
+    Returns
+    -------
+    dict of str to str
+        ``numpy``, ``scipy``, ``numba`` and ``llvmlite`` -> ``__version__`` (the top-level
+        packages only: numba has imported them all; scipy's submodules alone cost ~30 ms).
+    """
+    return {name: import_module(name).__version__
+            for name in ("numpy", "scipy", "numba", "llvmlite")}
 
 
 def array_digest(a: np.ndarray) -> str:

@@ -133,17 +133,15 @@ def code_identity() -> dict:
         versions of numpy, scipy, numba and llvmlite (scikit-sundae's is added by
         :func:`input_fingerprint` for IDA's checkpoints).
     """
-    from importlib import import_module
-
+    from roughvib._cache import library_versions
     from roughvib._version import __version__
 
-    out = {"roughvib": __version__,
-           "roughvib_sources": source_digest(Path(__file__).resolve().parents[1])}
-    for name in ("numpy", "scipy", "numba", "llvmlite"):
-        out[name] = import_module(name).__version__
-    return out
+    return {"roughvib": __version__,
+            "roughvib_sources": source_digest(Path(__file__).resolve().parents[1]),
+            **library_versions()}
 
 
+@functools.cache
 def _sundae_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
