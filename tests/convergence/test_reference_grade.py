@@ -54,8 +54,8 @@ def _measure(result, reference, scene):
                             transient=scene.output.transient)
 
 
-def test_two_independent_solvers_agree_to_a_tenth_of_the_contract(runs):
-    scene, _, am, ida = runs
+def _assert_converged_pair(scene, am, ida):
+    """The tight pair agrees to a tenth of every contract limit (the reference is trusted)."""
     assert scene.plate.max_frequency == 50e3
     assert ida.summary["solver"]["method"] == "ida"
     assert am.summary["solver"]["method"] == "adaptive-modal"
@@ -68,6 +68,11 @@ def test_two_independent_solvers_agree_to_a_tenth_of_the_contract(runs):
     for r in (am, ida):
         assert abs(r.summary["energy_audit"]["relative_residual"]) <= \
             0.1 * CONTRACT.energy_rel_residual
+
+
+def test_two_independent_solvers_agree_to_a_tenth_of_the_contract(runs):
+    scene, _, am, ida = runs
+    _assert_converged_pair(scene, am, ida)
 
 
 def test_the_default_run_meets_the_contract_in_every_band_to_50_khz(runs):
@@ -113,13 +118,8 @@ def runs_100mms():
 def test_paper_100mms_default_and_ida_reference_meet_the_contract(runs_100mms):
     # the louder scene: lift-off impacts put the high plate bands far above the quiet scene's
     scene, default, am, ida = runs_100mms
-    assert scene.plate.max_frequency == 50e3
     assert (am.events["kind"] == "lift_off").any()  # the window holds impacts
-    ref = _measure(ida, am, scene)  # the two tight solvers agree to a tenth of the contract
-    for body in ("block", "plate"):
-        assert abs(ref["bands"][body]["deviation_db"]) <= 0.1 * CONTRACT.band_db, body
-    assert ref["events"]["unmatched"] == 0 and ref["events"]["max_dt"] <= 0.1 * CONTRACT.event_dt
-    assert ref["velocity_rel_rms"] <= 0.1 * CONTRACT.velocity_rel_rms
+    _assert_converged_pair(scene, am, ida)
     acc = _measure(default, am, scene)
     assert acc["verdict"] == "pass", acc["failures"]
     assert default.summary["solver"]["method"] == "adaptive-modal"
