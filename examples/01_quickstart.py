@@ -12,7 +12,8 @@ import roughvib
 
 
 def main(out_dir: str = "runs/quickstart") -> roughvib.Result:
-    # the built-in paper scene (0.221 kg, 10 mm/s rms at 7 Hz, 10 contacts, modes to 50 kHz),
+    # the built-in paper scene (0.221 kg, 10 mm/s rms at 7 Hz, one contact point from
+    # the contact module, modes to 50 kHz),
     # shortened to 20 ms and with fewer plate modes so that it runs in seconds
     scene = roughvib.load_scene("paper", **{"output.duration": 0.02,
                                             "plate.max_frequency": 10e3,
