@@ -263,3 +263,15 @@ def test_octave_bands_and_labels():
 def test_bad_arguments_are_named(kwargs, match):
     with pytest.raises(ValueError, match=match):
         bands.band_levels(np.ones(100), 1e4, **kwargs)
+
+
+def test_bands_too_narrow_for_the_averaged_stretch_read_nan():
+    # B T < 4 reads NaN, as a band with fewer than 4 bins does in the FFT band sums: in
+    # 0.3 s the 20 Hz band (B = 4.6 Hz) is out, the 63 Hz band (B = 14.6 Hz) is in
+    fs = 1e4
+    x = _tone(63.0, fs, 0.4) + _tone(20.0, fs, 0.4)
+    r = bands.band_levels(x, fs, fmin=20.0, fmax=63.0, settle=0.1)
+    assert r.center_hz.tolist() == [20.0, 25.0, 31.5, 40.0, 50.0, 63.0]
+    bw_t = 0.3 * r.exact_hz * (G ** (1 / 6) - G ** (-1 / 6))
+    np.testing.assert_array_equal(np.isnan(r.level_db), bw_t < 4.0)
+    assert np.isnan(r.level_db[0]) and np.isfinite(r.level_db[-1])
