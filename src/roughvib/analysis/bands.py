@@ -92,9 +92,10 @@ _AA_RIPPLE_DB = 0.005
 _AA_STOP_DB = 90.0
 # relative tolerance on "upper edge <= fs/2": the edges carry round-off from 10**(x/10)
 _EDGE_RTOL = 1e-12
-# a band reads NaN unless its averaged stretch T and nominal bandwidth B give B T >= this:
-# the rule of the Hann-tapered FFT band sums (at least 4 bins of width 1/T per band)
 MIN_BANDWIDTH_TIME = 4.0
+"""Smallest product B T [-] of a band's nominal bandwidth B and the averaged duration T for
+which the band is given a level (else NaN): the rule of the Hann-tapered FFT band sums, at
+least 4 bins of width 1/T per band."""
 
 
 # --------------------------------------------------------------------------------------------
