@@ -396,6 +396,12 @@ def design_filter_bank(fs: float, *, fraction: int = 3, fmin: float = 20.0,
                       band_sos=tuple(sos), aa_sos=_aa_sos())
 
 
+@functools.lru_cache(maxsize=16)
+def _cached_bank(fs: float, fraction: int, fmin: float, fmax: float | None) -> FilterBank:
+    """:func:`design_filter_bank`, kept for repeated calls (private: never handed out)."""
+    return design_filter_bank(fs, fraction=fraction, fmin=fmin, fmax=fmax)
+
+
 # --------------------------------------------------------------------------------------------
 # band levels
 # --------------------------------------------------------------------------------------------
@@ -491,7 +497,7 @@ def band_levels(signal: ArrayLike, fs: float, *, fraction: int = 3, fmin: float 
     if x.ndim == 0 or x.shape[-1] < 2:
         raise ValueError(f"band levels need a signal of at least 2 samples along its last "
                          f"axis, got shape {x.shape}")
-    bank = design_filter_bank(fs, fraction=fraction, fmin=fmin, fmax=fmax)
+    bank = _cached_bank(float(fs), fraction, float(fmin), None if fmax is None else float(fmax))
     if method == "filter":
         ms = bank.mean_squares(x, settle=settle)
     else:
@@ -499,5 +505,5 @@ def band_levels(signal: ArrayLike, fs: float, *, fraction: int = 3, fmin: float 
         ms = _fft_mean_squares(x[..., skip:], fs, bank.lower_hz, bank.upper_hz)
     with np.errstate(divide="ignore", invalid="ignore"):
         lev = 10.0 * np.log10(ms / reference**2)
-    return BandLevels(center_hz=bank.center_hz, exact_hz=bank.exact_hz, level_db=lev,
-                      mean_square=ms, method=method)
+    return BandLevels(center_hz=bank.center_hz.copy(), exact_hz=bank.exact_hz.copy(),
+                      level_db=lev, mean_square=ms, method=method)
