@@ -205,7 +205,8 @@ def _resonance_and_bands(result) -> tuple[str, str]:
     fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
     bands = (f"<p class='note'>Band levels of an IEC 61260-1:2014 class 1 third-octave filter "
              f"bank, the filters run from t = 0 and their outputs averaged over "
-             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s. Total: block "
+             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands too narrow for the window, "
+             f"bandwidth × duration < 4, omitted). Total: block "
              f"{sp.total_db['block']:.1f} dB, plate "
              f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + frame_table(df, fmt))
     return res, bands
