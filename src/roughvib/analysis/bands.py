@@ -38,7 +38,8 @@ tones at the normative frequencies.
 Start-up
 --------
 A band filter rings in for a time of the order of its inverse bandwidth (the slowest pole of
-the 20 Hz third-octave band decays as exp(-7.2 t / s): 0.14 s per neper). The filters start
+the 20 Hz third-octave band decays as exp(-14 t / s): 0.071 s per neper; of the 63 Hz band,
+0.023 s). The filters start
 from the steady state of a constant input equal to the first sample
 (:func:`scipy.signal.sosfilt_zi`), so an offset does not ring; the signal's own onset does.
 ``settle`` [s] lets the samples before the analysis window drive the filters without being
