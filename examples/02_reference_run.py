@@ -40,8 +40,9 @@ ds = result.to_dataset()
 print(ds["plate_vertical_acceleration"].attrs["units"], ds.sizes)
 
 # %%
-# Block and plate accelerations over the run, and their third-octave spectra (Hann window).
-# With only 0.05 s from rest the spectra start at a few hundred hertz.
+# Block and plate accelerations over the run, and their third-octave spectra (IEC 61260-1
+# class 1 filter bank, docs: bands). With only 0.05 s from rest the spectra start at a few
+# hundred hertz.
 plot_acceleration(result)
 plot_spectra(result)
 plt.show()

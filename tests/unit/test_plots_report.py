@@ -442,3 +442,40 @@ def test_report_screenshot_in_headless_chromium(report, tmp_path):
     assert img.shape[0] >= 2000 and img.shape[1] >= 1100
     # a page that rendered text, tables and figures is not one flat colour
     assert float(np.std(img[..., :3])) > 0.02
+
+
+def _tone_result(block: np.ndarray, plate: np.ndarray, fs: float) -> Result:
+    """A Result that holds only the two accelerations (on a 1 s scene)."""
+    scene = Scene().with_overrides({"output.duration": 1.0})
+    ds = xr.Dataset({fd.ACCELERATIONS[0]: ("time", block), fd.ACCELERATIONS[1]: ("time", plate)},
+                    coords={"time": np.arange(block.size) / fs})
+    return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), {}, scene_to_toml(scene))
+
+
+def test_acceleration_spectra_filters_from_the_record_start_and_averages_over_the_window():
+    # a loud 100 Hz tone and a tone 120 dB below it at 10 kHz; the filter bank (run from
+    # t = 0, averaged over the window) reads both; filters started at the window would ring
+    # in on the loud tone's onset and bury the quiet one
+    fs = 1e5
+    t = np.arange(100_001) / fs
+    loud, quiet = 1.0, 1e-6
+    block = loud * np.sin(2 * np.pi * 100 * t + 0.5) + quiet * np.sin(2 * np.pi * 10e3 * t)
+    res = _tone_result(block, 0.5 * block, fs)
+    win = fd.analysis_window(res)
+    assert win.start > 0  # there is a run-in to settle the filters
+    sp = fd.acceleration_spectra(res)
+    assert sp.band_method == "filter"
+    i100 = int(np.argmin(abs(sp.centres - 100)))
+    i10k = int(np.argmin(abs(sp.centres - 10e3)))
+    expect = 20 * math.log10(quiet / math.sqrt(2) / 1e-6)
+    assert sp.band_db["block"][i100] == pytest.approx(expect + 120, abs=0.1)
+    assert sp.band_db["block"][i10k] == pytest.approx(expect, abs=0.2)
+    assert sp.band_db["plate"][i10k] == pytest.approx(expect - 20 * math.log10(2), abs=0.2)
+    from roughvib.analysis.bands import band_levels as bank_levels
+
+    cold = bank_levels(block[win], fs, fmax=50e3)  # the filters started at the window
+    assert cold.level_db[i10k] > expect + 20
+    # band_method="fft" is the Hann-tapered FFT band sum of the window
+    sf = fd.acceleration_spectra(res, band_method="fft")
+    np.testing.assert_array_equal(sf.band_db["block"],
+                                  fd.tapered_band_levels(block[win], fs)[1])

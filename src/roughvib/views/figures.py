@@ -348,8 +348,8 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
                  resolution: float = 25.0):
     """Acceleration spectra of block and plate (paper Fig. 14): third octaves and narrow band.
 
-    Band levels are from the Hann-tapered analysis window
-    (:func:`roughvib.analysis.figures_data.tapered_band_levels`), the narrow band is Welch
+    Band levels are those of the IEC 61260-1 class 1 filter bank averaged over the analysis
+    window (:func:`roughvib.analysis.figures_data.acceleration_spectra`), the narrow band is Welch
     (Hann, 50 % overlap, ``resolution``). The dashed line marks the spring-mass estimate of
     the contact resonance, sqrt(s/m)/2 pi.
 
@@ -391,7 +391,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
     axes[1].set_xlim(max(sp.frequency[1], 10.0), sp.frequency[-1])
     axes[0].set_ylabel("third-octave level [dB re 1e-6 m/s²]")
     axes[1].set_ylabel("PSD [dB re (1e-6 m/s²)²/Hz]")
-    axes[0].set_title(f"third-octave bands (Hann); dashed: sqrt(s/m)/2π = "
+    axes[0].set_title(f"third-octave bands (IEC 61260-1 filters); dashed: sqrt(s/m)/2π = "
                       f"{cr.spring_mass:.0f} Hz", fontsize=9)
     axes[1].set_title(f"narrow band, Welch Hann, Δf = {sp.resolution:.3g} Hz", fontsize=9)
     return axes
@@ -550,6 +550,6 @@ def plot_band_comparison(results, labels, *, ax: Axes | None = None,
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("third-octave level [dB re 1e-6 m/s²]")
     name = "block (mass)" if quantity == "block" else "plate"
-    ax.set_title(f"{name} acceleration, third octaves (Hann)", fontsize=9)
+    ax.set_title(f"{name} acceleration, third octaves (IEC 61260-1 filters)", fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     return ax

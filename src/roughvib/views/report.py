@@ -38,7 +38,8 @@ _CAPTIONS = {
     "acceleration": "Vertical acceleration (positive down) of block and plate over the "
                     "analysis window; grey: stick (paper Figs. 10/11).",
     "spectra": "Acceleration spectra of block and plate over the analysis window: "
-               "third-octave band levels of the Hann-tapered record and Welch narrow band, "
+               "third-octave band levels (IEC 61260-1 class 1 filter bank) and Welch "
+               "narrow band, "
                "dB re 1e-6 m/s² (paper Fig. 14).",
     "wavenumber": "Wavenumber spectra of the global roughness input profile and of the "
                   "stretch of it one contact crosses in the analysis window (paper Fig. 5).",
@@ -202,9 +203,11 @@ def _resonance_and_bands(result) -> tuple[str, str]:
                        "plate − block [dB]": (sp.band_db["plate"] - sp.band_db["block"])[ok]})
     fmt = {c: (lambda v: num(v, ".1f")) for c in df.columns[1:]}
     fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
-    bands = (f"<p class='note'>Hann-tapered whole-window band levels over "
-             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands with fewer than 4 FFT bins "
-             f"omitted). Total: block {sp.total_db['block']:.1f} dB, plate "
+    bands = (f"<p class='note'>Band levels of an IEC 61260-1:2014 class 1 third-octave filter "
+             f"bank, the filters run from t = 0 and their outputs averaged over "
+             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands too narrow for the window, "
+             f"bandwidth × duration < 4, omitted). Total: block "
+             f"{sp.total_db['block']:.1f} dB, plate "
              f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + frame_table(df, fmt))
     return res, bands
 
