@@ -10,9 +10,9 @@ block vertical acceleration) are reduced the same way:
   run's does (the run-in skipped), or at ``start``; a record too short for that gives its last
   window-length; a record shorter than the run's window gives its whole number of periods,
   and the run's window is cut to the same length.
-* **the same band method**: every band level here comes from :func:`_band_levels` (the one the
-  run's spectra use), so a difference between the two columns is a difference between the
-  signals, not between two estimators.
+* **the same band method**: every band level here comes from one private function,
+  ``_band_levels`` (the method of the run's spectra), so a difference between the two columns
+  is a difference between the signals, not between two estimators.
 
 The record and the run may have different sample rates. Each side gets the bands its own rate
 allows; a band present on one side only (above the lower Nyquist frequency), or with too few
@@ -164,10 +164,14 @@ class Validation:
         """One line: the overall difference, the bands compared and what was left out."""
         t = self.table
         worst = ""
-        if len(t):
-            i = int(np.argmax(np.abs(t["difference_db"].to_numpy())))
+        clear = (~t["at_noise_floor"].fillna(False).to_numpy(dtype=bool) if self.noise
+                 else np.ones(len(t), dtype=bool))
+        if clear.any():
+            d = np.where(clear, np.abs(t["difference_db"].to_numpy()), -1.0)
+            i = int(np.argmax(d))
             worst = (f", largest {t['difference_db'].iloc[i]:+.1f} dB at "
-                     f"{_hz(float(t['band_hz'].iloc[i]))}")
+                     f"{_hz(float(t['band_hz'].iloc[i]))}"
+                     f"{' (of the bands above the noise floor)' if self.noise else ''}")
         span = (f"{len(t)} bands {_hz(float(t['band_hz'].iloc[0]))}-"
                 f"{_hz(float(t['band_hz'].iloc[-1]))}" if len(t) else "no band")
         floor = ""
@@ -176,7 +180,8 @@ class Validation:
         out = ""
         if self.left_out:
             out = "; left out: " + ", ".join(f"{_hz(f)} ({why})" for f, why in self.left_out)
-        return (f"{self.signal} vs {self.record}: overall {self.overall_difference_db:+.2f} dB "
+        diff = round(self.overall_difference_db, 2) + 0.0  # no "-0.00"
+        return (f"{self.signal} vs {self.record}: overall {diff:+.2f} dB "
                 f"(measured {self.overall_measured_db:.1f}, simulated "
                 f"{self.overall_simulated_db:.1f} dB re 1e-6 m/s^2) over {span}{worst}"
                 f"{floor}{out}")

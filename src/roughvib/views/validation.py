@@ -71,7 +71,7 @@ def plot_validation(v: Validation, *, axes=None) -> list[Axes]:
     ax = axes[0]
     ax.step(f, t["simulated_db"], where="mid", color="C3", lw=1.6,
             label=f"simulated {v.signal}, total {v.overall_simulated_db:.1f} dB")
-    ax.step(f, t["measured_db"], where="mid", color="k", lw=1.0,
+    ax.step(f, t["measured_db"], where="mid", color="k", lw=1.0, ls=(0, (4, 2)),
             label=f"measured ({name}), total {v.overall_measured_db:.1f} dB")
     if v.noise:
         ax.step(f, t["noise_db"], where="mid", color="0.6", lw=0.8, ls="--",
@@ -81,13 +81,15 @@ def plot_validation(v: Validation, *, axes=None) -> list[Axes]:
             ax.plot(f[at], t["measured_db"].to_numpy()[at], "o", mfc="none", color="0.4",
                     ms=5, label=f"within {v.margin_db:g} dB of the floor")
     ax.set_ylabel("third-octave level [dB re 1e-6 m/s²]")
-    ax.set_title(f"third-octave bands: measured − simulated {v.overall_difference_db:+.1f} dB "
-                 f"overall", fontsize=9)
+    diff = round(v.overall_difference_db, 1) + 0.0  # no "-0.0"
+    ax.set_title(f"third-octave bands: measured − simulated {diff:+.1f} dB overall",
+                 fontsize=9)
     if len(f):
         ax.set_xlim(f[0] / 1.15, f[-1] * 1.15)
     ax = axes[1]
     ax.plot(v.frequency_run[1:], v.psd_run[1:], color="C3", lw=0.8, label="simulated")
-    ax.plot(v.frequency_record[1:], v.psd_record[1:], color="k", lw=0.5, label="measured")
+    ax.plot(v.frequency_record[1:], v.psd_record[1:], color="k", lw=0.5, ls=(0, (4, 2)),
+            label="measured")
     ax.set_ylabel("PSD [dB re (1e-6 m/s²)²/Hz]")
     df = v.frequency_record[1] - v.frequency_record[0]
     ax.set_title(f"narrow band, Welch Hann, Δf = {df:.3g} Hz; window {v.window_s:.3g} s",
