@@ -272,3 +272,21 @@ def test_export_csv_and_cli(run_dir, tmp_path):
                           "csv", "--binary"], capture_output=True, text=True, cwd=tmp_path,
                          timeout=300)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+
+
+def test_a_run_with_exports_is_replaced_as_a_whole(run_dir, tmp_path):
+    """export/ and validation/ are roughvib's own folders: the next run into the directory
+    replaces them with the rest (they belonged to the old run) instead of refusing."""
+    import shutil
+
+    from roughvib.results import load_result
+
+    d = tmp_path / "run"
+    shutil.copytree(run_dir, d)
+    export_run(d, "csv")
+    (d / "validation" / "lab").mkdir(parents=True)
+    load_result(d).save(d)  # no --overwrite needed
+    assert not (d / "export").exists() and not (d / "validation").exists()
+    (d / "notes.txt").write_text("mine")
+    with pytest.raises(Exception, match="notes.txt"):
+        load_result(d).save(d)
