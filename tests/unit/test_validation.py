@@ -216,3 +216,32 @@ def test_record_dataclass_refuses_nan_in_one_line():
     with pytest.raises(RecordError) as e:
         Record("lab/x.wav", np.array([0.0, np.nan, 1.0]), 1000.0, "m/s^2", "option", "c")
     assert "\n" not in str(e.value) and "lab/x.wav" in str(e.value)
+
+
+@pytest.mark.parametrize("kind", ["nan", "units"])
+def test_cli_refuses_nan_and_unknown_units_in_one_line(run, tmp_path, cli, kind):
+    d, result, x = run
+    t = np.arange(x.size) * 1e-5
+    y = x.copy()
+    unit = "furlong/s^2" if kind == "units" else "m/s^2"
+    if kind == "nan":
+        y[1234] = np.nan
+    p = tmp_path / f"lab_{kind}.csv"
+    np.savetxt(p, np.column_stack([t, y]), fmt="%.12g", delimiter=",",
+               header=f"time [s],plate [{unit}]", comments="")
+    proc = cli("validate", d, p, "--signal", "plate")
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("roughvib: error: ") and p.name in lines[0]
+    assert not (d / "validation").exists()
+
+
+def test_lab_commands_have_help_with_examples(capsys):
+    from roughvib.cli import build_parser
+
+    for cmd in ("validate", "export"):
+        with pytest.raises(SystemExit) as info:
+            build_parser().parse_args([cmd, "--help"])
+        assert info.value.code == 0
+        out = capsys.readouterr().out
+        assert "examples:" in out and f"roughvib {cmd} runs/paper" in out
