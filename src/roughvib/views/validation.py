@@ -178,6 +178,9 @@ def validate(run_dir: str | os.PathLike, files, *, signal: str = "plate",
     if isinstance(files, str | os.PathLike):
         files = [files]
     result = load_result(run_dir)
+    if not result.ok:
+        raise RecordError(f"{run_dir}: the run did not complete (status {result.status}); "
+                          f"there is nothing to compare a record with")
     noise_rec = None
     if noise is not None:
         noise_rec = read_record(noise, column=column, units=units, scale=scale)
