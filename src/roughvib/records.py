@@ -240,7 +240,9 @@ def _read_csv(path: Path, column, units) -> Record:
                 break
     if not lines:
         raise RecordError(f"{path}: no data in the file")
-    sep = next((s for s in (",", ";", "\t") if s in lines[-1][1]), None)
+    sep = next((s for s in (";", "\t", ",") if s in lines[-1][1]), None)
+    # semicolons with commas in the numbers: the decimal comma of European spreadsheets
+    decimal = "," if sep in (";", "\t") and "," in lines[-1][1] else "."
 
     def cells(line: str) -> list[str]:
         if sep is not None:
@@ -250,7 +252,7 @@ def _read_csv(path: Path, column, units) -> Record:
 
     def numeric(line: str) -> bool:
         try:
-            [float(c) for c in cells(line)]
+            [float(c.replace(decimal, ".")) for c in cells(line)]
             return True
         except ValueError:
             return False
@@ -260,7 +262,7 @@ def _read_csv(path: Path, column, units) -> Record:
     try:
         df = pd.read_csv(path, sep=sep if sep is not None else r"\s+", comment="#",
                          header=None, skiprows=skip, skipinitialspace=True,
-                         encoding="utf-8-sig")
+                         encoding="utf-8-sig", decimal=decimal)
     except (ValueError, pd.errors.ParserError) as exc:
         raise RecordError(f"{path}: not a readable CSV table ({exc})") from None
     if header is not None and len(header) != df.shape[1]:
@@ -449,11 +451,11 @@ def read_record(path: str | os.PathLike, *, column: str | int | None = None,
     path : path
         ``.csv``/``.txt``/``.tsv``/``.dat`` (a time column, named ``t`` or ``time`` or else
         the first, in s, ms or us, and value columns; comma, semicolon, tab or blank
-        separated; ``#`` comments; headers like ``acceleration [g]`` or ``plate (m/s^2)``
-        give the units), ``.wav`` (integer samples as fractions of full scale, float samples
-        as they are, times ``scale``), ``.uff``/``.unv`` (dataset 58, function type 1; units
-        from the ordinate units label) or ``.tdms`` (a channel with ``wf_increment``; units
-        from ``unit_string``).
+        separated, a decimal comma with semicolons or tabs; ``#`` comments; headers like
+        ``acceleration [g]`` or ``plate (m/s^2)`` give the units), ``.wav`` (integer samples
+        as fractions of full scale, float samples as they are, times ``scale``),
+        ``.uff``/``.unv`` (dataset 58, function type 1; units from the ordinate units label)
+        or ``.tdms`` (a channel with ``wf_increment``; units from ``unit_string``).
     column : str or int, optional
         The value column (CSV), channel (WAV, TDMS: ``group/channel`` or the channel name) or
         dataset (UFF: its ID line 1 or response entity name): a name, or a number counting

@@ -68,6 +68,16 @@ def test_csv_without_units_takes_the_option_and_refuses_without(tmp_path, record
     _one_line(e.value, "bare.txt")
 
 
+def test_csv_semicolons_and_decimal_commas(tmp_path, record):
+    t, x = record
+    p = tmp_path / "excel.csv"
+    rows = [f"{a:.15g};{b:.15g}".replace(".", ",") for a, b in zip(t, x / G_N, strict=True)]
+    p.write_text("Zeit (s);Beschleunigung (g)\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    r = read_record(p)
+    assert r.units == "g" and r.fs == pytest.approx(FS, rel=1e-12)
+    np.testing.assert_allclose(r.signal, x, rtol=1e-13, atol=1e-13)
+
+
 def test_csv_column_choice_by_name_and_number(tmp_path, record):
     t, x = record
     p = tmp_path / "two.csv"
