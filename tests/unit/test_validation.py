@@ -15,6 +15,7 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 from scipy.io import wavfile
 from scipy.signal import resample_poly
 
@@ -180,6 +181,15 @@ def test_validate_writes_the_files_and_the_report_lists_them(run, tmp_path, cli)
     html = validation_section(work)
     assert "lab.wav" in html and "+6.02" in html and "data:image/png;base64," in html
     assert validation_section(d) is None  # the untouched run has none
+    # the run report shows it (a bare result: no figures of its own to draw)
+    from roughvib.results import EVENT_COLUMNS, Result
+    from roughvib.views.report import build_report
+
+    bare = Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS),
+                  {"status": "failed", "scene": "paper"}, "")
+    page = build_report(bare, run_dir=work)
+    assert "Validation against measurements" in page and "lab.wav" in page
+    assert "Validation against measurements" not in build_report(bare, run_dir=d)
     # a block record against the plate's run is compared too, as asked, just differently
     vb = validate(work, [rec], signal="block", scale=10.0)[0]
     assert vb.signal == "block"
