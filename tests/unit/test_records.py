@@ -9,8 +9,6 @@ to the resolution of its format. The exports are read back with pyuff and scipy.
 
 import json
 import math
-import subprocess
-import sys
 import wave
 
 import numpy as np
@@ -260,15 +258,14 @@ def test_export_wav_float32_scale_in_name_and_sidecar(run_dir, tmp_path):
     assert r.units_from == "file"
 
 
-def test_export_csv_and_cli(run_dir, tmp_path):
+def test_export_csv_and_cli(run_dir, tmp_path, capsys, monkeypatch):
+    from roughvib.cli import main
     from roughvib.results import load_result
 
+    monkeypatch.chdir(tmp_path)
     ds = load_result(run_dir).dataset
-    proc = subprocess.run([sys.executable, "-m", "roughvib", "export", str(run_dir), "--format",
-                           "csv", "--out", str(tmp_path)], capture_output=True, text=True,
-                          cwd=tmp_path, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    path = tmp_path / proc.stdout.strip()
+    assert main(["export", str(run_dir), "--format", "csv", "--out", str(tmp_path)]) == 0
+    path = tmp_path / capsys.readouterr().out.strip()
     head = path.read_text().splitlines()[0]
     assert head == ("time [s],block_acceleration [m/s^2],plate_acceleration [m/s^2],"
                     "normal_force [N]")
@@ -278,10 +275,9 @@ def test_export_csv_and_cli(run_dir, tmp_path):
     r = read_record(path, column="block_acceleration")
     np.testing.assert_allclose(r.signal, ds["block_vertical_acceleration"].values, rtol=1e-11,
                                atol=1e-11 * float(np.max(np.abs(r.signal))))
-    bad = subprocess.run([sys.executable, "-m", "roughvib", "export", str(run_dir), "--format",
-                          "csv", "--binary"], capture_output=True, text=True, cwd=tmp_path,
-                         timeout=300)
-    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+    assert main(["export", str(run_dir), "--format", "csv", "--binary"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--binary" in err, err
 
 
 def test_a_run_with_exports_is_replaced_as_a_whole(run_dir, tmp_path):
