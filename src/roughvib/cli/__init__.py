@@ -13,7 +13,7 @@ import os
 import sys
 
 from roughvib._version import __version__
-from roughvib.cli import compare, report, results, run, surface, sweep
+from roughvib.cli import compare, lab, report, results, run, surface, sweep
 from roughvib.cli.args import EXIT_INPUT, EXIT_PIPE, InputError, Terminated, on_sigterm
 
 __all__ = ["build_parser", "main"]
@@ -40,7 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib compare paper --out runs/wp --budget 900\n"
                "  roughvib surface paper --out runs/paper-surface\n"
                "  roughvib report runs/paper\n"
-               "  roughvib sweep paper-velocity --out runs/velocity\n\n"
+               "  roughvib sweep paper-velocity --out runs/velocity\n"
+               "  roughvib validate runs/paper lab/plate.wav --signal plate --scale 50\n"
+               "  roughvib export runs/paper --format uff\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
                "(Ctrl-C), 141 output pipe closed, 143 terminated (SIGTERM)")
     p.add_argument("--version", action="version", version=f"roughvib {__version__}")
@@ -51,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     surface.add_parsers(sub)
     report.add_parsers(sub)
     sweep.add_parsers(sub)
+    lab.add_parsers(sub)
     return p
 
 

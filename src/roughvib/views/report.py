@@ -321,7 +321,7 @@ def _safe(fn, *args) -> str:
 
 
 def build_report(result, *, title: str | None = None, dpi: int = 90,
-                 noise_rms: float | None = None) -> str:
+                 noise_rms: float | None = None, run_dir: str | Path | None = None) -> str:
     """The report of a result as one HTML document (a string).
 
     Parameters
@@ -336,6 +336,9 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
         Resolution of the embedded PNG figures [dots per inch].
     noise_rms : float, optional
         Simulated accelerometer noise on the block in the spectra figure [m/s^2 rms].
+    run_dir : str or Path, optional
+        The run's directory: its validations against measurements (``validation/``,
+        ``roughvib validate``) get a section.
 
     Returns
     -------
@@ -374,6 +377,12 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
         sections.append(("phases", "Event phase table", _safe(_phase_section, result)))
         figs, _ = _figures_section(result, dpi, noise_rms)
         sections.append(("figures", "Figures", figs))
+    if run_dir is not None:  # measured records compared with this run (roughvib validate)
+        from roughvib.views.validation import validation_section
+
+        val = _safe(validation_section, run_dir)
+        if val:
+            sections.append(("validation", "Validation against measurements", val))
     sections.append(("scene", "Scene (resolved, repeatable)",
                      f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
     created = result.dataset.attrs.get("created", "")
@@ -416,7 +425,7 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
 
     result = load_result(result_dir, partial=True)
     path = Path(out) if out is not None else Path(result_dir) / "report.html"
-    text = build_report(result, dpi=dpi, noise_rms=noise_rms)
+    text = build_report(result, dpi=dpi, noise_rms=noise_rms, run_dir=result_dir)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(text, encoding="utf-8")
