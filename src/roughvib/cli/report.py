@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 
 from roughvib.cli.args import failed_run_note
 
@@ -46,10 +45,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def _summary_of(result_dir) -> dict:
-    import json
+    from roughvib.results import read_summary
 
-    try:
-        return json.loads((Path(result_dir) / "summary.json").read_text())
+    try:  # write_report has read and checked it
+        return read_summary(result_dir)
     except (OSError, ValueError):
         return {}
 
