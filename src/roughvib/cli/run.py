@@ -131,6 +131,33 @@ def _verify(result, scene, out_dir: Path, args: argparse.Namespace) -> None:
     result.save(out_dir, overwrite=args.overwrite)
 
 
+def _check_resumable(directory: Path) -> None:
+    """``--resume DIR``: refuse in one line, before the directory is touched, what cannot be
+    resumed: no directory, no checkpoint (an ended run, or user files), a checkpoint file that
+    is empty, foreign, truncated or of another format (the file is not unpickled here)."""
+    from roughvib.results import read_summary
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME, check_checkpoint_file
+
+    if not directory.is_dir():
+        raise InputError(f"--resume {directory}: no such directory (give the output directory "
+                         f"of a run that wrote checkpoints)")
+    cp = directory / CHECKPOINT_NAME
+    if not cp.exists():
+        try:
+            status = read_summary(directory).get("status")
+        except (OSError, ValueError):
+            status = None
+        if status is not None:
+            raise InputError(f"--resume {directory}: the run there has ended ({status}; a run "
+                             f"removes its checkpoint when it ends), there is nothing to "
+                             f"resume; run it again with 'roughvib run "
+                             f"{directory / 'scene.toml'}'")
+        raise InputError(f"--resume {directory}: no {CHECKPOINT_NAME} there, nothing to resume "
+                         f"(a run writes checkpoints into its output directory when "
+                         f"output.checkpoint_interval > 0 s)")
+    check_checkpoint_file(cp)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
@@ -147,6 +174,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
                              "--set or --out with it")
         out_dir = Path(args.resume)
+        _check_resumable(out_dir)
     else:
         scene = load_scene(args.scene or "paper", parse_sets(args.set))
         if args.no_progress:
