@@ -6,7 +6,7 @@ import argparse
 import math
 import sys
 
-from roughvib.cli.args import failed_run_note
+from roughvib.cli.args import failed_run_note, out_path
 
 __all__ = ["add_parsers", "cmd_report"]
 
@@ -32,7 +32,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from roughvib.views.report import write_report
 
     try:
-        path = write_report(args.dir, out=getattr(args, "out", None), dpi=dpi,
+        path = write_report(args.dir, out=out_path(getattr(args, "out", None)), dpi=dpi,
                             noise_rms=noise)
     except (FileNotFoundError, ValueError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)

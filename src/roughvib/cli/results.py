@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
-from roughvib.cli.args import EXIT_OK, InputError, failed_run_note
+from roughvib.cli.args import EXIT_OK, InputError, failed_run_note, out_path
 
 __all__ = ["add_parsers", "cmd_events", "cmd_plot"]
 
@@ -114,8 +114,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.figure not in FIGURES:
         raise InputError(f"--figure must be one of {', '.join(sorted(FIGURES))}, got "
                          f"{args.figure!r}")
+    given = out_path(args.out)
     r = _load(args.dir, "figure")
-    out = Path(args.out) if args.out else Path(args.dir) / "figures" / f"{args.figure}.png"
+    out = given or Path(args.dir) / "figures" / f"{args.figure}.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     save_figure(FIGURES[args.figure](r), out)
     print(out)

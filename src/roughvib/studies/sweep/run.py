@@ -203,9 +203,18 @@ def _local_dask():
     return dask.config.set(scheduler="synchronous")
 
 
+#: loggers of a worker process whose warnings are Dask's own bookkeeping when a sweep stops
+#: early (``Async instruction ... ended with CancelledError`` for each cancelled case); the
+#: sweep reports the interruption itself, in one line
+_WORKER_QUIET_LOGGERS = ("distributed.worker.state_machine", "distributed.worker")
+
+
 def _ignore_sigint() -> bool:
     """Run on the workers of a sweep's own LocalCluster: Ctrl-C in the terminal reaches the
-    whole process group; the client shuts the workers down, so they need not react."""
+    whole process group; the client shuts the workers down, so they need not react. Also
+    lowers the workers' logging of cancelled tasks to errors (:data:`_WORKER_QUIET_LOGGERS`)."""
+    for name in _WORKER_QUIET_LOGGERS:
+        logging.getLogger(name).setLevel(logging.ERROR)
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread of the worker process
