@@ -79,8 +79,10 @@ class RunData:
     scipy.sparse, scipy.special and scipy.fft, for xarray's duck-array checks), about half a
     second of a short run on the 2-core machine (docs/performance.md, "Fixed cost of a run").
     :meth:`to_dataset` gives the xarray.Dataset (``Result.dataset`` calls it on first use) and
-    :meth:`write_netcdf` writes the very file xarray's ``to_netcdf`` writes (tested group for
-    group, attribute for attribute and byte for byte).
+    :meth:`write_netcdf` writes it with h5netcdf's public API as a netCDF-4 file of the CF
+    conventions that ``xarray.open_dataset`` and :func:`load_result` read back to the same
+    Dataset (tested, also against the file ``to_netcdf`` writes, group for group and attribute
+    for attribute).
 
     Attributes
     ----------
@@ -122,6 +124,21 @@ class RunData:
             out.update(zip(dims, values.shape, strict=True))
         return out
 
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset) -> RunData | None:
+        """The arrays of a Dataset (variables in its order, coordinates, attributes), or None
+        if a variable is not numeric (integer or float) and so not one :meth:`write_netcdf`
+        writes."""
+        data = cls()
+        coords = set(ds.coords)
+        for name, var in ds.variables.items():
+            if var.dtype.kind not in "iuf":
+                return None
+            data.add(str(name), tuple(str(d) for d in var.dims), np.asarray(var.values),
+                     dict(var.attrs), coord=name in coords)
+        data.attrs = dict(ds.attrs)
+        return data
+
     def to_dataset(self) -> xr.Dataset:
         """The xarray.Dataset of these arrays (variables, coordinates and attributes)."""
         import xarray as xr
@@ -155,12 +172,15 @@ class RunData:
         return per_var, (" ".join(rest) if rest else None)
 
     def write_netcdf(self, path: str | os.PathLike, attrs: dict) -> None:
-        """Write the arrays as netCDF-4 (h5netcdf) with global attributes ``attrs``.
+        """Write the arrays as netCDF-4 with global attributes ``attrs`` (h5netcdf's public
+        API).
 
-        The file is the one ``to_dataset().assign_attrs(attrs).to_netcdf(path,
-        engine="h5netcdf")`` writes, in the same order (global attributes, dimensions,
-        variables): float variables carry a NaN ``_FillValue``, integer ones none, and the
-        data variables list their non-dimension coordinates in ``coordinates``.
+        The layout is CF's, as xarray decodes it: global attributes, dimensions, variables in
+        order; float variables carry a NaN ``_FillValue``, integer ones none, and the data
+        variables list their non-dimension coordinates in the ``coordinates`` attribute
+        (coordinates on no variable's dimensions in the global one). ``to_dataset()
+        .assign_attrs(attrs).to_netcdf(path, engine="h5netcdf")`` writes the same file
+        (tested).
         """
         import h5netcdf
 
@@ -244,26 +264,20 @@ def _write_events_csv(records: list, path: Path) -> None:
 
 
 def _write_netcdf(ds: xr.Dataset, path: Path) -> None:
-    """``ds.to_netcdf(path, engine="h5netcdf")`` without asking dask for its scheduler.
+    """Write a Dataset as ``result.nc`` / ``partial.nc``, through public APIs only.
 
-    ``to_netcdf`` looks up the active dask scheduler (importing ``dask.distributed`` and its
-    dependencies: about 0.4 s of a short run on the 2-core machine) to decide whether to close
-    the file between chunk writes, which only matters for dask arrays; ours are numpy arrays.
-    Writing through the same h5netcdf store with xarray's HDF5 lock gives the same file
-    (tested against ``to_netcdf``). With an xarray that no longer has these names, the public
-    ``to_netcdf`` is used.
+    A Dataset of numeric variables (every Dataset a run makes or :func:`load_result` reads)
+    goes through :meth:`RunData.from_dataset` and :meth:`RunData.write_netcdf` (h5netcdf's
+    public API): the same file as for a run that never built its Dataset, and no look-up of
+    the dask scheduler that ``to_netcdf`` makes (about 0.4 s of a short run, importing
+    ``dask.distributed``). Anything else (a Dataset with text, booleans or times, made by
+    hand) is written by ``Dataset.to_netcdf(engine="h5netcdf")``.
     """
-    try:
-        from xarray.backends import H5NetCDFStore
-        from xarray.backends.locks import HDF5_LOCK
-    except ImportError:  # pragma: no cover - another xarray layout
+    data = RunData.from_dataset(ds)
+    if data is None:
         ds.to_netcdf(path, engine="h5netcdf")
-        return
-    store = H5NetCDFStore.open(str(path), mode="w", lock=HDF5_LOCK)
-    try:
-        ds.dump_to_store(store, unlimited_dims=ds.encoding.get("unlimited_dims"))
-    finally:
-        store.close()
+    else:
+        data.write_netcdf(path, dict(ds.attrs))
 
 
 def _jsonable(obj: Any) -> Any:
@@ -397,8 +411,8 @@ class Result:
             attrs["run_id"] = run_id
             if isinstance(data, RunData):
                 data.write_netcdf(tmp / nc, attrs)
-            else:
-                ds = data.copy()
+            else:  # the Dataset was asked for (and may have been changed)
+                ds = data.copy(deep=False)
                 ds.attrs = attrs
                 _write_netcdf(ds, tmp / nc)
             names.append(nc)
