@@ -446,3 +446,26 @@ def test_a_sweep_stopped_by_sigterm_exits_143_with_one_line(tmp_path):
     assert err.strip().splitlines() == [
         f"roughvib: sweep terminated; completed cases are kept in {out}/cases, run the same "
         f"command again to resume"], err
+
+
+def test_a_sweep_case_with_an_edited_summary_is_damaged_and_runs_again(saved_run, tmp_path):
+    from roughvib.studies.sweep.run import _is_complete
+    from roughvib.studies.sweep.spec import CASES_DIR, load_sweep
+    from roughvib.studies.sweep.tables import collect_table
+
+    spec = load_sweep({"name": "two", "base": "paper",
+                       "grid": {"roughness.seed": [1, 2]}})
+    a, b = (c.name for c in spec.cases())
+    cases = tmp_path / CASES_DIR
+    cases.mkdir()
+    shutil.copytree(saved_run, cases / a)
+    shutil.copytree(saved_run, cases / b)
+    assert _is_complete(cases / a) and _is_complete(cases / b)
+    _edit_summary(cases / b, message="edited")
+    table = collect_table(spec, tmp_path).set_index("case")
+    assert table.loc[a, "status"] == "success"
+    assert table.loc[b, "status"] == "damaged"
+    assert "was changed after the run wrote it" in table.loc[b, "message"]
+    assert not _is_complete(cases / b)  # the next run of the sweep computes it again
+    (cases / b / "summary.json").write_text("[]")
+    assert collect_table(spec, tmp_path).set_index("case").loc[b, "status"] == "damaged"

@@ -223,12 +223,12 @@ def _ignore_sigint() -> bool:
 
 
 def _is_complete(case_dir: Path) -> bool:
-    from roughvib.results import check_run_files
+    from roughvib.results import check_run_files, read_summary
 
-    try:
-        summary = json.loads((case_dir / "summary.json").read_text())
+    try:  # an edited or foreign summary.json (RunDirectoryError) is run again
+        summary = read_summary(case_dir)
         check_run_files(case_dir, summary, hashes=False)  # sizes: cheap
-    except (OSError, ValueError):  # MixedRunError is a ValueError
+    except (OSError, ValueError):  # MixedRunError and RunDirectoryError are ValueErrors
         return False
     return summary.get("status") == SUCCESS and (case_dir / "result.nc").is_file()
 
