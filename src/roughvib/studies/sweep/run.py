@@ -110,10 +110,12 @@ def _complete_case(final: Path, name: str) -> dict[str, Any] | None:
 
 
 def _failure_summary(name: str, status: str, message: str) -> dict[str, Any]:
-    from roughvib.results import FORMAT_VERSION
+    """The summary.json of a case that failed before its run could write one (sealed with its
+    digest, as a run's own summary)."""
+    from roughvib.results import FORMAT_VERSION, seal_summary
 
-    return {"format_version": FORMAT_VERSION, "status": status, "message": message,
-            "scene": name, "solver": {}, "metrics": {}}
+    return seal_summary({"format_version": FORMAT_VERSION, "status": status,
+                         "message": message, "scene": name, "solver": {}, "metrics": {}})
 
 
 def _one_line(exc: BaseException) -> str:
