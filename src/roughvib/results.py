@@ -126,9 +126,19 @@ class RunData:
 
     @classmethod
     def from_dataset(cls, ds: xr.Dataset) -> RunData | None:
-        """The arrays of a Dataset (variables in its order, coordinates, attributes), or None
-        if a variable is not numeric (integer or float) and so not one :meth:`write_netcdf`
-        writes."""
+        """The arrays of a Dataset: its variables in its order, its coordinates and attributes.
+
+        Parameters
+        ----------
+        ds : xarray.Dataset
+            Any Dataset; its values are read into memory.
+
+        Returns
+        -------
+        RunData or None
+            None if a variable is not numeric (integer or float: text, booleans and times
+            are not what :meth:`write_netcdf` writes).
+        """
         data = cls()
         coords = set(ds.coords)
         for name, var in ds.variables.items():

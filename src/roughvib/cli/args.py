@@ -68,6 +68,17 @@ def out_path(value: str | None, option: str = "--out") -> Path | None:
     """The path of an ``--out`` option: None if not given, InputError if given empty.
 
     An empty value would otherwise fall back to the default directory unnoticed.
+
+    Parameters
+    ----------
+    value : str or None
+        The option's value as parsed.
+    option : str
+        The option's name, for the message.
+
+    Returns
+    -------
+    Path or None
     """
     if value is None:
         return None
