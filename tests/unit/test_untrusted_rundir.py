@@ -324,6 +324,7 @@ def test_small_cli_input_checks_refuse_in_one_line(tmp_path, monkeypatch, capsys
     monkeypatch.chdir(tmp_path)
     _refused(["run", *SHORT, "--workers", "3"], capsys, "--workers", "without --seeds")
     _refused(["run", *SHORT, "--out", ""], capsys, "--out must name a path, got ''")
+    _refused(["run", "--resume", ""], capsys, "--resume must name a path, got ''")
     _refused(["sweep", "paper-velocity", "--out", " "], capsys, "--out must name a path")
     _refused(["run", "--set", "output.duration=0.004\nplate.max_frequency=3000"], capsys,
              "--set takes one value on one line")

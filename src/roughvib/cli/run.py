@@ -175,6 +175,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
     out_path(args.out)  # an empty --out is refused, not taken for the default
+    out_path(args.resume, "--resume")  # and an empty --resume is not a new run
     if args.workers is not None and args.seeds is None:
         raise InputError(f"--workers sets the worker processes of an ensemble (--seeds N); a "
                          f"single run uses one process, got --workers {args.workers} without "
