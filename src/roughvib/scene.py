@@ -876,6 +876,10 @@ class Output:
             raise SceneError(f"{p}.step gives more than 2e7 output samples, got {self.step} s")
 
 
+#: longest scene description [characters]
+DESCRIPTION_MAX = 10_000
+
+
 @dataclass(frozen=True)
 class Scene:
     """A complete, validated simulation scene (SI units throughout).
@@ -889,7 +893,8 @@ class Scene:
         it must be a plain file name: 1 to 100 characters, no leading ``.``, no leading or
         trailing blank, no ``/`` or ``\\``, none of ``: * ? " < > |`` and no control character.
     description : str
-        One line about the scene.
+        About the scene, at most ``DESCRIPTION_MAX`` (10 000) characters (it is copied into
+        scene.toml and result.nc of every run).
     """
 
     name: str = "paper"
@@ -908,6 +913,9 @@ class Scene:
         _file_name("name", self.name)
         if not isinstance(self.description, str):
             raise SceneError(f"description must be a string, got {_fmt(self.description)}")
+        if len(self.description) > DESCRIPTION_MAX:
+            raise SceneError(f"description must have at most {DESCRIPTION_MAX} characters, got "
+                             f"{len(self.description)}")
         bx, by = self.plate.block_position
         hl, hw = self.block.length / 2, self.block.width / 2
         if bx - hl <= 0 or bx + hl >= self.plate.length or by - hw <= 0 or \

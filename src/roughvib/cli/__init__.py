@@ -14,7 +14,15 @@ import sys
 
 from roughvib._version import __version__
 from roughvib.cli import compare, lab, report, results, run, surface, sweep
-from roughvib.cli.args import EXIT_INPUT, EXIT_PIPE, InputError, Terminated, on_sigterm
+from roughvib.cli.args import (
+    EXIT_INPUT,
+    EXIT_INTERRUPT,
+    EXIT_PIPE,
+    EXIT_TERM,
+    InputError,
+    Terminated,
+    on_sigterm,
+)
 
 __all__ = ["build_parser", "main"]
 
@@ -124,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
               file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
+        return EXIT_TERM if isinstance(exc, Terminated) else EXIT_INTERRUPT
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
