@@ -26,7 +26,7 @@ from roughvib.analysis.validation import (
     validation_velocity_exponent,
 )
 from roughvib.records import Record, RecordError, export_run, read_record
-from roughvib.results import load_result
+from roughvib.results import SUMMARY_DIGEST, load_result, seal_summary
 from roughvib.views.validation import validate, validation_section
 
 DB2 = 20 * math.log10(2.0)  # 6.0206 dB
@@ -208,15 +208,16 @@ def test_validate_writes_the_files_and_the_report_lists_them(run, tmp_path, cli)
 
 def test_velocity_exponent_of_measured_and_simulated_levels(run, tmp_path, cli):
     """Two 'runs' whose friction velocities differ by a factor 2 (a copy of the run with its
-    v_rms doubled in summary.json), with records at 1x and 2x the signal: measured levels rise
-    6.02 dB per doubling, simulated ones 0."""
+    v_rms doubled in summary.json, sealed again), with records at 1x and 2x the signal:
+    measured levels rise 6.02 dB per doubling, simulated ones 0."""
     d, result, x = run
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(d, a)
     shutil.copytree(d, b)
     s = json.loads((b / "summary.json").read_text())
     s["metrics"]["block_tangential_velocity_rms"] *= 2
-    (b / "summary.json").write_text(json.dumps(s))
+    s.pop(SUMMARY_DIGEST)  # a run at twice the velocity: sealed as the run would seal it
+    (b / "summary.json").write_text(json.dumps(seal_summary(s)))
     ra = _wav(tmp_path / "va.wav", x, 100000, 10.0)
     rb = _wav(tmp_path / "vb.wav", 2 * x, 100000, 10.0)
     proc = cli("validate", a, ra, b, rb, "--signal", "plate", "--scale", 10)
