@@ -232,7 +232,7 @@ def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
              checkpoint_dir: str | os.PathLike | None = None, verify: bool = False,
-             _resume_from: Checkpoint | None = None) -> Result:
+             _resume_from: Checkpoint | None = None, _warn: bool = True) -> Result:
     """Run a scene and return its :class:`~roughvib.results.Result`.
 
     Parameters
@@ -266,7 +266,8 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     >>> result.to_dataset()["block_vertical_acceleration"]   # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
+    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene),
+                      warn=_warn)
     t_pre = time.perf_counter() - t0
     pilot = None
     if (scene.solver.atol_acceleration is None and _resume_from is None
@@ -478,9 +479,10 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
     vscene, label = verification_scene(scene)
     system = result.extra.get("system")
     t0 = time.perf_counter()
+    # the same scene but for its solver section: its validity warnings were the run's
     ref = simulate(vscene, progress=progress,
                    force_amplitude=result.summary.get("force_amplitude")
-                   if system is None or system.tangential else None)
+                   if system is None or system.tangential else None, _warn=False)
     info = {"method": ref.summary["solver"]["method"], "how": label,
             "settings": _tol_text(vscene.solver), "status": ref.status,
             "wall_time": time.perf_counter() - t0}
