@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import html
 import io
 import math
 import re
@@ -442,3 +443,40 @@ def test_report_screenshot_in_headless_chromium(report, tmp_path):
     assert img.shape[0] >= 2000 and img.shape[1] >= 1100
     # a page that rendered text, tables and figures is not one flat colour
     assert float(np.std(img[..., :3])) > 0.02
+
+
+def _kv_rows(html_text: str, section: str) -> list[tuple[str, str, str]]:
+    """The (quantity, value, unit) rows of the quantity/value/unit tables of one section."""
+    body = html_text.split(f"<section id='{section}'>", 1)[1].split("</section>", 1)[0]
+    cell = r"<td(?: class='key')?>(.*?)</td>"
+    return [tuple(html.unescape(c) for c in m.groups())
+            for m in re.finditer(rf"<tr>{cell}{cell}{cell}</tr>", body)]
+
+
+def _significant_digits(text: str) -> int:
+    mantissa = text.lstrip("-").split("e")[0].replace(".", "").lstrip("0")
+    return len(mantissa)
+
+
+def test_report_solver_statistics_read_as_labels_with_units(run, report):
+    result, _ = run
+    solver = result.summary["solver"]
+    text = report.read_text(encoding="utf-8")
+    rows = _kv_rows(text, "solver")
+    by_label = {q: (v, u) for q, v, u in rows}
+    assert len(rows) >= 10
+    for q, _, _ in rows:  # labels, not the summary's keys
+        assert "_" not in q, q
+    assert by_label["largest step taken"] == (f"{solver['largest_step']:.4g}", "s")
+    assert by_label["steps"] == (str(solver["steps"]), "")  # a count: whole, no unit
+    assert by_label["solver wall time"][1] == "s"
+    assert by_label["relative tolerance (rtol)"] == (f"{solver['rtol']:.4g}", "-")
+    for kind, n in result.summary["events_by_kind"].items():
+        assert by_label[f"events: {kind.replace('_', ' ')}"] == (str(n), "")
+    # every number of the report's quantity tables with at most 4 significant digits
+    for section in ("levels", "model", "solver", "energy"):
+        for q, v, _ in _kv_rows(text, section):
+            if re.fullmatch(r"-?\d+(\.\d+)?(e[-+]\d+)?", v) and ("." in v or "e" in v):
+                assert _significant_digits(v) <= 4, (section, q, v)
+    energy = {q for q, _, _ in _kv_rows(text, "energy")}
+    assert "dissipated by friction" in energy and all("_" not in q for q in energy)
