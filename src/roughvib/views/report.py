@@ -367,7 +367,8 @@ def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, li
             else:
                 fig = draw(result)
             try:
-                fig.tight_layout()
+                if fig.get_layout_engine() is None:  # FIGURES lay themselves out
+                    fig.tight_layout()
                 uri = figure_data_uri(fig, dpi=dpi)
             finally:
                 _plt().close(fig)
