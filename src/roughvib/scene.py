@@ -53,7 +53,7 @@ class ModelValidityWarning(UserWarning):
 
 
 def user_stacklevel() -> int:
-    """The ``stacklevel`` for :func:`warnings.warn` that names the first caller outside roughvib.
+    """The ``stacklevel`` for ``warnings.warn`` that names the first caller outside roughvib.
 
     A warning issued deep inside a run then points at the user's own line (``result =
     roughvib.simulate(scene)``) instead of an internal one, and Python's default filter shows
