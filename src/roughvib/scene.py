@@ -52,6 +52,31 @@ class ModelValidityWarning(UserWarning):
     issues it before its expensive work and lists it in ``summary["warnings"]``."""
 
 
+def user_stacklevel() -> int:
+    """The ``stacklevel`` for ``warnings.warn`` that names the first caller outside roughvib.
+
+    A warning issued deep inside a run then points at the user's own line (``result =
+    roughvib.simulate(scene)``) instead of an internal one, and Python's default filter shows
+    it once per such line.
+
+    Returns
+    -------
+    int
+        For a ``warnings.warn`` call in the function that calls this one (1 if that function
+        is not part of roughvib).
+    """
+    import os
+    import sys
+
+    root = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame = sys._getframe(1)  # the function that calls warnings.warn: level 1
+    level = 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(root):
+        frame = frame.f_back
+        level += 1
+    return level
+
+
 #: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
 MAX_CONTACTS = 200
 

@@ -270,13 +270,15 @@ def simulate(scene: Scene, *, progress: bool | None = None,
 
 def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | None,
               checkpoint_dir: str | os.PathLike | None, verify: bool,
-              resume_from: Checkpoint | None) -> Result:
+              resume_from: Checkpoint | None, warn: bool = True) -> Result:
     """:func:`simulate`, or with ``resume_from`` the continuation of a checkpoint
-    (:func:`resume`)."""
+    (:func:`resume`); ``warn=False`` keeps the scene's validity warnings quiet (a second solve
+    of a scene whose warnings the first one issued)."""
     if verify:
         check_verifiable(scene)
     t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
+    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene),
+                      warn=warn)
     t_pre = time.perf_counter() - t0
     pilot = None
     if (scene.solver.atol_acceleration is None and resume_from is None
@@ -506,9 +508,11 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
     vscene, label = verification_scene(scene)
     system = result.extra.get("system")
     t0 = time.perf_counter()
-    ref = simulate(vscene, progress=progress,
-                   force_amplitude=result.summary.get("force_amplitude")
-                   if system is None or system.tangential else None)
+    # the same scene but for its solver section: its validity warnings were the run's
+    ref = _simulate(vscene, progress=progress,
+                    force_amplitude=result.summary.get("force_amplitude")
+                    if system is None or system.tangential else None, checkpoint_dir=None,
+                    verify=False, resume_from=None, warn=False)
     info = {"method": ref.summary["solver"]["method"], "how": label,
             "settings": _tol_text(vscene.solver), "status": ref.status,
             "wall_time": time.perf_counter() - t0}

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import html
 import io
 import math
 import re
@@ -80,6 +81,9 @@ def test_figure_renders_with_units_on_every_axis(run, name):
     for ax in fig.axes:
         assert ax.has_data(), f"{name}: an empty axes"
         xl, yl = ax.get_xlabel(), ax.get_ylabel()
+        if not xl:  # a panel over a shared axis: the panel that shows it names it
+            xl = next(o.get_xlabel() for o in fig.axes if o is not ax and o.get_xlabel()
+                      and ax.get_shared_x_axes().joined(ax, o))
         assert UNIT.search(xl), f"{name}: x label without unit: {xl!r}"
         if not _categorical(ax.yaxis):
             assert UNIT.search(yl), f"{name}: y label without unit: {yl!r}"
@@ -479,3 +483,40 @@ def test_acceleration_spectra_filters_from_the_record_start_and_averages_over_th
     sf = fd.acceleration_spectra(res, band_method="fft")
     np.testing.assert_array_equal(sf.band_db["block"],
                                   fd.tapered_band_levels(block[win], fs)[1])
+
+
+def _kv_rows(html_text: str, section: str) -> list[tuple[str, str, str]]:
+    """The (quantity, value, unit) rows of the quantity/value/unit tables of one section."""
+    body = html_text.split(f"<section id='{section}'>", 1)[1].split("</section>", 1)[0]
+    cell = r"<td(?: class='key')?>(.*?)</td>"
+    return [tuple(html.unescape(c) for c in m.groups())
+            for m in re.finditer(rf"<tr>{cell}{cell}{cell}</tr>", body)]
+
+
+def _significant_digits(text: str) -> int:
+    mantissa = text.lstrip("-").split("e")[0].replace(".", "").lstrip("0")
+    return len(mantissa)
+
+
+def test_report_solver_statistics_read_as_labels_with_units(run, report):
+    result, _ = run
+    solver = result.summary["solver"]
+    text = report.read_text(encoding="utf-8")
+    rows = _kv_rows(text, "solver")
+    by_label = {q: (v, u) for q, v, u in rows}
+    assert len(rows) >= 10
+    for q, _, _ in rows:  # labels, not the summary's keys
+        assert "_" not in q, q
+    assert by_label["largest step taken"] == (f"{solver['largest_step']:.4g}", "s")
+    assert by_label["steps"] == (str(solver["steps"]), "")  # a count: whole, no unit
+    assert by_label["solver wall time"][1] == "s"
+    assert by_label["relative tolerance (rtol)"] == (f"{solver['rtol']:.4g}", "-")
+    for kind, n in result.summary["events_by_kind"].items():
+        assert by_label[f"events: {kind.replace('_', ' ')}"] == (str(n), "")
+    # every number of the report's quantity tables with at most 4 significant digits
+    for section in ("levels", "model", "solver", "energy"):
+        for q, v, _ in _kv_rows(text, section):
+            if re.fullmatch(r"-?\d+(\.\d+)?(e[-+]\d+)?", v) and ("." in v or "e" in v):
+                assert _significant_digits(v) <= 4, (section, q, v)
+    energy = {q for q, _, _ in _kv_rows(text, "energy")}
+    assert "dissipated by friction" in energy and all("_" not in q for q in energy)
