@@ -33,6 +33,32 @@ def exponent(n: list[float], cost: list[float]) -> float:
     return float(np.polyfit(np.log(n), np.log(cost), 1)[0])
 
 
+def plot(series: dict, scenes: list[str], path: str) -> None:
+    """Log-log figure of both series: ``series[(scene, 'modes'|'contacts')] = (n, cpu)``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.4), layout="constrained")
+    for ax, name in zip(axes, ("modes", "contacts"), strict=True):
+        for scene in scenes:
+            n, cpu = series[(scene, name)]
+            ax.loglog(n, cpu, "o-", label=f"{scene} (p = {exponent(n, cpu):.2f})")
+        ax.set_xticks(n)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_formatter(ScalarFormatter())
+            axis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("plate modes" if name == "modes" else "contact points")
+        ax.set_ylabel("solver CPU time [s]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title("modes (one contact point)", fontsize=9)
+    axes[1].set_title("contact points (modes to 50 kHz)", fontsize=9)
+    fig.savefig(path, dpi=110)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Solve the series, print the table and exponents, optionally save the figure."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -56,23 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     for (scene, name), (n, cpu) in series.items():
         print(f"{scene}: cost ~ {name}^{exponent(n, cpu):.2f}")
     if args.figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, axes = plt.subplots(1, 2, figsize=(8, 3.4), layout="constrained")
-        for ax, name in zip(axes, ("modes", "contacts"), strict=True):
-            for scene in args.scenes.split(","):
-                n, cpu = series[(scene, name)]
-                ax.loglog(n, cpu, "o-", label=f"{scene} (p = {exponent(n, cpu):.2f})")
-            ax.set_xlabel("plate modes" if name == "modes" else "contact points")
-            ax.set_ylabel("solver CPU time [s]")
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=8)
-        axes[0].set_title("modes (one contact point)", fontsize=9)
-        axes[1].set_title("contact points (modes to 50 kHz)", fontsize=9)
-        fig.savefig(args.figure, dpi=110)
+        plot(series, args.scenes.split(","), args.figure)
         print(f"figure: {args.figure}")
     return 0
 
