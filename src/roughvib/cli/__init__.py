@@ -13,7 +13,7 @@ import os
 import sys
 
 from roughvib._version import __version__
-from roughvib.cli import compare, report, results, run, surface, sweep
+from roughvib.cli import compare, modes, report, results, run, surface, sweep
 from roughvib.cli.args import EXIT_INPUT, EXIT_PIPE, InputError, Terminated, on_sigterm
 
 __all__ = ["build_parser", "main"]
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib plot runs/paper --figure events\n"
                "  roughvib compare paper --out runs/wp --budget 900\n"
                "  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib modes export paper plate.npz\n"
                "  roughvib report runs/paper\n"
                "  roughvib sweep paper-velocity --out runs/velocity\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
@@ -49,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     results.add_parsers(sub)
     compare.add_parsers(sub)
     surface.add_parsers(sub)
+    modes.add_parsers(sub)
     report.add_parsers(sub)
     sweep.add_parsers(sub)
     return p

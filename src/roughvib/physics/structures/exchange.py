@@ -212,7 +212,8 @@ def write_modes(path: str | Path, modes: ModeSet) -> Path:
     """Write a mode set to ``path``; the format follows the suffix (``.npz``, ``.unv``,
     ``.uff``).
 
-    The universal file stores numbers with about 12 significant digits (``.npz``: exactly).
+    The universal file's dataset 55 stores numbers with 6 significant digits (format E13.5:
+    a frequency to 5e-6 relative, a shape to 5e-6 of its value); ``.npz`` stores them exactly.
 
     Parameters
     ----------
@@ -239,8 +240,9 @@ def write_modes(path: str | Path, modes: ModeSet) -> Path:
         path.unlink()  # pyuff appends to an existing file
     uff = pyuff.UFF(str(path))
     num = np.arange(1, modes.nodes.shape[0] + 1)
-    sets = [pyuff.prepare_2411(node_nums=num, def_cs=np.ones(num.size), disp_cs=np.ones(num.size),
-                               color=np.ones(num.size), x=modes.nodes[:, 0],
+    sets = [pyuff.prepare_2411(node_nums=num, def_cs=np.ones(num.size, dtype=int),
+                               disp_cs=np.ones(num.size, dtype=int),
+                               color=np.ones(num.size, dtype=int), x=modes.nodes[:, 0],
                                y=modes.nodes[:, 1], z=np.zeros(num.size), return_full_dict=True)]
     zeta = (modes.damping_ratio if modes.damping_ratio is not None
             else np.zeros(len(modes)))
@@ -251,6 +253,6 @@ def write_modes(path: str | Path, modes: ModeSet) -> Path:
             model_type=1, analysis_type=2, data_ch=2, spec_data_type=8, data_type=2,
             n_data_per_node=3, r1=zero, r2=zero, r3=modes.shapes[r], node_nums=num,
             load_case=1, mode_n=r + 1, freq=float(modes.frequency[r]), modal_m=0.0,
-            modal_damp_vis=float(zeta[r]), modal_damp_his=0.0, return_full_dict=True))
+            modal_damp_vis=float(zeta[r]), modal_damp_his=0.0))
     uff.write_sets(sets, mode="add")
     return path
