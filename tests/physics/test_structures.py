@@ -241,3 +241,52 @@ def test_cli_modes_export(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert "must end in one of .npz, .unv, .uff" in err[0]
     assert "has no modes to export" in err[1]
+
+
+def test_area_patch_statics_match_the_area_mean_greens_function():
+    """Static equilibrium with contact.patch = "area": the mean plate deflection under the block
+    is m g times the area-mean of the exact static Green's function (Levy series, physics/
+    plate.py) over the footprint, by Gauss quadrature here: modes + patch residual together."""
+    from roughvib.model.system import GRAVITY, assemble
+    from roughvib.scene import load_scene
+
+    scene = load_scene("paper", {"contact.patch": "area", "plate.max_frequency": 2000.0,
+                                 "contact.points": 3, "contact.stiffness": 3.1e6,
+                                 "output.duration": 0.3})
+    system = assemble(scene)
+    y, _ = system.static_equilibrium()
+    q = y[system.layout.slice("plate.q")]
+    F = y[system.layout.slice("contact.force")]
+    w = system.phi.T @ q + system.cres @ F      # what every contact feels [m]
+    pts, wts = gauss_rectangle(scene.plate.block_position,
+                               (scene.block.length, scene.block.width), 10)
+    G = static_compliance(scene.plate, pts)
+    want = scene.block.mass * GRAVITY * (wts @ G @ wts)
+    np.testing.assert_allclose(w, want, rtol=2e-3)
+
+
+@pytest.mark.parametrize("method", [
+    "adaptive-modal", pytest.param("ida", marks=pytest.mark.slow),
+    pytest.param("exact-modal", marks=pytest.mark.slow),
+    pytest.param("paper", marks=pytest.mark.slow)])
+def test_every_solver_runs_imported_modes_with_an_area_patch(tmp_path, method):
+    """Every solver reads the same modal arrays: imported modes with the area patch run, and
+    the energy audit of the event-driven solvers closes."""
+    import warnings
+
+    import roughvib
+    from roughvib.scene import ModelValidityWarning, load_scene
+
+    small = Plate(max_frequency=2000.0)
+    write_modes(tmp_path / "m.npz", export_modes(small, grid=(41, 36)))
+    scene = load_scene("paper", {"plate.kind": "imported", "contact.patch": "area",
+                                 "plate.modes_file": str(tmp_path / "m.npz"),
+                                 "plate.max_frequency": 2000.0, "solver.method": method,
+                                 "output.duration": 0.01, "output.transient": 0.0})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelValidityWarning)
+        result = roughvib.simulate(scene, progress=False)
+    assert result.summary["status"] == "success"
+    assert result.summary["model"]["modes"] == len(plate_modes(small))
+    if method in ("ida", "adaptive-modal"):
+        assert abs(result.summary["energy_audit"]["relative_residual"]) < 1e-5
