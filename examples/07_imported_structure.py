@@ -52,12 +52,21 @@ X, Y = np.meshgrid(x, y, indexing="ij")
 nodes = np.column_stack([X.ravel(), Y.ravel()])
 shapes = np.array([beam_shape(br * nodes[:, 0], br * L) for br in beta]) / np.sqrt(mass)
 
-# check the normalisation: the modal mass int rho h phi^2 dA is 1 kg
+# check the normalisation: the modal mass int rho h phi^2 dA is 1 kg (trapezoidal rule)
 line = np.array([beam_shape(br * x, br * L) for br in beta]) / np.sqrt(mass)
 modal_mass = rho * h * b * np.sum(0.5 * (line[:, 1:] ** 2 + line[:, :-1] ** 2) * np.diff(x),
                                   axis=1)
 print("frequencies [Hz]:", np.round(frequency[:6], 1), "...")
 print("modal masses [kg]:", np.round(modal_mass[:6], 5), "...")
+
+fig, ax = plt.subplots(figsize=(8, 3))
+for r in range(4):
+    ax.plot(x, line[r], label=f"{frequency[r]:.0f} Hz")
+ax.axvspan(0.22, 0.26, color="0.85", label="block")
+ax.set_xlabel("x [m] (clamped at 0, free at 0.3)")
+ax.set_ylabel("shape [1/√kg]")
+ax.legend(loc="upper left", fontsize="small")
+fig.tight_layout()
 
 folder = Path(tempfile.mkdtemp())
 np.savez(folder / "strip.npz", frequency=frequency, nodes=nodes, shapes=shapes)

@@ -61,8 +61,8 @@ class System:
     warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
     #: how the contact was resolved: points, stiffness, their sources, selection, r1
     contact: dict = field(default_factory=dict)
-    #: (R,) largest |shape| of each mode over the structure [1/sqrt(kg)]: the displacement per
-    #: unit modal coordinate, which scales the modes' absolute tolerances
+    #: (R,) largest absolute shape value of each mode over the structure [1/sqrt(kg)]: the
+    #: displacement per unit modal coordinate, which scales the modes' absolute tolerances
     mode_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: (R, K) x-slopes of the shapes at the contacts (area means for contact.patch = "area")
     #: [1/(m sqrt(kg))], for a friction moment; no kernel reads them yet

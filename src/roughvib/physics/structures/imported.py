@@ -29,14 +29,14 @@ _POWERS = tuple((i, j) for i in range(4) for j in range(4 - i))  # x^i y^j, i + 
 
 
 class ImportedModes(Structure):
-    """Mass-normalised modes read from ``plate.modes_file`` (or given as a :class:`ModeSet`).
+    """Mass-normalised modes read from ``plate.modes_file`` (or given as a mode set).
 
     Parameters
     ----------
     plate : Plate
         ``max_frequency`` cuts the modes (those above it only feed the residual compliance),
         ``loss_factor`` gives zeta = loss_factor / 2 where the file has no damping ratios.
-    modes : ModeSet
+    modes : roughvib.physics.structures.exchange.ModeSet
         The file's content (:func:`~roughvib.physics.structures.exchange.read_modes`).
     source : str
         The file, for messages.
