@@ -290,3 +290,20 @@ def test_every_solver_runs_imported_modes_with_an_area_patch(tmp_path, method):
     assert result.summary["model"]["modes"] == len(plate_modes(small))
     if method in ("ida", "adaptive-modal"):
         assert abs(result.summary["energy_audit"]["relative_residual"]) < 1e-5
+
+
+@pytest.mark.parametrize("over, fragment", [
+    ({"contact.patch": "disc"}, "contact.patch must be one of 'point', 'area', got 'disc'"),
+    ({"plate.kind": "imported"}, "plate.modes_file must name a modes file"),
+    ({"plate.kind": "imported", "plate.modes_file": "nowhere.npz"},
+     "nowhere.npz' does not exist (relative paths are relative to the scene file)"),
+    ({"plate.kind": "imported", "plate.modes_file": "modes.csv"},
+     "modes.csv' must end in one of .npz, .unv, .uff"),
+])
+def test_bad_structure_keys_are_refused_in_one_line(tmp_path, over, fragment):
+    from roughvib.model.system import assemble
+    from roughvib.scene import load_scene
+
+    with pytest.raises(SceneError) as info:
+        assemble(load_scene("paper", over))
+    assert fragment in str(info.value) and "\n" not in str(info.value)
