@@ -20,7 +20,8 @@ from roughvib.scene import Plate
 __all__ = ["RigidBase", "SimplySupportedPlate", "PATCH_RESIDUAL_FACTOR"]
 
 #: the area-mean residual compliance of the plate sums the truncated modes up to this many
-#: times plate.max_frequency; the area means of the shapes fall off so fast that doubling it
+#: times the larger of plate.max_frequency and the frequency whose bending wavelength is the
+#: patch's smaller side; the area means fall off so fast above it that doubling the factor
 #: changes the sum by less than 1e-3 (tests/physics/test_structures.py)
 PATCH_RESIDUAL_FACTOR = 16.0
 
@@ -97,10 +98,15 @@ class SimplySupportedPlate(Structure):
     def patch_residual_compliance(self, centre: ArrayLike, size: ArrayLike,
                                   factor: float = PATCH_RESIDUAL_FACTOR) -> float:
         """The truncated modes' series sum psi_r^2 / (M omega_r^2) over the modes between
-        ``plate.max_frequency`` and ``factor`` times it (psi: the area mean of the unit
-        shape); the area means converge so fast that the rest is negligible (see
+        ``plate.max_frequency`` and ``factor`` times the larger of it and the frequency whose
+        bending wavelength equals the patch's smaller side (psi: the area mean of the unit
+        shape); above that the area means fall off so fast that the rest is negligible (see
         :data:`PATCH_RESIDUAL_FACTOR`)."""
-        full = plate_modes(self.plate, factor * self.plate.max_frequency)
+        # the area means fall off only above the frequency whose bending wavelength is the
+        # patch's smaller side: sum to factor times the larger of it and the cut
+        c = math.sqrt(self.plate.bending_stiffness / self.plate.mass_per_area)
+        f_patch = c * (2.0 * math.pi / min(size)) ** 2 / (2.0 * math.pi)
+        full = plate_modes(self.plate, factor * max(self.plate.max_frequency, f_patch))
         extra = full.omega > self.omega[-1] * (1.0 + 1e-12) if self.n_modes else slice(None)
         psi = self._patch_sin(full, centre, size)[extra]
         return float(np.sum(psi**2 / (full.modal_mass * full.omega[extra] ** 2)))
