@@ -156,6 +156,7 @@ def test_read_modes_sorts_by_frequency(tmp_path):
     ({"shapes": np.array([[1, 2, np.nan, 4.0], [0, 1, 0, 1.0]])},
      "shapes [1/sqrt(kg)] must be finite"),
     ({"nodes": np.ones((4, 3))}, "nodes [m] must have shape (N, 2)"),
+    ({"nodes": np.array([[0, 0], [1, 1], [2, 2], [3, 3.0]])}, "nodes [m] must span an area"),
     ({"damping_ratio": np.array([0.01, 1.5])}, "damping_ratio [-] must be in [0, 1)"),
     ({"frequency": None}, "missing frequency"),
 ])

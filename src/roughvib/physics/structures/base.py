@@ -14,6 +14,8 @@ from abc import ABC, abstractmethod
 import numpy as np
 from numpy.typing import ArrayLike
 
+from roughvib.scene import SceneError
+
 __all__ = ["Structure", "as_points", "check_frequencies", "gauss_rectangle"]
 
 
@@ -165,8 +167,6 @@ def check_frequencies(frequency: np.ndarray, where: str) -> None:
     SceneError
         Naming ``where`` (the file and array) and the first bad mode (1-based).
     """
-    from roughvib.scene import SceneError
-
     bad = np.flatnonzero(~np.isfinite(frequency) | (frequency <= 0.0))
     if bad.size:
         i = int(bad[0])

@@ -91,6 +91,9 @@ def validated(frequency, nodes, shapes, damping_ratio=None, *, where: str) -> Mo
         raise SceneError(f"{where}: nodes [m] must have shape (N, 2) (x, y), got {xy.shape}")
     if xy.shape[0] < 3:
         raise SceneError(f"{where}: nodes [m] must hold at least 3 nodes, got {xy.shape[0]}")
+    if np.linalg.matrix_rank(xy - xy.mean(axis=0), tol=1e-9 * float(np.ptp(xy))) < 2:
+        raise SceneError(f"{where}: nodes [m] must span an area of the plate (not all on one "
+                         f"line): interpolation needs nodes around every point")
     if f.size == 0:
         raise SceneError(f"{where}: frequency [Hz] must hold at least one mode, got none")
     if S.shape != (f.size, xy.shape[0]):
