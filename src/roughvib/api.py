@@ -14,6 +14,8 @@ from importlib import import_module
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the names and where they live (imported on first use, see __getattr__)
+    from roughvib.physics.structures import export_modes
+    from roughvib.physics.structures.exchange import read_modes, write_modes
     from roughvib.records import export_run, read_record
     from roughvib.results import Result, load_result
     from roughvib.scene import Scene, SceneError, builtin_scenes, load_scene
@@ -25,12 +27,15 @@ if TYPE_CHECKING:  # the names and where they live (imported on first use, see _
     from roughvib.views.validation import validate
 
 __all__ = ["Result", "Scene", "SceneError", "builtin_scenes", "builtin_sweeps", "energy_audit",
-           "export_run", "load_result", "load_scene", "load_sweep", "read_record", "resume",
-           "run_study", "run_sweep", "simulate", "sweep_report", "validate", "write_report",
-           "write_surface_report"]
+           "export_modes", "export_run", "load_result", "load_scene", "load_sweep", "read_modes",
+           "read_record", "resume", "run_study", "run_sweep", "simulate", "sweep_report",
+           "validate", "write_modes", "write_report", "write_surface_report"]
 
 _OWNER = {
     "Result": "roughvib.results", "load_result": "roughvib.results",
+    "export_modes": "roughvib.physics.structures",
+    "read_modes": "roughvib.physics.structures.exchange",
+    "write_modes": "roughvib.physics.structures.exchange",
     "Scene": "roughvib.scene", "SceneError": "roughvib.scene",
     "builtin_scenes": "roughvib.scene", "load_scene": "roughvib.scene",
     "energy_audit": "roughvib.simulation", "resume": "roughvib.simulation",

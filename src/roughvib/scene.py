@@ -249,12 +249,17 @@ class Block:
 
 @dataclass(frozen=True)
 class Plate:
-    """Simply supported Kirchhoff plate (``kind="modal"``) or an immovable base (``"rigid"``).
+    """The structure under the block: a simply supported Kirchhoff plate (``kind="modal"``),
+    an immovable base (``"rigid"``) or modes read from a file (``"imported"``).
 
     Attributes
     ----------
-    kind : {"modal", "rigid"}
-        ``rigid`` drops all plate states.
+    kind : {"modal", "rigid", "imported"}
+        Which structure component (``roughvib.physics.structures``): ``modal`` the simply
+        supported plate of the fields below; ``rigid`` drops all plate states; ``imported``
+        reads mass-normalised modes from ``modes_file`` (docs/structures.md), for which the
+        material fields are not used and ``loss_factor`` gives the damping of modes the file
+        gives none for.
     length, width, thickness : float
         a, b, h [m]. Sliding is along the plate length (x).
     youngs_modulus : float
@@ -273,6 +278,11 @@ class Plate:
         Plate coordinates of the plate accelerometer [m]; keep it away from the contacts.
     residual_compliance : bool
         Add the static compliance of the truncated modes at the contacts (docs/theory.md).
+        ``imported``: the static compliance of the file's modes above ``max_frequency``
+        (none if the file holds none).
+    modes_file : str
+        ``imported``: the modes file (``.npz``, or ``.unv``/``.uff`` universal file with
+        datasets 2411 and 55), relative to the scene file's folder (docs/structures.md).
     """
 
     kind: str = "modal"
@@ -287,9 +297,16 @@ class Plate:
     block_position: tuple[float, float] = (0.12, 0.11)
     observation_position: tuple[float, float] = (0.20, 0.08)
     residual_compliance: bool = True
+    modes_file: str = ""
 
     def __post_init__(self) -> None:
-        _set(self, "kind", _choice("plate.kind", self.kind, ("modal", "rigid")))
+        _set(self, "kind", _choice("plate.kind", self.kind, ("modal", "rigid", "imported")))
+        if not isinstance(self.modes_file, str):
+            raise SceneError(f"plate.modes_file must be a string (file path), got "
+                             f"{_fmt(self.modes_file)}")
+        if self.kind == "imported" and not self.modes_file:
+            raise SceneError("plate.modes_file must name a modes file (.npz, .unv, .uff) when "
+                             "plate.kind = 'imported', got ''")
         _set(self, "length", _positive("plate.length", self.length, "m"))
         _set(self, "width", _positive("plate.width", self.width, "m"))
         _set(self, "thickness", _positive("plate.thickness", self.thickness, "m"))
@@ -361,6 +378,11 @@ class Contact:
         Hardness of the softer surface [Pa], for the plasticity index.
     velocity_factor : bool
         Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
+    patch : {"point", "area"}
+        Where a contact meets the structure: ``point`` (default), at its own point under the
+        block; ``area``, every contact force is spread evenly over the block's nominal contact
+        area (``block.length`` x ``block.width``, centred at ``plate.block_position``) and
+        feels the area mean of the structure's displacement (docs/structures.md).
     """
 
     points: int | str = 10
@@ -373,8 +395,10 @@ class Contact:
     hardness: float = 3e9
     velocity_factor: bool = False
     selection: str = "separated"
+    patch: str = "point"
 
     def __post_init__(self) -> None:
+        _set(self, "patch", _choice("contact.patch", self.patch, ("point", "area")))
         if isinstance(self.points, str):
             _choice("contact.points", self.points, ("auto",))
         else:

@@ -43,7 +43,8 @@ def test_scenes_command_lists_builtins(capsys):
 def test_every_command_has_help_with_an_example(capsys):
     for cmd in (["--help"], ["run", "--help"], ["scenes", "--help"], ["events", "--help"],
                 ["plot", "--help"], ["compare", "--help"], ["surface", "--help"],
-                ["report", "--help"], ["sweep", "--help"], ["sweep-report", "--help"]):
+                ["report", "--help"], ["sweep", "--help"], ["sweep-report", "--help"],
+                ["modes", "--help"], ["modes", "export", "--help"]):
         with pytest.raises(SystemExit) as info:
             main(cmd)
         assert info.value.code == 0

@@ -30,11 +30,11 @@ TINY = ["--set", "output.duration=0.005", "--set", "plate.max_frequency=2000", "
 
 @pytest.fixture
 def nothing_expensive(monkeypatch):
-    """Fail the test if assembly gets to the plate modes or the T0 calibration."""
+    """Fail the test if assembly gets to the structure (plate modes) or the T0 calibration."""
     def expensive(*a, **k):
         raise AssertionError("expensive work started before every input check")
 
-    monkeypatch.setattr(system_mod, "plate_modes", expensive)
+    monkeypatch.setattr(system_mod, "build_structure", expensive)
     monkeypatch.setattr(system_mod, "calibrated_force_amplitude", expensive)
 
 

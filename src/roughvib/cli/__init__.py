@@ -13,7 +13,7 @@ import os
 import sys
 
 from roughvib._version import __version__
-from roughvib.cli import compare, lab, report, results, run, surface, sweep
+from roughvib.cli import compare, lab, modes, report, results, run, surface, sweep
 from roughvib.cli.args import (
     EXIT_INPUT,
     EXIT_INTERRUPT,
@@ -47,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib plot runs/paper --figure events\n"
                "  roughvib compare paper --out runs/wp --budget 900\n"
                "  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib modes export paper plate.npz\n"
                "  roughvib report runs/paper\n"
                "  roughvib sweep paper-velocity --out runs/velocity\n"
                "  roughvib validate runs/paper lab/plate.wav --signal plate --scale 50\n"
@@ -59,6 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     results.add_parsers(sub)
     compare.add_parsers(sub)
     surface.add_parsers(sub)
+    modes.add_parsers(sub)
     report.add_parsers(sub)
     sweep.add_parsers(sub)
     lab.add_parsers(sub)

@@ -1,7 +1,10 @@
 """Assemble a scene into a :class:`.System`: flat kernel arrays, regimes, consistent states.
 
-``assemble(scene)`` runs the preprocessing once (roughness profile, contact points, plate
-modes, residual compliance, T0 calibration) and packs everything the numba kernels need.
+``assemble(scene)`` runs the preprocessing once (roughness profile, contact points, the
+structure's modes at the contacts and their residual compliance, T0 calibration) and packs
+everything the numba kernels need. The structure is a component
+(:mod:`roughvib.physics.structures`, chosen by ``plate.kind``); its shapes are mass-normalised,
+so the kernels' modal mass ``fp[FP_MMODAL]`` is 1 kg for every structure.
 The ``System`` also knows the model's algebra that the event-driven solver needs between
 smooth segments: static equilibrium (the initial state), the consistent algebraic forces and
 derivatives after a regime switch, and the stored energy for the energy audit.
@@ -20,7 +23,7 @@ from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import calibrated_force_amplitude
-from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residual_compliance
+from roughvib.physics.structures import Structure, build_structure
 from roughvib.physics.surface.contact import contact_layout
 from roughvib.physics.surface.interp import cached_coefficients
 from roughvib.physics.surface.roughness import Profile, build_profile
@@ -48,7 +51,7 @@ class System:
     profile: Profile
     contact_s: np.ndarray          # (K,) profile coordinates of the contacts at x = 0 [m]
     contact_xy: np.ndarray         # (K, 2) plate coordinates of the contacts [m]
-    modes: PlateModes | None
+    structure: Structure           # the structure component (plate.kind)
     force_amplitude: float         # T0 [N] (calibrated or given)
     calibration: dict
     off: np.ndarray
@@ -64,6 +67,12 @@ class System:
     warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
     #: how the contact was resolved: points, stiffness, their sources, selection, r1
     contact: dict = field(default_factory=dict)
+    #: (R,) largest absolute shape value of each mode over the structure [1/sqrt(kg)]: the
+    #: displacement per unit modal coordinate, which scales the modes' absolute tolerances
+    mode_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: (R, K) x-slopes of the shapes at the contacts (area means for contact.patch = "area")
+    #: [1/(m sqrt(kg))], for a friction moment; no kernel reads them yet
+    phi_dx: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
 
     # ---- sizes -----------------------------------------------------------------------
     @property
@@ -403,26 +412,26 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     x0, y0 = plt.block_position
     contact_xy = np.column_stack([x0 + (spos - profile.s_centre), np.full(K, y0)])
 
-    if plt.kind == "modal":
-        modes = plate_modes(plt)
-        phi = np.ascontiguousarray(mode_shapes(modes, contact_xy[:, 0], contact_xy[:, 1]))
-        phi_obs = np.ascontiguousarray(
-            mode_shapes(modes, np.array([plt.observation_position[0]]),
-                        np.array([plt.observation_position[1]]))[:, 0])
-        omega2 = modes.omega**2
-        cdamp = 2.0 * modes.damping_ratio * modes.omega
-        mmodal = modes.modal_mass
-        cres = (np.ascontiguousarray(residual_compliance(plt, modes, contact_xy))
-                if plt.residual_compliance else np.zeros((K, K)))
-        cres = 0.5 * (cres + cres.T)
+    structure = build_structure(plt, scene.base_dir)
+    obs = np.array([plt.observation_position])
+    if scene.contact.patch == "area":
+        # every contact force spread evenly over the block's nominal contact area, which stays
+        # centred at plate.block_position (the contacts hold their plate points)
+        patch = ((x0, y0), (blk.length, blk.width))
+        psi = structure.patch_shapes(*patch)
+        phi = np.repeat(psi[:, None], K, axis=1)
+        phi_dx = np.repeat(structure.patch_slopes(*patch)[:, None], K, axis=1)
+        c = structure.patch_residual_compliance(*patch) if plt.residual_compliance else None
+        cres = np.full((K, K), 0.0 if c is None else c)
     else:
-        modes = None
-        phi = np.zeros((0, K))
-        phi_obs = np.zeros(0)
-        omega2 = np.zeros(0)
-        cdamp = np.zeros(0)
-        mmodal = 1.0
-        cres = np.zeros((K, K))
+        phi = structure.shapes(contact_xy)
+        phi_dx = structure.slopes(contact_xy)
+        c = structure.residual_compliance(contact_xy) if plt.residual_compliance else None
+        cres = np.zeros((K, K)) if c is None else 0.5 * (c + c.T)
+    phi = np.ascontiguousarray(phi, dtype=float)
+    phi_obs = np.ascontiguousarray(structure.shapes(obs)[:, 0], dtype=float)
+    omega2 = structure.omega**2
+    cdamp = 2.0 * structure.damping_ratio * structure.omega
     R = phi.shape[0]
     layout = StateLayout(R, K, tangential, friction_state=tangential and fr.law == "coulomb")
 
@@ -468,7 +477,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_PV] = exc.velocity if not tangential else 0.0
     fp[kn.FP_PA] = exc.amplitude if not tangential else 0.0
     fp[kn.FP_PW] = exc.omega
-    fp[kn.FP_MMODAL] = mmodal
+    fp[kn.FP_MMODAL] = 1.0  # mass-normalised shapes (physics/structures)
     fp[kn.FP_S0] = profile.s0
     fp[kn.FP_DX] = profile.dx
     fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
@@ -476,11 +485,14 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
 
     return System(
         scene=scene, layout=layout, profile=profile, contact_s=spos, contact_xy=contact_xy,
-        modes=modes, force_amplitude=T0, calibration=calibration, off=layout.offsets(), fp=fp,
+        structure=structure, force_amplitude=T0, calibration=calibration,
+        off=layout.offsets(), fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
         work=np.zeros(5 * K + 8), warnings=notes,
         contact={**cl.as_dict(), "vertical_damping": r1},
+        mode_scale=np.asarray(structure.max_shape(), dtype=float),
+        phi_dx=np.ascontiguousarray(phi_dx, dtype=float),
     )
 
 

@@ -190,15 +190,19 @@ class _IdaCounters:
 
 
 def _atol_vector(system: System) -> np.ndarray:
-    """Per-component absolute tolerances scaled from solver.atol (a displacement, m)."""
+    """Per-component absolute tolerances scaled from solver.atol (a displacement, m).
+
+    A mode's tolerances are those of the structure's largest displacement in it, converted to
+    the modal coordinate by ``system.mode_scale`` (mass-normalised shapes: q in m sqrt(kg)).
+    """
     lay = system.layout
     a = system.scene.solver.atol
     atol = np.full(lay.size, np.nan)
     if system.n_modes:
         omega = np.sqrt(system.omega2)
         acc = system.scene.solver.atol_acceleration
-        atol[lay.slice("plate.q")] = np.minimum(a, acc / system.omega2)
-        atol[lay.slice("plate.dq")] = np.minimum(a * omega, acc / omega)
+        atol[lay.slice("plate.q")] = np.minimum(a, acc / system.omega2) / system.mode_scale
+        atol[lay.slice("plate.dq")] = np.minimum(a * omega, acc / omega) / system.mode_scale
     atol[lay.index("block.z")] = a
     atol[lay.index("block.vz")] = a * 2 * np.pi * 1e3
     if lay.tangential:
@@ -250,7 +254,8 @@ def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, fl
          + float(np.max(np.abs(system.profile.z), initial=0.0)))
     floors = {"atol": (ATOL_FLOOR_ULPS * eps * L, L)}
     if system.n_modes:
-        u = float(np.max(np.abs(system.phi @ F))) / system.fp[kn.FP_MMODAL]
+        # modal force per unit modal mass, as the structure's largest acceleration [m/s^2]
+        u = float(np.max(np.abs((system.phi @ F) * system.mode_scale)))
         floors["atol_acceleration"] = (eps * u, u)
     return floors
 

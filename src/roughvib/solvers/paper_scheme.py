@@ -206,9 +206,9 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
         raise SceneError("solver.method = 'paper' supports friction.law = 'feldmann' only, "
                          "got 'coulomb'")
     if system.n_modes == 0:
-        if scene.plate.kind != "modal":
-            raise SceneError("solver.method = 'paper' needs plate.kind = 'modal' (the plate is "
-                             "its impulse response), got 'rigid'")
+        if scene.plate.kind == "rigid":
+            raise SceneError("solver.method = 'paper' needs a structure with modes (the plate "
+                             "is its impulse response), got plate.kind = 'rigid'")
         raise SceneError(f"solver.method = 'paper' needs at least one plate mode below "
                          f"plate.max_frequency (the plate is its impulse response), got "
                          f"{scene.plate.max_frequency} Hz")
