@@ -9,6 +9,8 @@ T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 ``events.csv`` the event log
 ``summary.json`` statistics and metrics, the run id and the size and SHA-256 of every other file
 ``scene.toml`` the fully resolved scene (repeatable run)
+``radiation.csv`` with ``output.radiation``: band levels of the radiated sound
+(docs/radiation.md); in ``Result.extra["radiation"]`` as a table
 
 atomically for the run as a whole: everything is written into a staging directory next to the
 output directory and renamed into place when complete (:mod:`roughvib.rundir` has the rules of
@@ -41,8 +43,8 @@ if TYPE_CHECKING:
 # a run builds its Result from plain arrays and event records and writes its files without
 # them (RunData, _write_events_csv)
 
-__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
-           "RunData", "VARIABLES", "check_run_files", "load_result"]
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "RADIATION_FILE", "REGIME_NOTATION",
+           "Result", "RunData", "VARIABLES", "check_run_files", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -68,6 +70,11 @@ EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "ma
 _TEXT_COLUMNS = ("kind", "regime_before", "regime_after")
 
 FORMAT_VERSION = 1
+
+#: the radiated-sound table of a run with ``output.radiation`` (columns band_hz [Hz, nominal
+#: third-octave centre], sound_power_db [dB re 1 pW], mean_square_velocity_db [dB re
+#: (1e-9 m/s)^2, space average over the plate], radiation_efficiency_db [dB re 1])
+RADIATION_FILE = "radiation.csv"
 
 
 class RunData:
@@ -410,6 +417,10 @@ class Result:
                 ev["contact"] = ev["contact"].astype("Int64")
                 ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
             names.append("events.csv")
+        radiation = self.extra.get("radiation")
+        if self.ok and radiation is not None:  # output.radiation: the band table
+            radiation.to_csv(tmp / RADIATION_FILE, index=False, float_format="%.6g")
+            names.append(RADIATION_FILE)
         self.summary["run_id"] = run_id
         self.summary["files"] = {n: _file_info(tmp / n) for n in names}
         (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2),
@@ -513,6 +524,16 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
     ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
     if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
-        return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
+        return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml,
+                      extra=_extra_tables(d, summary))
     ev = pd.read_csv(d / "events.csv", dtype={"contact": "Int64"})
-    return Result(ds, ev, summary, scene_toml)
+    return Result(ds, ev, summary, scene_toml, extra=_extra_tables(d, summary))
+
+
+def _extra_tables(d: Path, summary: dict) -> dict:
+    """The optional tables of a run directory that ``summary.json`` lists."""
+    if RADIATION_FILE not in summary.get("files", {}):
+        return {}
+    import pandas as pd
+
+    return {"radiation": pd.read_csv(d / RADIATION_FILE)}
