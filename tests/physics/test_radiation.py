@@ -159,8 +159,9 @@ def test_modal_sum_of_large_damped_plate_tends_to_infinite_plate():
     assert 0 < d06 < d03  # which falls with the damping (measured +0.80 dB at eta = 0.3)
 
 
-def test_modal_response_of_a_harmonic_force_is_the_frequency_response():
-    plate = Plate(loss_factor=0.2, max_frequency=2000.0)
+@pytest.mark.parametrize("loss_factor", [0.2, 2.0])  # 2.0: critically damped modes
+def test_modal_response_of_a_harmonic_force_is_the_frequency_response(loss_factor):
+    plate = Plate(loss_factor=loss_factor, max_frequency=2000.0)
     modes = plate_modes(plate)
     dt, f = 1e-5, 300.0
     t = np.arange(int(0.2 / dt)) * dt

