@@ -280,7 +280,7 @@ def infinite_plate_point_force_power(plate: Plate, force_rms: float, freq: Array
     -----
     The velocity spectrum of the infinite plate driven by F is
     V(k_t) = i omega F / (B' k_t^4 - m'' omega^2) and only wavenumbers k_t < k radiate:
-    W = rho0 omega / (8 pi^2) int |V|^2 / sqrt(k^2 - k_t^2) d^2k_t (amplitudes). With
+    ``W = rho0 omega / (8 pi^2) int |V|^2 / sqrt(k^2 - k_t^2) d^2k_t`` (amplitudes). With
     k_t = k sin(t) this is the expression above; far below coincidence I -> 1 and
     W = rho0 F_rms^2 / (2 pi c0 m''^2), independent of frequency (the near-field radiation of a
     point-excited plate: Cremer, Heckl & Petersson, *Structure-Borne Sound*, 3rd ed. (2005),
