@@ -357,12 +357,17 @@ def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData
                               transient)
     lay = system.layout
     t0 = time.perf_counter()
-    bands = radiation_bands(ds["contact_force"], system.contact_xy, scene.output.step,
-                            scene.plate, win, q0=raw.y_initial[lay.slice("plate.q")],
-                            dq0=raw.y_initial[lay.slice("plate.dq")],
-                            sides=scene.output.radiating_sides,
-                            air_density=scene.output.air_density,
-                            sound_speed=scene.output.sound_speed)
+    try:
+        bands = radiation_bands(ds["contact_force"], system.contact_xy, scene.output.step,
+                                scene.plate, win, q0=raw.y_initial[lay.slice("plate.q")],
+                                dq0=raw.y_initial[lay.slice("plate.dq")],
+                                sides=scene.output.radiating_sides,
+                                air_density=scene.output.air_density,
+                                sound_speed=scene.output.sound_speed)
+    except ValueError as exc:  # e.g. an analysis window too short: the run itself stands
+        result.summary["radiation"] = {"error": str(exc)}
+        result.summary.setdefault("warnings", []).append(f"output.radiation: {exc}")
+        return
     levels = bands.levels()
     result.extra["radiation"] = pd.DataFrame({c: levels[c] for c in RADIATION_COLUMNS})
     total = bands.total_sound_power()

@@ -356,3 +356,16 @@ def test_builtin_roughness_noise_sweep_runs_radiation():
     assert spec.to_json()["seed_keys"] == ["roughness.seed"]
     assert spec.grid["roughness.rms"] == [0.175e-6, 0.35e-6, 0.7e-6]
     assert spec.fixed["output.radiation"] is True
+
+
+def test_too_short_a_window_leaves_the_run_and_says_why(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    scene = load_scene("paper", **{"output.duration": 5e-5, "output.transient": 0.0,
+                                   "plate.max_frequency": 3000.0, "output.radiation": True,
+                                   "output.progress": False})
+    with pytest.warns(roughvib.scene.ModelValidityWarning):
+        result = roughvib.simulate(scene)
+    assert result.ok and "radiation" not in result.extra
+    assert "analysis window of >= 8 samples" in result.summary["radiation"]["error"]
+    result.save(tmp_path / "run")
+    assert not (tmp_path / "run" / "radiation.csv").exists()
