@@ -11,6 +11,8 @@ T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 ``scene.toml`` the fully resolved scene (repeatable run)
 ``radiation.csv`` with ``output.radiation``: band levels of the radiated sound
 (docs/radiation.md); in ``Result.extra["radiation"]`` as a table
+``microphones.csv`` with ``output.microphones``: sound pressure levels there
+(``Result.extra["microphones"]``)
 
 atomically for the run as a whole: everything is written into a staging directory next to the
 output directory and renamed into place when complete (:mod:`roughvib.rundir` has the rules of
@@ -43,8 +45,9 @@ if TYPE_CHECKING:
 # a run builds its Result from plain arrays and event records and writes its files without
 # them (RunData, _write_events_csv)
 
-__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "RADIATION_FILE", "REGIME_NOTATION",
-           "Result", "RunData", "VARIABLES", "check_run_files", "load_result"]
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError",
+           "RADIATION_FILE", "REGIME_NOTATION", "Result", "RunData", "VARIABLES",
+           "check_run_files", "load_result"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -75,6 +78,9 @@ FORMAT_VERSION = 1
 #: third-octave centre], sound_power_db [dB re 1 pW], mean_square_velocity_db [dB re
 #: (1e-9 m/s)^2, space average over the plate], radiation_efficiency_db [dB re 1])
 RADIATION_FILE = "radiation.csv"
+#: sound pressure levels at ``output.microphones`` (columns band_hz [Hz], mic1_spl_db, ...
+#: [dB re 20 uPa], one per microphone in the scene's order)
+MICROPHONES_FILE = "microphones.csv"
 
 
 class RunData:
@@ -421,6 +427,10 @@ class Result:
         if self.ok and radiation is not None:  # output.radiation: the band table
             radiation.to_csv(tmp / RADIATION_FILE, index=False, float_format="%.6g")
             names.append(RADIATION_FILE)
+        mics = self.extra.get("microphones")
+        if self.ok and mics is not None:  # output.microphones: levels at the microphones
+            mics.to_csv(tmp / MICROPHONES_FILE, index=False, float_format="%.6g")
+            names.append(MICROPHONES_FILE)
         self.summary["run_id"] = run_id
         self.summary["files"] = {n: _file_info(tmp / n) for n in names}
         (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2),
@@ -532,8 +542,8 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
 
 def _extra_tables(d: Path, summary: dict) -> dict:
     """The optional tables of a run directory that ``summary.json`` lists."""
-    if RADIATION_FILE not in summary.get("files", {}):
-        return {}
     import pandas as pd
 
-    return {"radiation": pd.read_csv(d / RADIATION_FILE)}
+    files = summary.get("files", {})
+    return {key: pd.read_csv(d / name) for key, name in
+            (("radiation", RADIATION_FILE), ("microphones", MICROPHONES_FILE)) if name in files}

@@ -862,6 +862,10 @@ class Output:
         rho0 of the air [kg/m^3] (20 °C: 1.204).
     sound_speed : float
         c0 of the air [m/s] (20 °C: 343).
+    microphones : tuple of (float, float, float)
+        With ``radiation``: points [x, y, z] [m] in the plate's frame (z > 0 above the plate,
+        on the radiating side) where the sound pressure is computed (third-octave levels to
+        5 kHz in ``microphones.csv``, dB re 20 uPa); empty by default.
     """
 
     duration: float = 3.0 / 7.0
@@ -873,6 +877,7 @@ class Output:
     radiating_sides: int = 1
     air_density: float = 1.204
     sound_speed: float = 343.0
+    microphones: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         p = "output"
@@ -895,6 +900,21 @@ class Output:
                                                1, 2))
         _set(self, "air_density", _positive(f"{p}.air_density", self.air_density, "kg/m^3"))
         _set(self, "sound_speed", _positive(f"{p}.sound_speed", self.sound_speed, "m/s"))
+        mics = self.microphones
+        if not isinstance(mics, list | tuple) or len(mics) > 64:
+            raise SceneError(f"{p}.microphones must be a list of at most 64 points [x, y, z] m, "
+                             f"got {_fmt(mics)}")
+        points = []
+        for i, m in enumerate(mics):
+            if not isinstance(m, list | tuple) or len(m) != 3:
+                raise SceneError(f"{p}.microphones[{i}] must be a point [x, y, z] m, "
+                                 f"got {_fmt(m)}")
+            x, y, z = (_number(f"{p}.microphones[{i}][{j}]", v, "m") for j, v in enumerate(m))
+            if not z > 0:
+                raise SceneError(f"{p}.microphones[{i}][2] must be > 0 m (above the plate), "
+                                 f"got {_fmt(m[2])}")
+            points.append((x, y, z))
+        _set(self, "microphones", tuple(points))
 
 
 @dataclass(frozen=True)
@@ -944,6 +964,9 @@ class Scene:
         if self.output.radiation and self.plate.kind != "modal":
             raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
                              f"'modal'), got plate.kind = {self.plate.kind!r}")
+        if self.output.microphones and not self.output.radiation:
+            raise SceneError(f"output.microphones needs output.radiation = true, got "
+                             f"{len(self.output.microphones)} microphones with radiation off")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

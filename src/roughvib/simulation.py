@@ -348,7 +348,11 @@ def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData
     ``result.extra["radiation"]`` (written as ``radiation.csv``), totals to the summary."""
     import pandas as pd
 
-    from roughvib.analysis.radiation import RADIATION_COLUMNS, radiation_bands
+    from roughvib.analysis.radiation import (
+        RADIATION_COLUMNS,
+        microphone_bands,
+        radiation_bands,
+    )
 
     scene = system.scene
     t = ds["time"]
@@ -370,11 +374,20 @@ def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData
         return
     levels = bands.levels()
     result.extra["radiation"] = pd.DataFrame({c: levels[c] for c in RADIATION_COLUMNS})
+    mics = scene.output.microphones
+    if mics:
+        band_hz, spl = microphone_bands(
+            ds["contact_force"], system.contact_xy, scene.output.step, scene.plate, win, mics,
+            q0=raw.y_initial[lay.slice("plate.q")], dq0=raw.y_initial[lay.slice("plate.dq")],
+            air_density=scene.output.air_density, sound_speed=scene.output.sound_speed)
+        result.extra["microphones"] = pd.DataFrame(
+            {"band_hz": band_hz, **{f"mic{i + 1}_spl_db": spl[i] for i in range(len(mics))}})
     total = bands.total_sound_power()
     result.summary["radiation"] = {
         "sound_power_level_db_re_1pW": 10.0 * math.log10(total / 1e-12) if total > 0
         else float("-inf"),
         "bands_hz": [float(bands.band_hz[0]), float(bands.band_hz[-1])],
+        "microphones": [list(m) for m in mics],
         "radiating_sides": bands.sides, "modes": bands.n_modes,
         "window_start": float(t[win][0]), "window_end": float(t[win][-1]),
         "method": "modal radiation efficiencies (Wallace 1972), cross-modal coupling "
