@@ -9,6 +9,10 @@ T0, rms values, stick fraction, energy audit). ``Result.save(dir)`` writes
 ``events.csv`` the event log
 ``summary.json`` statistics and metrics, the run id and the size and SHA-256 of every other file
 ``scene.toml`` the fully resolved scene (repeatable run)
+``radiation.csv`` with ``output.radiation``: band levels of the radiated sound
+(docs/radiation.md); in ``Result.extra["radiation"]`` as a table
+``microphones.csv`` with ``output.microphones``: sound pressure levels there
+(``Result.extra["microphones"]``)
 
 atomically for the run as a whole: everything is written into a staging directory next to the
 output directory and renamed into place when complete (:mod:`roughvib.rundir` has the rules of
@@ -30,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
-from roughvib.rundir import RUN_FILES, RunDirectory
+from roughvib.rundir import MICROPHONES_FILE, RADIATION_FILE, RUN_FILES, RunDirectory
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 if TYPE_CHECKING:
@@ -41,9 +45,10 @@ if TYPE_CHECKING:
 # a run builds its Result from plain arrays and event records and writes its files without
 # them (RunData, _write_events_csv)
 
-__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
-           "RunData", "RunDirectoryError", "SUMMARY_DIGEST", "VARIABLES", "check_run_files",
-           "load_result", "read_summary", "seal_summary"]
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError",
+           "RADIATION_FILE", "REGIME_NOTATION", "Result", "RunData", "RunDirectoryError",
+           "SUMMARY_DIGEST", "VARIABLES", "check_run_files", "load_result", "read_summary",
+           "seal_summary"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -69,6 +74,13 @@ EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "ma
 _TEXT_COLUMNS = ("kind", "regime_before", "regime_after")
 
 FORMAT_VERSION = 1
+
+# RADIATION_FILE (rundir): the radiated-sound table of a run with ``output.radiation``
+# (columns band_hz [Hz, nominal third-octave centre], sound_power_db [dB re 1 pW],
+# mean_square_velocity_db [dB re (1e-9 m/s)^2, space average over the plate],
+# radiation_efficiency_db [dB re 1]); MICROPHONES_FILE (rundir): sound pressure levels at
+# ``output.microphones`` (columns band_hz [Hz], mic1_spl_db, ... [dB re 20 uPa], one per
+# microphone in the scene's order)
 
 
 class RunData:
@@ -435,6 +447,14 @@ class Result:
                 ev["contact"] = ev["contact"].astype("Int64")
                 ev.to_csv(tmp / "events.csv", index=False, float_format="%.12g")
             names.append("events.csv")
+        radiation = self.extra.get("radiation")
+        if self.ok and radiation is not None:  # output.radiation: the band table
+            radiation.to_csv(tmp / RADIATION_FILE, index=False, float_format="%.6g")
+            names.append(RADIATION_FILE)
+        mics = self.extra.get("microphones")
+        if self.ok and mics is not None:  # output.microphones: levels at the microphones
+            mics.to_csv(tmp / MICROPHONES_FILE, index=False, float_format="%.6g")
+            names.append(MICROPHONES_FILE)
         self.summary["run_id"] = run_id
         self.summary["files"] = {n: _file_info(tmp / n) for n in names}
         self.summary.pop(SUMMARY_DIGEST, None)
@@ -815,4 +835,13 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
     ds = _read_dataset(d / ("result.nc" if ok else "partial.nc"))
     ev = _read_events(d / "events.csv")
-    return Result(ds, ev, summary, scene_toml)
+    return Result(ds, ev, summary, scene_toml, extra=_extra_tables(d, summary))
+
+
+def _extra_tables(d: Path, summary: dict) -> dict:
+    """The optional tables of a run directory that ``summary.json`` lists."""
+    import pandas as pd
+
+    files = summary.get("files", {})
+    return {key: pd.read_csv(d / name) for key, name in
+            (("radiation", RADIATION_FILE), ("microphones", MICROPHONES_FILE)) if name in files}

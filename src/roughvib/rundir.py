@@ -48,7 +48,10 @@ __all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "OutputWa
            "holds_run", "remove_stale", "swap_into_place", "sync_tree"]
 
 #: the files of a saved run (``summary.json`` lists which of them the run wrote)
-RUN_FILES = ("summary.json", "scene.toml", "result.nc", "partial.nc", "events.csv")
+#: the optional tables of a run with ``output.radiation`` (and ``output.microphones``)
+RADIATION_FILE, MICROPHONES_FILE = "radiation.csv", "microphones.csv"
+RUN_FILES = ("summary.json", "scene.toml", "result.nc", "partial.nc", "events.csv",
+             RADIATION_FILE, MICROPHONES_FILE)
 #: every name roughvib writes into a run directory (the run, its checkpoint, the report and the
 #: figures of ``roughvib report`` and ``roughvib plot``, the folders of ``roughvib validate``
 #: and ``roughvib export``); a directory holding a roughvib run and nothing else is replaced as

@@ -899,6 +899,22 @@ class Output:
         with checkpoints differs from one without them within the solver tolerance;
         adaptive-modal runs with and without checkpoints are identical.
         ``solver.method = "ida"`` or ``"adaptive-modal"``.
+    radiation : bool
+        Compute the plate's radiated sound (docs/radiation.md): third-octave levels of the
+        sound power, of the plate's mean-square velocity and of the radiation efficiency, in
+        ``radiation.csv`` of the run directory and a figure in the run report. Needs the
+        simply supported plate (``plate.kind = "modal"``).
+    radiating_sides : int
+        1 (a plate in an infinite baffle radiating into one half space) or 2 (both sides
+        radiate, each as into a baffled half space: twice the power).
+    air_density : float
+        rho0 of the air [kg/m^3] (20 °C: 1.204).
+    sound_speed : float
+        c0 of the air [m/s] (20 °C: 343).
+    microphones : tuple of (float, float, float)
+        With ``radiation``: points [x, y, z] [m] in the plate's frame (z > 0 above the plate,
+        on the radiating side) where the sound pressure is computed (third-octave levels to
+        5 kHz in ``microphones.csv``, dB re 20 uPa); empty by default.
     """
 
     duration: float = 3.0 / 7.0
@@ -906,6 +922,11 @@ class Output:
     transient: float = 1.0 / 7.0
     progress: bool = True
     checkpoint_interval: float = 0.0
+    radiation: bool = False
+    radiating_sides: int = 1
+    air_density: float = 1.204
+    sound_speed: float = 343.0
+    microphones: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         p = "output"
@@ -923,6 +944,26 @@ class Output:
                              f"got {self.step} s")
         if self.duration / self.step > 2e7:
             raise SceneError(f"{p}.step gives more than 2e7 output samples, got {self.step} s")
+        _set(self, "radiation", _boolean(f"{p}.radiation", self.radiation))
+        _set(self, "radiating_sides", _integer(f"{p}.radiating_sides", self.radiating_sides,
+                                               1, 2))
+        _set(self, "air_density", _positive(f"{p}.air_density", self.air_density, "kg/m^3"))
+        _set(self, "sound_speed", _positive(f"{p}.sound_speed", self.sound_speed, "m/s"))
+        mics = self.microphones
+        if not isinstance(mics, list | tuple) or len(mics) > 64:
+            raise SceneError(f"{p}.microphones must be a list of at most 64 points [x, y, z] m, "
+                             f"got {_fmt(mics)}")
+        points = []
+        for i, m in enumerate(mics):
+            if not isinstance(m, list | tuple) or len(m) != 3:
+                raise SceneError(f"{p}.microphones[{i}] must be a point [x, y, z] m, "
+                                 f"got {_fmt(m)}")
+            x, y, z = (_number(f"{p}.microphones[{i}][{j}]", v, "m") for j, v in enumerate(m))
+            if not z > 0:
+                raise SceneError(f"{p}.microphones[{i}][2] must be > 0 m (above the plate), "
+                                 f"got {_fmt(m[2])}")
+            points.append((x, y, z))
+        _set(self, "microphones", tuple(points))
 
 
 #: longest scene description [characters]
@@ -977,6 +1018,12 @@ class Scene:
                              f"'adaptive-modal' (or 'auto', which picks one of them: the "
                              f"event-driven solvers are checkpointed), got "
                              f"{self.solver.method!r}")
+        if self.output.radiation and self.plate.kind != "modal":
+            raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
+                             f"'modal'), got plate.kind = {self.plate.kind!r}")
+        if self.output.microphones and not self.output.radiation:
+            raise SceneError(f"output.microphones needs output.radiation = true, got "
+                             f"{len(self.output.microphones)} microphones with radiation off")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

@@ -74,6 +74,13 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     if a:
         lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
                      f"(relative {a.get('relative_residual', 0):.2e})")
+    rad = summary.get("radiation")
+    if rad:  # output.radiation
+        lines.append("radiation        " + (
+            f"sound power {_fmt_db(rad.get('sound_power_level_db_re_1pW'))} re 1 pW "
+            f"({rad.get('radiating_sides')} side(s), {rad.get('bands_hz', ['?'])[0]:g}-"
+            f"{rad.get('bands_hz', ['?', '?'])[-1]:g} Hz bands; radiation.csv)"
+            if "error" not in rad else f"not computed: {rad['error']}"))
     acc = summary.get("accuracy")
     if acc:
         from roughvib.analysis.accuracy import verdict_line

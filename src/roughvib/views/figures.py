@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from roughvib.results import Result
 
 __all__ = ["FIGURES", "plot_acceleration", "plot_band_comparison", "plot_events",
+           "plot_radiation",
            "plot_friction_displacement", "plot_friction_velocity", "plot_friction_velocity_pair",
            "plot_regime_timeline", "plot_spectra", "plot_tangential_stiffness", "plot_velocity",
            "plot_velocity_sweep", "plot_wavenumber", "save_figure"]
@@ -437,6 +438,62 @@ def plot_wavenumber(result: Result, *, ax: Axes | None = None, contact: int = 0)
     ax.set_title("roughness input: wavenumber spectra (dotted: 2π / stroke)", fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     return ax
+
+
+def plot_radiation(result: Result, *, axes=None):
+    """Radiated sound of the plate (``output.radiation``): band levels and efficiency.
+
+    (a) sound power level [dB re 1 pW] and space-averaged mean-square velocity level of the
+    plate [dB re (1e-9 m/s)^2]; (b) radiation efficiency [dB], the dashed line at the
+    coincidence frequency. From ``result.extra["radiation"]`` (``radiation.csv``).
+
+    Parameters
+    ----------
+    result : Result
+        A run made with ``output.radiation = true``.
+    axes : sequence of 2 Axes, optional
+
+    Returns
+    -------
+    list of Axes
+
+    Raises
+    ------
+    ValueError
+        The run has no radiation table.
+    """
+    from roughvib.physics.radiation import coincidence_frequency
+
+    table = result.extra.get("radiation")
+    if table is None:
+        raise ValueError("this run has no radiation table (run it with output.radiation = "
+                         "true)")
+    if axes is None:
+        _, axes = _plt().subplots(1, 2, figsize=(11, 4.2))
+    axes = _axes(axes, 2, None)
+    f = np.asarray(table["band_hz"], dtype=float)
+    scene = fd.scene_of(result)
+    fc = coincidence_frequency(scene.plate, scene.output.sound_speed)
+    sides = scene.output.radiating_sides
+    axes[0].step(f, table["sound_power_db"], where="mid", color="C3", lw=2.0,
+                 label=f"sound power, {sides} side{'s' if sides > 1 else ''} [dB re 1 pW]")
+    axes[0].step(f, table["mean_square_velocity_db"], where="mid", color="C0", lw=1.2,
+                 label="plate mean-square velocity [dB re (1e-9 m/s)²]")
+    axes[0].set_ylabel("third-octave level [dB]")
+    axes[0].legend(fontsize=7, loc="lower left")
+    axes[0].set_title("radiated sound power and plate velocity (Hann window)", fontsize=9)
+    axes[1].step(f, table["radiation_efficiency_db"], where="mid", color="C2", lw=1.5)
+    axes[1].set_ylabel("radiation efficiency [dB re 1]")
+    axes[1].set_title(f"band radiation efficiency; dashed: coincidence f_c = {fc:.0f} Hz",
+                      fontsize=9)
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.axvline(fc, color="0.5", ls="--", lw=0.8)
+        ax.set_xlabel("third-octave band [Hz]")
+        shown = f[np.isfinite(np.asarray(table["sound_power_db"], dtype=float))]
+        if shown.size:
+            ax.set_xlim(shown[0] / 1.12, shown[-1] * 1.12)
+    return axes
 
 
 # --------------------------------------------------------------------------------------------

@@ -383,7 +383,35 @@ def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, li
         drawn.append(name)
         parts.append(figure(uri, alt=f"figure {name}", id=f"fig-{name}",
                             caption_html=f"<b>{esc(name)}</b>: {esc(_CAPTIONS.get(name, ''))}"))
+    if result.extra.get("radiation") is not None:  # output.radiation: one more figure
+        parts.append(_radiation_figure(result, dpi))
+        drawn.append("radiation")
     return "".join(parts), drawn
+
+
+def _radiation_figure(result, dpi: int) -> str:
+    from roughvib.views.figures import _plt, plot_radiation
+
+    try:
+        fig = plot_radiation(result)[0].figure
+        try:
+            fig.tight_layout()
+            uri = figure_data_uri(fig, dpi=dpi)
+        finally:
+            _plt().close(fig)
+    except Exception as exc:  # one broken figure must not cost the whole report
+        return (f"<figure id='fig-radiation'><p class='status-failed'>figure radiation could "
+                f"not be drawn: {esc(type(exc).__name__)}: {esc(exc)}</p></figure>")
+    s = result.summary.get("radiation", {})
+    total = s.get("sound_power_level_db_re_1pW")
+    text = (f"Radiated sound of the plate in an infinite baffle (docs/radiation.md): "
+            f"third-octave sound power level (total {total:.1f} dB re 1 pW) and space-averaged "
+            f"mean-square velocity level of the plate, and the band radiation efficiency, from "
+            f"modal radiation efficiencies with the coupling between modes neglected; the "
+            f"table is radiation.csv." if total is not None else
+            "Radiated sound of the plate; the table is radiation.csv.")
+    return figure(uri, alt="figure radiation", id="fig-radiation",
+                  caption_html=f"<b>radiation</b>: {esc(text)}")
 
 
 def _failed(exc: Exception) -> str:

@@ -44,6 +44,9 @@ METRICS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "stick_fraction": (("metrics", "stick_fraction"), "1", "fraction of time stuck"),
     "normal_force_mean": (("metrics", "normal_force_mean"), "N", "mean total normal force"),
     "normal_force_min": (("metrics", "normal_force_min"), "N", "minimum total normal force"),
+    "sound_power_level_db_re_1pW": (
+        ("radiation", "sound_power_level_db_re_1pW"), "dB re 1 pW",
+        "radiated sound power level of the plate (output.radiation; NaN without it)"),
     "force_amplitude": (("force_amplitude",), "N", "excitation force amplitude T0"),
     "energy_relative_residual": (("energy_audit", "relative_residual"), "1",
                                  "energy audit residual / sum of |terms|"),
@@ -253,6 +256,54 @@ def _write_tables(sweep: Sweep, out: Path,
 # --------------------------------------------------------------------------------------------
 # fits
 # --------------------------------------------------------------------------------------------
+
+
+def _joint_fit(ra, v, y) -> dict[str, Any]:
+    """Least-squares fit of y = 20 log10(ra^a v^b) + c [dB] with 95 % t intervals.
+
+    Parameters
+    ----------
+    ra, v : array_like, shape (m,)
+        Roughness rms [m] and friction velocity [m/s], > 0 (at least two values of each).
+    y : array_like, shape (m,)
+        Levels [dB].
+
+    Returns
+    -------
+    dict
+        ``a``, ``b``, ``c`` and their 95 % intervals (``a_low``, ``a_high``, ...; from the
+        residual variance with m - 3 degrees of freedom, NaN when m = 3), the same exponents as
+        dB per doubling (``a_db_per_doubling`` = 20 log10(2) a, ...), ``rms_residual`` [dB]
+        and ``n_points``.
+    """
+    import numpy as np
+    from scipy import stats
+
+    ra = np.asarray(ra, dtype=float)
+    v = np.asarray(v, dtype=float)
+    y = np.asarray(y, dtype=float)
+    X = np.column_stack([20.0 * np.log10(ra), 20.0 * np.log10(v), np.ones(ra.size)])
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    res = y - X @ coef
+    dof = ra.size - 3
+    if dof > 0:
+        s2 = float(res @ res) / dof
+        cov = s2 * np.linalg.inv(X.T @ X)
+        half = stats.t.ppf(0.975, dof) * np.sqrt(np.diag(cov))
+    else:
+        half = np.full(3, math.nan)
+    per = 20.0 * math.log10(2.0)
+    out: dict[str, Any] = {"n_points": int(ra.size),
+                           "rms_residual": float(np.sqrt(np.mean(res**2)))}
+    for name, c, h in zip("abc", coef, half, strict=True):
+        out[name] = float(c)
+        out[f"{name}_low"] = float(c - h)
+        out[f"{name}_high"] = float(c + h)
+    for name in "ab":
+        out[f"{name}_db_per_doubling"] = per * out[name]
+        out[f"{name}_db_per_doubling_low"] = per * out[f"{name}_low"]
+        out[f"{name}_db_per_doubling_high"] = per * out[f"{name}_high"]
+    return out
 
 
 def _fit(x, y, seeds) -> dict[str, Any]:
