@@ -191,8 +191,9 @@ class Block:
         Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
     vertical_damping : float or "auto"
         Viscous damper r1 on the absolute vertical block velocity [N s/m] (docs/theory.md).
-        ``"auto"``: r1 = 2 zeta sqrt(s_total m), the damping ratio ``vertical_damping_ratio``
-        at the rigid-plate contact resonance of the stiffness actually used.
+        ``"auto"`` (default): r1 = 2 zeta sqrt(s_total m), the damping ratio
+        ``vertical_damping_ratio`` at the rigid-plate contact resonance of the stiffness
+        actually used. The paper's hand-set value is 83 N s/m (scene ``paper-handset``).
     tangential_damping : float
         Viscous damper r2 on the absolute tangential block velocity [N s/m].
     vertical_damping_ratio : float
@@ -202,7 +203,7 @@ class Block:
     mass: float = 0.221
     length: float = 0.04
     width: float = 0.04
-    vertical_damping: float | str = 83.0
+    vertical_damping: float | str = "auto"
     tangential_damping: float = 0.5
     vertical_damping_ratio: float = 0.05
 
@@ -314,12 +315,13 @@ class Contact:
     ----------
     points : int or "auto"
         Number of contact springs N_c (the N highest profile maxima under the block);
-        ``"auto"``: the expected number of micro-contacts of the statistical contact model at
-        the static load m g, rounded, at least 1 (docs/theory.md, "Contact module").
+        ``"auto"`` (default; the paper hand-set 10): the expected number of micro-contacts of
+        the statistical contact model at the static load m g, rounded, at least 1
+        (docs/theory.md, "Contact module").
     stiffness : float or "auto"
-        Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
-        from the surface statistics (Greenwood-Williamson / Greenwood-Tripp,
-        roughvib.physics.surface).
+        Total incremental contact stiffness s_total [N/m], split equally; ``"auto"``
+        (default; the paper hand-set 3.1e6 N/m) takes it from the surface statistics
+        (Greenwood-Williamson / Greenwood-Tripp, roughvib.physics.surface).
     selection : {"separated", "highest"}
         Which profile maxima become contact points: ``separated`` (default), the highest
         maxima at least ``min_separation`` apart; ``highest``, the paper's literal rule, the
@@ -335,18 +337,19 @@ class Contact:
     hardness : float
         Hardness of the softer surface [Pa], for the plasticity index.
     velocity_factor : bool
-        Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
+        Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect);
+        default true.
     """
 
-    points: int | str = 10
-    stiffness: float | str = 3.1e6
+    points: int | str = "auto"
+    stiffness: float | str = "auto"
     min_separation: float = 0.2e-3
     model: str = "gw"
     summit_density: float | None = None
     summit_radius: float | None = None
     summit_std: float | None = None
     hardness: float = 3e9
-    velocity_factor: bool = False
+    velocity_factor: bool = True
     selection: str = "separated"
 
     def __post_init__(self) -> None:
