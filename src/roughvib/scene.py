@@ -52,6 +52,13 @@ class ModelValidityWarning(UserWarning):
     issues it before its expensive work and lists it in ``summary["warnings"]``."""
 
 
+#: upper limit of the plate's mode count (estimated from the scene before any work)
+MAX_MODES = 20000
+#: upper limit of the samples of a synthetic profile (``trace_length / spacing``)
+MAX_PROFILE_SAMPLES = 10_000_000
+#: upper limit of the fixed steps of a run (``output.duration / solver.step``)
+MAX_FIXED_STEPS = 10_000_000_000
+
 #: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
 MAX_CONTACTS = 200
 
@@ -174,6 +181,80 @@ def _file_name(path: str, value: Any) -> str:
     return value
 
 
+#: physically sane bounds of the numeric scene keys: (lowest, highest, unit). They lie far
+#: beyond any block, plate or surface this model describes, and keep every quantity a run
+#: derives from them (bending stiffness, wave speed, mode count, static load, profile, step
+#: counts, tolerances per state) a finite float64; docs/scenes.md lists them. A lowest value of
+#: 0 leaves the key's own rule (> 0 or >= 0) as the only lower limit.
+SANE_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "block.mass": (1e-6, 1e18, "kg"),
+    "block.length": (1e-4, 10.0, "m"),
+    "block.width": (1e-4, 10.0, "m"),
+    "block.vertical_damping": (0.0, 1e6, "N s/m"),
+    "block.tangential_damping": (0.0, 1e6, "N s/m"),
+    "plate.length": (1e-3, 100.0, "m"),
+    "plate.width": (1e-3, 100.0, "m"),
+    "plate.thickness": (1e-6, 10.0, "m"),
+    "plate.youngs_modulus": (1e3, 1e13, "Pa"),
+    "plate.density": (1.0, 1e5, "kg/m^3"),
+    "plate.max_frequency": (0.0, 1e7, "Hz"),
+    "contact.stiffness": (10.0, 1e14, "N/m"),
+    "contact.min_separation": (0.0, 1.0, "m"),
+    "contact.summit_density": (1.0, 1e18, "1/m^2"),
+    "contact.summit_radius": (1e-9, 10.0, "m"),
+    "contact.summit_std": (1e-12, 1e-3, "m"),
+    "contact.hardness": (1e5, 1e12, "Pa"),
+    "roughness.amplitude": (0.0, 1e-2, "m"),
+    "roughness.wavelength": (1e-9, 10.0, "m"),
+    "roughness.rms": (0.0, 1e-2, "m"),
+    "roughness.raw_rms": (0.0, 1e-2, "m"),
+    "roughness.rolloff_wavelength": (1e-9, 10.0, "m"),
+    "roughness.shortest_wavelength": (1e-9, 10.0, "m"),
+    "roughness.longest_wavelength": (1e-9, 10.0, "m"),
+    "roughness.spacing": (1e-9, 1e-2, "m"),
+    "roughness.trace_length": (0.0, 100.0, "m"),
+    "friction.mu_slip": (0.0, 10.0, ""),
+    "friction.mu_stick": (0.0, 10.0, ""),
+    "friction.a1": (0.0, 1e8, "s/m"),
+    "friction.a2": (0.0, 1e8, "s/m"),
+    "friction.hysteresis_velocity": (0.0, 100.0, "m/s"),
+    "friction.latch_velocity": (0.0, 100.0, "m/s"),
+    "friction.stick_velocity": (0.0, 100.0, "m/s"),
+    "friction.stribeck_velocity": (0.0, 100.0, "m/s"),
+    "friction.dwell_time": (0.0, 1e3, "s"),
+    "friction.chatter_window": (0.0, 1e3, "s"),
+    "excitation.frequency": (0.0, 1e4, "Hz"),
+    "excitation.force_amplitude": (0.0, 1e12, "N"),
+    "excitation.target_rms_velocity": (0.0, 100.0, "m/s"),
+    "excitation.velocity": (-100.0, 100.0, "m/s"),
+    "excitation.amplitude": (0.0, 1.0, "m"),
+    "solver.step": (1e-12, 1.0, "s"),
+    "solver.atol": (0.0, 1e-3, "m"),
+    "solver.atol_acceleration": (0.0, 1e6, "m/s^2"),
+    "solver.max_step": (1e-9, 1e4, "s"),
+    "solver.event_window": (0.0, 1e4, "s"),
+    "output.duration": (0.0, 1e6, "s"),
+    "output.step": (1e-9, 1e3, "s"),
+    "output.transient": (0.0, 1e6, "s"),
+    "output.checkpoint_interval": (0.0, 1e6, "s"),
+}
+
+
+def _check_bounds(obj: Any, section: str) -> None:
+    """Refuse a numeric key of ``obj`` outside :data:`SANE_BOUNDS` (one line: key, rule, unit,
+    value); ``solver.max_step = 0`` (unbounded) is exempt from its lowest value."""
+    for f in fields(obj):
+        path = f"{section}.{f.name}"
+        v = getattr(obj, f.name)
+        if path not in SANE_BOUNDS or isinstance(v, bool) or not isinstance(v, int | float):
+            continue
+        lo, hi, unit = SANE_BOUNDS[path]
+        if not (lo <= v <= hi) and not (path == "solver.max_step" and v == 0):
+            zero = " or 0 (unbounded)" if path == "solver.max_step" else ""
+            raise SceneError(f"{path} must be in [{lo:g}, {hi:g}]{_u(unit)}{zero} (the "
+                             f"physically sane range, docs/scenes.md), got {_fmt(v)}")
+
+
 # --------------------------------------------------------------------------------------------
 # sections
 # --------------------------------------------------------------------------------------------
@@ -221,6 +302,7 @@ class Block:
         _set(self, "vertical_damping_ratio",
              _range("block.vertical_damping_ratio", self.vertical_damping_ratio, 0.0, 1.0, "",
                     hi_open=True))
+        _check_bounds(self, "block")
 
 
 @dataclass(frozen=True)
@@ -277,6 +359,7 @@ class Plate:
         _set(self, "max_frequency", _positive("plate.max_frequency", self.max_frequency, "Hz"))
         _set(self, "residual_compliance",
              _boolean("plate.residual_compliance", self.residual_compliance))
+        _check_bounds(self, "plate")
         for name in ("block_position", "observation_position"):
             x, y = _pair(f"plate.{name}", getattr(self, name), "m")
             if not (0.0 < x < self.length):
@@ -287,14 +370,22 @@ class Plate:
                                  f"{self.width}) m, got {y}")
             _set(self, name, (x, y))
         if self.kind == "modal":
-            # the number of modes is bounded to keep a typo (1e9 Hz) from exhausting memory
-            b = self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson_ratio**2))
-            c = math.sqrt(b / (self.density * self.thickness))
-            kmax2 = 2 * math.pi * self.max_frequency / c
-            n_est = self.length * self.width * kmax2 / (4 * math.pi)
-            if n_est > 20000:
-                raise SceneError(f"plate.max_frequency gives about {n_est:.0f} modes (limit "
-                                 f"20000), lower it, got {self.max_frequency} Hz")
+            # the number of modes is bounded to keep a typo (1e9 Hz) from exhausting memory;
+            # the estimate derives from six keys, so check it is a finite number and name them
+            # all (the bounds keep it finite; this guards whatever they miss)
+            n_est = math.nan
+            try:
+                b = self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson_ratio**2))
+                c = math.sqrt(b / (self.density * self.thickness))  # sqrt(B'/m'') [m^2/s]
+                n_est = self.length * self.width * (2 * math.pi * self.max_frequency / c) / (
+                    4 * math.pi)
+            except (OverflowError, ZeroDivisionError):
+                pass
+            if not (math.isfinite(n_est) and n_est <= MAX_MODES):
+                raise SceneError(f"plate.max_frequency gives about {n_est:.3g} modes with "
+                                 f"plate.length, width, thickness, youngs_modulus, density and "
+                                 f"poisson_ratio as given (limit {MAX_MODES}), lower it, got "
+                                 f"{self.max_frequency} Hz")
 
     @property
     def bending_stiffness(self) -> float:
@@ -373,6 +464,7 @@ class Contact:
         _set(self, "velocity_factor", _boolean("contact.velocity_factor", self.velocity_factor))
         _set(self, "selection", _choice("contact.selection", self.selection,
                                         ("separated", "highest")))
+        _check_bounds(self, "contact")
 
 
 @dataclass(frozen=True)
@@ -476,6 +568,7 @@ class Roughness:
         _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))
         _set(self, "format", _choice(f"{p}.format", self.format,
                                      ("auto", "text", "topography")))
+        _check_bounds(self, "roughness")
         if self.shortest_wavelength >= self.longest_wavelength:
             raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
                              f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")
@@ -565,6 +658,7 @@ class Friction:
              _nonneg(f"{p}.hysteresis_velocity", self.hysteresis_velocity, "m/s"))
         _set(self, "latch_velocity", _positive(f"{p}.latch_velocity", self.latch_velocity, "m/s"))
         _set(self, "stick_velocity", _positive(f"{p}.stick_velocity", self.stick_velocity, "m/s"))
+        _check_bounds(self, "friction")
         if self.mu_stick < self.mu_slip:
             raise SceneError(f"{p}.mu_stick must be >= friction.mu_slip ({self.mu_slip}), "
                              f"got {self.mu_stick}")
@@ -617,6 +711,7 @@ class Excitation:
                  _positive(f"{p}.target_rms_velocity", self.target_rms_velocity, "m/s"))
         _set(self, "velocity", _number(f"{p}.velocity", self.velocity, "m/s"))
         _set(self, "amplitude", _nonneg(f"{p}.amplitude", self.amplitude, "m"))
+        _check_bounds(self, "excitation")
         if self.kind == "force":
             if (self.force_amplitude is None) == (self.target_rms_velocity is None):
                 raise SceneError(
@@ -790,6 +885,7 @@ class Solver:
                                             ("sparse", "gmres")))
         _set(self, "max_events", _integer(f"{p}.max_events", self.max_events, 1))
         _set(self, "event_window", _positive(f"{p}.event_window", self.event_window, "s"))
+        _check_bounds(self, "solver")
 
     def resolved(self, method: str | None = None) -> Solver:
         """This section with a concrete method and every tolerance and step filled in.
@@ -869,6 +965,7 @@ class Output:
         _set(self, "progress", _boolean(f"{p}.progress", self.progress))
         _set(self, "checkpoint_interval",
              _nonneg(f"{p}.checkpoint_interval", self.checkpoint_interval, "s"))
+        _check_bounds(self, "output")
         if 0 < self.checkpoint_interval < self.step:
             raise SceneError(f"{p}.checkpoint_interval must be 0 (off) or >= output.step "
                              f"({self.step} s), got {self.checkpoint_interval} s")
@@ -923,6 +1020,20 @@ class Scene:
                              f"'adaptive-modal' (or 'auto', which picks one of them: the "
                              f"event-driven solvers are checkpointed), got "
                              f"{self.solver.method!r}")
+        # derived quantities a run needs, checked here with the keys they derive from
+        r = self.roughness
+        if r.kind != "file" and r.trace_length / r.spacing > MAX_PROFILE_SAMPLES:
+            raise SceneError(f"roughness.trace_length / roughness.spacing must be at most "
+                             f"{MAX_PROFILE_SAMPLES:.0e} profile samples, got "
+                             f"{r.trace_length} m / {r.spacing} m = "
+                             f"{r.trace_length / r.spacing:.3g}")
+        method = self.resolved_solver()
+        if method.method in FIXED_STEP_METHODS and \
+                self.output.duration / method.step > MAX_FIXED_STEPS:
+            raise SceneError(f"output.duration / solver.step must be at most "
+                             f"{MAX_FIXED_STEPS:.0e} steps of solver.method = "
+                             f"{method.method!r}, got {self.output.duration} s / "
+                             f"{method.step} s = {self.output.duration / method.step:.3g}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

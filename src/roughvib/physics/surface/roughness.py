@@ -866,6 +866,16 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
 # --------------------------------------------------------------------------------------------
 
 
+def _check_filtered(before: np.ndarray, after: np.ndarray, r: Roughness, length: float) -> None:
+    """Refuse a functional filter that removed the whole profile (a block shorter than every
+    wavelength of the profile: ``highpass`` then leaves zero heights)."""
+    peak = float(np.max(np.abs(before))) if before.size else 0.0
+    if peak > 0 and not float(np.max(np.abs(after))) > 1e-12 * peak:
+        raise SceneError(f"roughness.filter = {r.filter!r} over block.length = {length:g} m "
+                         f"removes the whole profile (the block must be longer than the "
+                         f"profile's shortest wavelengths), got block.length {length:g} m")
+
+
 def _reduction_db(reduced: np.ndarray, raw_rms: float) -> float:
     rr = float(np.sqrt(np.mean((reduced - reduced.mean()) ** 2)))
     if raw_rms <= 0 or rr <= 0:
@@ -936,7 +946,9 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
                                      for key in ("rms", "rms_slope", "rms_curvature"))
         if r.filter != "none":
+            raw_z = z
             z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
     else:
         dx = r.spacing
         n = _n_points(r)
@@ -950,16 +962,22 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
             z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
         elif not r.reduce_3d:
             periodic = True
-            z = _synthesize_raw(r)
-            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            raw_z = _synthesize_raw(r)
+            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
             zr = float(np.sqrt(np.mean(z**2)))
             z = z * (r.rms / zr) if zr > 0 else z
             stats.update(seed=r.seed, target_rms=r.rms)
         else:
             periodic = True
-            z = _reduce_3d(r, block, stats)
-            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            raw_z = _reduce_3d(r, block, stats)
+            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
             stats.update(seed=r.seed)
+    if not np.all(np.isfinite(z)):  # the interpolant (spline) needs finite heights
+        raise SceneError(f"roughness.kind = {r.kind!r} gives a profile with non-finite heights "
+                         f"(check roughness.rms, amplitude, raw_rms and the band), got "
+                         f"{int(np.count_nonzero(~np.isfinite(z)))} of {z.size} samples")
     n = z.size
     stats.update(n=int(n), length=float((n - 1) * dx), filter=r.filter)
     stats.update(profile_statistics(z, dx, periodic=periodic))
