@@ -515,7 +515,9 @@ class Roughness:
         formats (ISO 25178-71 SDF, X3P, Digital Surf .sur, Zygo .datx, ...) through the
         optional SurfaceTopography package (``pip install roughvib[topography]``); the x axis
         of the map is the sliding direction and units come from the file. ``auto``: by the
-        file suffix (instrument suffixes -> topography, anything else -> text).
+        file suffix (instrument suffixes -> topography) and content (netCDF or HDF5, e.g.
+        SurfaceTopography's own ``.nc`` from contact.engineering -> topography), anything
+        else -> text.
     """
 
     kind: str = "synthetic"

@@ -838,7 +838,7 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
     from roughvib.physics.surface.topography import read_topography_map, uses_topography
 
     r = roughness
-    if not uses_topography(r.path, r.format):
+    if not uses_topography(r.path, r.format, base_dir=base_dir):
         return read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
                                  min_length=min_length, min_length_reason=min_length_reason)
     p = Path(r.path) if Path(r.path).is_absolute() else Path(base_dir) / r.path
@@ -846,7 +846,9 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
     z, y = tm.z, None
     if z.ndim == 2:
         y_all = (np.arange(z.shape[1]) - (z.shape[1] - 1) / 2.0) * tm.dy
-        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-9)
+        # a trace on the block's edge stays: files may store pixel sizes in float32 (netCDF
+        # from SurfaceTopography does), 6e-8 relative, so the edge is matched to 1e-6
+        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-6)
         z, y = z[:, keep], y_all[keep]
         if z.shape[1] == 1:
             z, y = z[:, 0], None
