@@ -150,3 +150,25 @@ def test_a_filter_that_removes_the_whole_profile_is_refused(in_tmp):
     # the same block with the filter off keeps the profile: the check is the filter's
     prof = build_profile(_bypass(s.roughness, filter="none"), block)
     assert np.std(prof.z) > 0
+
+
+def test_values_derived_for_the_run_are_checked_before_the_solve(monkeypatch, in_tmp):
+    """The calibrated force, the contact module's count, stiffness and r1 and the pilot's
+    tolerance are written into the saved scene; they are validated before the solve, so a bad
+    one never costs a run (it used to be checked after it). Shown with a bound lowered below
+    the contact module's r1 of the paper scene (about 83 N s/m)."""
+    import roughvib.scene as scene_mod
+    import roughvib.simulation as sim
+
+    monkeypatch.setitem(scene_mod.SANE_BOUNDS, "block.vertical_damping", (0.0, 1.0, "N s/m"))
+
+    def no_solve(*a, **k):
+        raise AssertionError("the solve started before the derived values were checked")
+
+    monkeypatch.setattr(sim, "_solve", no_solve)
+    scene = load_scene("paper", {"output.duration": 0.002, "plate.max_frequency": 2000.0,
+                                 "output.progress": False})
+    with pytest.raises(SceneError, match=r"^a value derived for this run .* out of range: "
+                                         r"block.vertical_damping must be in \[0, 1\] N s/m "
+                                         r".*got \d+\.\d+$"):
+        sim.simulate(scene)
