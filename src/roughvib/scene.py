@@ -250,9 +250,29 @@ def _check_bounds(obj: Any, section: str) -> None:
             continue
         lo, hi, unit = SANE_BOUNDS[path]
         if not (lo <= v <= hi) and not (path == "solver.max_step" and v == 0):
-            zero = " or 0 (unbounded)" if path == "solver.max_step" else ""
-            raise SceneError(f"{path} must be in [{lo:g}, {hi:g}]{_u(unit)}{zero} (the "
-                             f"physically sane range, docs/scenes.md), got {_fmt(v)}")
+            raise SceneError(f"{path} must be {bounds_rule(path)} (the physically sane range, "
+                             f"docs/scenes.md), got {_fmt(v)}")
+
+
+def bounds_rule(path: str) -> str:
+    """The rule of a key's physically sane range as its refusal states it.
+
+    Parameters
+    ----------
+    path : str
+        A key of :data:`SANE_BOUNDS`, e.g. ``"plate.thickness"``.
+
+    Returns
+    -------
+    str
+        ``"in [lo, hi] unit"``, or ``"at most hi unit"`` where the key's own rule (> 0 or
+        >= 0) is the lower limit (lowest value 0).
+    """
+    lo, hi, unit = SANE_BOUNDS[path]
+    zero = " or 0 (unbounded)" if path == "solver.max_step" else ""
+    if lo == 0:
+        return f"at most {hi:g}{_u(unit)}"
+    return f"in [{lo:g}, {hi:g}]{_u(unit)}{zero}"
 
 
 # --------------------------------------------------------------------------------------------
