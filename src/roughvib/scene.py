@@ -77,6 +77,13 @@ def user_stacklevel() -> int:
     return level
 
 
+#: upper limit of the plate's mode count (estimated from the scene before any work)
+MAX_MODES = 20000
+#: upper limit of the samples of a synthetic profile (``trace_length / spacing``)
+MAX_PROFILE_SAMPLES = 10_000_000
+#: upper limit of the fixed steps of a run (``output.duration / solver.step``)
+MAX_FIXED_STEPS = 10_000_000_000
+
 #: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
 MAX_CONTACTS = 200
 
@@ -199,6 +206,100 @@ def _file_name(path: str, value: Any) -> str:
     return value
 
 
+#: physically sane bounds of the numeric scene keys: (lowest, highest, unit). They lie far
+#: beyond any block, plate or surface this model describes, and keep every quantity a run
+#: derives from them (bending stiffness, wave speed, mode count, static load, profile, step
+#: counts, tolerances per state) a finite float64; docs/scenes.md lists them. A lowest value of
+#: 0 leaves the key's own rule (> 0 or >= 0) as the only lower limit.
+SANE_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "block.mass": (1e-6, 1e18, "kg"),
+    "block.length": (1e-4, 10.0, "m"),
+    "block.width": (1e-4, 10.0, "m"),
+    "block.vertical_damping": (0.0, 1e12, "N s/m"),
+    "block.tangential_damping": (0.0, 1e6, "N s/m"),
+    "plate.length": (1e-3, 100.0, "m"),
+    "plate.width": (1e-3, 100.0, "m"),
+    "plate.thickness": (1e-6, 10.0, "m"),
+    "plate.youngs_modulus": (1e3, 1e13, "Pa"),
+    "plate.density": (1.0, 1e5, "kg/m^3"),
+    "plate.max_frequency": (0.0, 1e7, "Hz"),
+    "contact.stiffness": (1e-6, 1e16, "N/m"),
+    "contact.min_separation": (0.0, 1.0, "m"),
+    "contact.summit_density": (1.0, 1e18, "1/m^2"),
+    "contact.summit_radius": (1e-9, 10.0, "m"),
+    "contact.summit_std": (1e-12, 1e-3, "m"),
+    "contact.hardness": (1e5, 1e12, "Pa"),
+    "roughness.amplitude": (0.0, 1e-2, "m"),
+    "roughness.wavelength": (1e-9, 10.0, "m"),
+    "roughness.rms": (0.0, 1e-2, "m"),
+    "roughness.raw_rms": (0.0, 1e-2, "m"),
+    "roughness.rolloff_wavelength": (1e-9, 10.0, "m"),
+    "roughness.shortest_wavelength": (1e-9, 10.0, "m"),
+    "roughness.longest_wavelength": (1e-9, 10.0, "m"),
+    "roughness.spacing": (1e-9, 1e-2, "m"),
+    "roughness.trace_length": (0.0, 100.0, "m"),
+    "friction.mu_slip": (0.0, 10.0, ""),
+    "friction.mu_stick": (0.0, 10.0, ""),
+    "friction.a1": (0.0, 1e8, "s/m"),
+    "friction.a2": (0.0, 1e8, "s/m"),
+    "friction.hysteresis_velocity": (0.0, 100.0, "m/s"),
+    "friction.latch_velocity": (0.0, 100.0, "m/s"),
+    "friction.stick_velocity": (0.0, 100.0, "m/s"),
+    "friction.stribeck_velocity": (0.0, 100.0, "m/s"),
+    "friction.dwell_time": (0.0, 1e3, "s"),
+    "friction.chatter_window": (0.0, 1e3, "s"),
+    "excitation.frequency": (0.0, 1e4, "Hz"),
+    "excitation.force_amplitude": (0.0, 1e25, "N"),
+    "excitation.target_rms_velocity": (0.0, 100.0, "m/s"),
+    "excitation.velocity": (-100.0, 100.0, "m/s"),
+    "excitation.amplitude": (0.0, 1.0, "m"),
+    "solver.step": (1e-12, 1.0, "s"),
+    "solver.atol": (0.0, 1e-3, "m"),
+    "solver.atol_acceleration": (0.0, 1e6, "m/s^2"),
+    "solver.max_step": (1e-9, 1e4, "s"),
+    "solver.event_window": (0.0, 1e4, "s"),
+    "output.duration": (0.0, 1e6, "s"),
+    "output.step": (1e-9, 1e3, "s"),
+    "output.transient": (0.0, 1e6, "s"),
+    "output.checkpoint_interval": (0.0, 1e6, "s"),
+}
+
+
+def _check_bounds(obj: Any, section: str) -> None:
+    """Refuse a numeric key of ``obj`` outside :data:`SANE_BOUNDS` (one line: key, rule, unit,
+    value); ``solver.max_step = 0`` (unbounded) is exempt from its lowest value."""
+    for f in fields(obj):
+        path = f"{section}.{f.name}"
+        v = getattr(obj, f.name)
+        if path not in SANE_BOUNDS or isinstance(v, bool) or not isinstance(v, int | float):
+            continue
+        lo, hi, unit = SANE_BOUNDS[path]
+        if not (lo <= v <= hi) and not (path == "solver.max_step" and v == 0):
+            raise SceneError(f"{path} must be {bounds_rule(path)} (the physically sane range, "
+                             f"docs/scenes.md), got {_fmt(v)}")
+
+
+def bounds_rule(path: str) -> str:
+    """The rule of a key's physically sane range as its refusal states it.
+
+    Parameters
+    ----------
+    path : str
+        A key of :data:`SANE_BOUNDS`, e.g. ``"plate.thickness"``.
+
+    Returns
+    -------
+    str
+        ``"in [lo, hi] unit"``, or ``"at most hi unit"`` where the key's own rule (> 0 or
+        >= 0) is the lower limit (lowest value 0).
+    """
+    lo, hi, unit = SANE_BOUNDS[path]
+    zero = " or 0 (unbounded)" if path == "solver.max_step" else ""
+    if lo == 0:
+        return f"at most {hi:g}{_u(unit)}"
+    return f"in [{lo:g}, {hi:g}]{_u(unit)}{zero}"
+
+
 # --------------------------------------------------------------------------------------------
 # sections
 # --------------------------------------------------------------------------------------------
@@ -216,8 +317,9 @@ class Block:
         Block footprint along the sliding direction and across it [m] (0.04 x 0.04).
     vertical_damping : float or "auto"
         Viscous damper r1 on the absolute vertical block velocity [N s/m] (docs/theory.md).
-        ``"auto"``: r1 = 2 zeta sqrt(s_total m), the damping ratio ``vertical_damping_ratio``
-        at the rigid-plate contact resonance of the stiffness actually used.
+        ``"auto"`` (default): r1 = 2 zeta sqrt(s_total m), the damping ratio
+        ``vertical_damping_ratio`` at the rigid-plate contact resonance of the stiffness
+        actually used. The paper's hand-set value is 83 N s/m (scene ``paper-handset``).
     tangential_damping : float
         Viscous damper r2 on the absolute tangential block velocity [N s/m].
     vertical_damping_ratio : float
@@ -227,7 +329,7 @@ class Block:
     mass: float = 0.221
     length: float = 0.04
     width: float = 0.04
-    vertical_damping: float | str = 83.0
+    vertical_damping: float | str = "auto"
     tangential_damping: float = 0.5
     vertical_damping_ratio: float = 0.05
 
@@ -245,6 +347,7 @@ class Block:
         _set(self, "vertical_damping_ratio",
              _range("block.vertical_damping_ratio", self.vertical_damping_ratio, 0.0, 1.0, "",
                     hi_open=True))
+        _check_bounds(self, "block")
 
 
 @dataclass(frozen=True)
@@ -318,6 +421,7 @@ class Plate:
         _set(self, "max_frequency", _positive("plate.max_frequency", self.max_frequency, "Hz"))
         _set(self, "residual_compliance",
              _boolean("plate.residual_compliance", self.residual_compliance))
+        _check_bounds(self, "plate")
         for name in ("block_position", "observation_position"):
             x, y = _pair(f"plate.{name}", getattr(self, name), "m")
             if not (0.0 < x < self.length):
@@ -328,14 +432,22 @@ class Plate:
                                  f"{self.width}) m, got {y}")
             _set(self, name, (x, y))
         if self.kind == "modal":
-            # the number of modes is bounded to keep a typo (1e9 Hz) from exhausting memory
-            b = self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson_ratio**2))
-            c = math.sqrt(b / (self.density * self.thickness))
-            kmax2 = 2 * math.pi * self.max_frequency / c
-            n_est = self.length * self.width * kmax2 / (4 * math.pi)
-            if n_est > 20000:
-                raise SceneError(f"plate.max_frequency gives about {n_est:.0f} modes (limit "
-                                 f"20000), lower it, got {self.max_frequency} Hz")
+            # the number of modes is bounded to keep a typo (1e9 Hz) from exhausting memory;
+            # the estimate derives from six keys, so check it is a finite number and name them
+            # all (the bounds keep it finite; this guards whatever they miss)
+            n_est = math.nan
+            try:
+                b = self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson_ratio**2))
+                c = math.sqrt(b / (self.density * self.thickness))  # sqrt(B'/m'') [m^2/s]
+                n_est = self.length * self.width * (2 * math.pi * self.max_frequency / c) / (
+                    4 * math.pi)
+            except (OverflowError, ZeroDivisionError):
+                pass
+            if not (math.isfinite(n_est) and n_est <= MAX_MODES):
+                raise SceneError(f"plate.max_frequency gives about {n_est:.3g} modes with "
+                                 f"plate.length, width, thickness, youngs_modulus, density and "
+                                 f"poisson_ratio as given (limit {MAX_MODES}), lower it, got "
+                                 f"{self.max_frequency} Hz")
 
     @property
     def bending_stiffness(self) -> float:
@@ -356,12 +468,13 @@ class Contact:
     ----------
     points : int or "auto"
         Number of contact springs N_c (the N highest profile maxima under the block);
-        ``"auto"``: the expected number of micro-contacts of the statistical contact model at
-        the static load m g, rounded, at least 1 (docs/theory.md, "Contact module").
+        ``"auto"`` (default; the paper hand-set 10): the expected number of micro-contacts of
+        the statistical contact model at the static load m g, rounded, at least 1
+        (docs/theory.md, "Contact module").
     stiffness : float or "auto"
-        Total incremental contact stiffness s_total [N/m], split equally; ``"auto"`` takes it
-        from the surface statistics (Greenwood-Williamson / Greenwood-Tripp,
-        roughvib.physics.surface).
+        Total incremental contact stiffness s_total [N/m], split equally; ``"auto"``
+        (default; the paper hand-set 3.1e6 N/m) takes it from the surface statistics
+        (Greenwood-Williamson / Greenwood-Tripp, roughvib.physics.surface).
     selection : {"separated", "highest"}
         Which profile maxima become contact points: ``separated`` (default), the highest
         maxima at least ``min_separation`` apart; ``highest``, the paper's literal rule, the
@@ -377,7 +490,8 @@ class Contact:
     hardness : float
         Hardness of the softer surface [Pa], for the plasticity index.
     velocity_factor : bool
-        Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect).
+        Scale the stiffness by (v_rms / 0.01 m/s)^-0.481 (the paper's elevation effect);
+        default true.
     patch : {"point", "area"}
         Where a contact meets the structure: ``point`` (default), at its own point under the
         block; ``area``, every contact force is spread evenly over the block's nominal contact
@@ -385,15 +499,15 @@ class Contact:
         feels the area mean of the structure's displacement (docs/structures.md).
     """
 
-    points: int | str = 10
-    stiffness: float | str = 3.1e6
+    points: int | str = "auto"
+    stiffness: float | str = "auto"
     min_separation: float = 0.2e-3
     model: str = "gw"
     summit_density: float | None = None
     summit_radius: float | None = None
     summit_std: float | None = None
     hardness: float = 3e9
-    velocity_factor: bool = False
+    velocity_factor: bool = True
     selection: str = "separated"
     patch: str = "point"
 
@@ -419,6 +533,7 @@ class Contact:
         _set(self, "velocity_factor", _boolean("contact.velocity_factor", self.velocity_factor))
         _set(self, "selection", _choice("contact.selection", self.selection,
                                         ("separated", "highest")))
+        _check_bounds(self, "contact")
 
 
 @dataclass(frozen=True)
@@ -469,7 +584,9 @@ class Roughness:
         formats (ISO 25178-71 SDF, X3P, Digital Surf .sur, Zygo .datx, ...) through the
         optional SurfaceTopography package (``pip install roughvib[topography]``); the x axis
         of the map is the sliding direction and units come from the file. ``auto``: by the
-        file suffix (instrument suffixes -> topography, anything else -> text).
+        file suffix (instrument suffixes -> topography) and content (netCDF or HDF5, e.g.
+        SurfaceTopography's own ``.nc`` from contact.engineering -> topography), anything
+        else -> text.
     """
 
     kind: str = "synthetic"
@@ -522,6 +639,7 @@ class Roughness:
         _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))
         _set(self, "format", _choice(f"{p}.format", self.format,
                                      ("auto", "text", "topography")))
+        _check_bounds(self, "roughness")
         if self.shortest_wavelength >= self.longest_wavelength:
             raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
                              f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")
@@ -611,6 +729,7 @@ class Friction:
              _nonneg(f"{p}.hysteresis_velocity", self.hysteresis_velocity, "m/s"))
         _set(self, "latch_velocity", _positive(f"{p}.latch_velocity", self.latch_velocity, "m/s"))
         _set(self, "stick_velocity", _positive(f"{p}.stick_velocity", self.stick_velocity, "m/s"))
+        _check_bounds(self, "friction")
         if self.mu_stick < self.mu_slip:
             raise SceneError(f"{p}.mu_stick must be >= friction.mu_slip ({self.mu_slip}), "
                              f"got {self.mu_stick}")
@@ -663,6 +782,7 @@ class Excitation:
                  _positive(f"{p}.target_rms_velocity", self.target_rms_velocity, "m/s"))
         _set(self, "velocity", _number(f"{p}.velocity", self.velocity, "m/s"))
         _set(self, "amplitude", _nonneg(f"{p}.amplitude", self.amplitude, "m"))
+        _check_bounds(self, "excitation")
         if self.kind == "force":
             if (self.force_amplitude is None) == (self.target_rms_velocity is None):
                 raise SceneError(
@@ -836,6 +956,7 @@ class Solver:
                                             ("sparse", "gmres")))
         _set(self, "max_events", _integer(f"{p}.max_events", self.max_events, 1))
         _set(self, "event_window", _positive(f"{p}.event_window", self.event_window, "s"))
+        _check_bounds(self, "solver")
 
     def resolved(self, method: str | None = None) -> Solver:
         """This section with a concrete method and every tolerance and step filled in.
@@ -936,6 +1057,7 @@ class Output:
         _set(self, "progress", _boolean(f"{p}.progress", self.progress))
         _set(self, "checkpoint_interval",
              _nonneg(f"{p}.checkpoint_interval", self.checkpoint_interval, "s"))
+        _check_bounds(self, "output")
         if 0 < self.checkpoint_interval < self.step:
             raise SceneError(f"{p}.checkpoint_interval must be 0 (off) or >= output.step "
                              f"({self.step} s), got {self.checkpoint_interval} s")
@@ -1024,6 +1146,20 @@ class Scene:
         if self.output.microphones and not self.output.radiation:
             raise SceneError(f"output.microphones needs output.radiation = true, got "
                              f"{len(self.output.microphones)} microphones with radiation off")
+        # derived quantities a run needs, checked here with the keys they derive from
+        r = self.roughness
+        if r.kind != "file" and r.trace_length / r.spacing > MAX_PROFILE_SAMPLES:
+            raise SceneError(f"roughness.trace_length / roughness.spacing must be at most "
+                             f"{MAX_PROFILE_SAMPLES:.0e} profile samples, got "
+                             f"{r.trace_length} m / {r.spacing} m = "
+                             f"{r.trace_length / r.spacing:.3g}")
+        method = self.resolved_solver()
+        if method.method in FIXED_STEP_METHODS and \
+                self.output.duration / method.step > MAX_FIXED_STEPS:
+            raise SceneError(f"output.duration / solver.step must be at most "
+                             f"{MAX_FIXED_STEPS:.0e} steps of solver.method = "
+                             f"{method.method!r}, got {self.output.duration} s / "
+                             f"{method.step} s = {self.output.duration / method.step:.3g}")
 
     # ---- convenience -------------------------------------------------------------------
     def with_overrides(self, overrides: dict[str, Any] | None = None, **kw: Any) -> Scene:

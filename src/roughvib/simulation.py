@@ -285,26 +285,34 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
             and system.scene.solver.atol_acceleration_relative is not None):
         system, pilot = _scale_atol_acceleration(system)
     solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
+
+    # the saved scene repeats the run: the solver section as it ran (concrete method, the
+    # preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run
+    # (whose checkpoint holds that section) writes the same scene.toml as an uninterrupted one.
+    # Built before the solve: its derived values (calibrated force, contact module, pilot
+    # tolerance) are validated like any scene value, and a bad one stops the run before its
+    # expensive work, not after it
+    comments = {}
+    try:
+        resolved = replace(scene, solver=solver)
+        if system.tangential:
+            exc = scene.excitation
+            resolved = replace_section(resolved, "excitation",
+                                       force_amplitude=system.force_amplitude,
+                                       target_rms_velocity=None)
+            if exc.target_rms_velocity is not None:
+                comments["excitation.force_amplitude"] = (
+                    f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+        resolved = _resolve_contact(resolved, system, comments)
+    except SceneError as exc:
+        raise SceneError(f"a value derived for this run (calibrated force amplitude, contact "
+                         f"module or solver tolerance) is out of range: {exc}") from None
+    scene_toml = scene_to_toml(resolved, comments=comments)
+
     raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=resume_from)
     ds = _build_dataset(system, raw)
     events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
-
-    # the saved scene repeats the run: the solver section as it ran (concrete method, the
-    # preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run
-    # (whose checkpoint holds that section) writes the same scene.toml as an uninterrupted one
-    resolved = replace(scene, solver=solver)
-    comments = {}
-    if system.tangential:
-        exc = scene.excitation
-        resolved = replace_section(resolved, "excitation",
-                                   force_amplitude=system.force_amplitude,
-                                   target_rms_velocity=None)
-        if exc.target_rms_velocity is not None:
-            comments["excitation.force_amplitude"] = (
-                f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
-    resolved = _resolve_contact(resolved, system, comments)
-    scene_toml = scene_to_toml(resolved, comments=comments)
     _add_regimes(ds, system, events)
     ds.attrs.update(_provenance(resolved, scene_toml))
 

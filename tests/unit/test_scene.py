@@ -7,16 +7,16 @@ import pytest
 from roughvib.scene import SceneError, builtin_scenes, load_scene, scene_from_dict, scene_to_toml
 
 
-def test_empty_file_is_the_handset_paper_scene_and_paper_adds_the_contact_module(tmp_path):
+def test_empty_file_is_the_paper_scene_and_handset_sets_the_hand_set_contact(tmp_path):
     f = tmp_path / "empty.toml"
     f.write_text("")
     empty = load_scene(f)
-    handset = load_scene("paper-handset")
+    paper = load_scene("paper")
     for sec in ("block", "plate", "contact", "roughness", "friction", "excitation", "solver",
                 "output"):
-        assert getattr(empty, sec) == getattr(handset, sec)
-    # the built-in paper scene differs only in the contact module's keys
-    paper = load_scene("paper")
+        assert getattr(empty, sec) == getattr(paper, sec)
+    # the built-in hand-set scene differs only in the contact module's keys
+    handset = load_scene("paper-handset")
     module = {"block.vertical_damping": "auto", "contact.points": "auto",
               "contact.stiffness": "auto", "contact.velocity_factor": True}
     assert paper.with_overrides({"name": "paper-handset",

@@ -70,6 +70,41 @@ def test_suffix_rule_and_forced_formats():
     assert uses_topography("e.txt", "topography") and not uses_topography("a.sdf", "text")
 
 
+def test_netcdf_and_hdf5_are_recognised_by_their_first_bytes(tmp_path):
+    # the magic numbers of the formats (netCDF classic / 64-bit offset / 64-bit data, HDF5),
+    # written by hand: the content decides, not the suffix
+    for i, head in enumerate([b"CDF\x01", b"CDF\x02", b"CDF\x05", b"\x89HDF\r\n\x1a\n"]):
+        (tmp_path / f"scan{i}.dat").write_bytes(head + b"\x00" * 32)
+        assert uses_topography(f"scan{i}.dat", "auto", base_dir=tmp_path)
+        assert not uses_topography(f"scan{i}.dat", "text", base_dir=tmp_path)
+    (tmp_path / "cdf.txt").write_text("CDF is not a magic number in text\n1.0\n")
+    assert not uses_topography(tmp_path / "cdf.txt", "auto")
+    assert not uses_topography(tmp_path / "missing.nc", "auto")  # the text reader names it
+
+
+def test_surface_topography_netcdf_reads_like_the_text_trace_matrix(tmp_path, monkeypatch):
+    """SurfaceTopography's own netCDF (contact.engineering's exchange format) with format
+    'auto': it used to reach the text reader and be refused as not UTF-8."""
+    st = pytest.importorskip("SurfaceTopography")
+    monkeypatch.chdir(tmp_path)
+    z = _heights()
+    top = st.Topography(z, physical_sizes=(NX * DX, NY * DY), unit="m")
+    top.to_netcdf(str(tmp_path / "scan.nc"))
+    assert (tmp_path / "scan.nc").read_bytes()[:3] == b"CDF"
+    _write_text(tmp_path / "same.txt", z)
+    auto = _scene("scan.nc").with_overrides({"roughness.units": "m"})
+    assert auto.roughness.format == "auto"
+    a = build_profile(auto.roughness, auto.block, auto.base_dir)
+    b = build_profile(*(lambda s: (s.roughness, s.block, s.base_dir))(
+        _scene(tmp_path / "same.txt")))
+    assert a.stats["layout"] == "map" and a.stats["n_traces"] == NY
+    # netCDF keeps the pixel sizes in float32 (relative 6e-8): the heights are exact, the
+    # grid spacing (and so the filter and the moments) agree to float32
+    assert a.dx == pytest.approx(b.dx, rel=1e-7)
+    np.testing.assert_allclose(a.z, b.z, rtol=0, atol=1e-6 * np.max(np.abs(b.z)))
+    np.testing.assert_allclose(a.stats["raw_moments"], b.stats["raw_moments"], rtol=1e-6)
+
+
 def test_sdf_written_from_the_standard_reads_like_the_text_trace_matrix(tmp_path):
     pytest.importorskip("SurfaceTopography")
     z = _heights()

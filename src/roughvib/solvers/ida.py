@@ -14,7 +14,8 @@ same function is ignored once; more than ``solver.max_events`` events within
 
 scikit-sundae pitfalls handled here: the eventsfn's event history is
 cleared after every event; step counts are read through SUNDIALS' ``IDAGetNumSteps`` (not
-exposed by sksundae; see ``_IdaCounters``); unknown return codes are caught.
+exposed by sksundae; see ``_IdaCounters``, which checks the private layout before calling C,
+:func:`layout_problem`); unknown return codes are caught.
 """
 
 from __future__ import annotations
@@ -102,21 +103,98 @@ class RawSolution:
     extra: dict = field(default_factory=dict)
 
 
-class _IdaCounters:
-    """Read IDA's cumulative step count through the SUNDIALS C API.
+#: the scikit-sundae versions whose private layout ``_IdaCounters`` was checked against (the
+#: dependency is pinned to this range in pyproject.toml)
+SKSUNDAE_TESTED = ("1.2.",)
+#: ``tp_basicsize`` of ``sksundae._cy_ida.IDA`` in those versions [bytes]
+_CY_IDA_BASICSIZE = 144
+#: byte offsets in that object: Cython's vtable pointer right after the object header, then
+#: the first attribute of the class, ``cdef void* mem`` (the IDA memory)
+_VTAB_OFFSET = 16
+_MEM_OFFSET = 24
 
-    scikit-sundae does not expose ``IDAGetNumSteps``. The IDA memory pointer is read from the
-    Cython object at a fixed offset and validated by comparing ``IDAGetNumResEvals`` through
-    it with sksundae's own ``nfev``; if the check ever fails (another sksundae layout), step
-    counts are reported as unavailable rather than wrong.
+
+def layout_problem(cy_solver) -> str | None:
+    """Why the IDA memory pointer cannot be read from scikit-sundae's Cython solver object
+    (None: it can).
+
+    scikit-sundae exposes only the residual and Jacobian counts (``IDAResult.nfev``,
+    ``njev``); the step statistics, the last step size and ``IDASetInitStep`` are reached
+    through the SUNDIALS C API on the object's private ``mem`` pointer. Before anything calls
+    C on it, this checks, without calling C: the installed version is in
+    :data:`SKSUNDAE_TESTED`; the object is a ``sksundae._cy_ida.IDA`` of the known size; the
+    shipped Cython source declares ``mem`` as the class's first attribute; the word at the
+    vtable offset is the class's own vtable (so the header and offsets are as expected); and
+    the pointer is set.
+
+    Parameters
+    ----------
+    cy_solver : object
+        The Cython solver held by ``sksundae.ida.IDA``, after ``init_step``.
+
+    Returns
+    -------
+    str or None
+        One line naming the first check that failed.
+    """
+    try:
+        import sksundae as sun
+        from sksundae import _cy_ida
+    except ImportError as exc:  # pragma: no cover - IDA runs only with sksundae
+        return f"scikit-sundae cannot be imported ({exc})"
+    version = getattr(sun, "__version__", "?")
+    if not version.startswith(SKSUNDAE_TESTED):
+        return (f"scikit-sundae {version} is not a tested version "
+                f"({', '.join(v + 'x' for v in SKSUNDAE_TESTED)})")
+    if type(cy_solver) is not _cy_ida.IDA:
+        return f"the solver object is a {type(cy_solver).__name__}, not sksundae._cy_ida.IDA"
+    size = type(cy_solver).__basicsize__
+    if size != _CY_IDA_BASICSIZE:
+        return f"sksundae._cy_ida.IDA has {size} bytes, not {_CY_IDA_BASICSIZE}"
+    pyx = Path(_cy_ida.__file__).with_name("_cy_ida.pyx")
+    try:
+        body = pyx.read_text().split("cdef class IDA:", 1)[1]
+    except (OSError, IndexError):
+        return f"{pyx.name} (the source that fixes the layout) is not installed"
+    first = next((ln.split("#")[0].split() for ln in body.splitlines()
+                  if ln.strip().startswith("cdef ")), [])
+    if first != ["cdef", "void*", "mem"]:
+        return f"the first attribute of IDA in {pyx.name} is {' '.join(first)!r}, not mem"
+    capsule = type(cy_solver).__dict__.get("__pyx_vtable__")
+    if capsule is None:
+        return "sksundae._cy_ida.IDA has no Cython vtable"
+    get = ctypes.pythonapi.PyCapsule_GetPointer
+    get.restype = ctypes.c_void_p
+    get.argtypes = [ctypes.py_object, ctypes.c_char_p]
+    vtab = get(capsule, None)
+    if ctypes.c_void_p.from_address(id(cy_solver) + _VTAB_OFFSET).value != vtab:
+        return "the object's vtable pointer is not at the expected offset"
+    if not ctypes.c_void_p.from_address(id(cy_solver) + _MEM_OFFSET).value:
+        return "the IDA memory pointer is not set (init_step not called?)"
+    return None
+
+
+class _IdaCounters:
+    """Read IDA's step statistics and last step, and set the first step, through the
+    SUNDIALS C API.
+
+    scikit-sundae (1.2) exposes neither (only ``nfev`` and ``njev``). The IDA memory pointer
+    is read from the Cython object at a fixed offset once :func:`layout_problem` finds the
+    layout as tested, and is further validated by comparing ``IDAGetNumResEvals`` through it
+    with sksundae's own ``nfev`` (or IDA's current time with t0). If a check fails, no C
+    function is called on the pointer: the statistics are reported as unavailable rather than
+    wrong, restarts use IDA's own first step, and ``problem`` says why (the run warns once).
     """
 
-    OFFSET = 24
+    OFFSET = _MEM_OFFSET
 
     def __init__(self, cy_solver) -> None:
         self.ok = False
         self._mem = None
         self._lib = None
+        self.problem = layout_problem(cy_solver)
+        if self.problem is not None:
+            return
         try:
             import sksundae as sun
 
@@ -124,12 +202,13 @@ class _IdaCounters:
                                   "scikit_sundae.libs")
             cands = glob.glob(os.path.join(libdir, "libsundials_ida*.so*"))
             if not cands:
+                self.problem = f"no libsundials_ida in {libdir}"
                 return
             self._lib = ctypes.CDLL(cands[0])
-            addr = id(cy_solver) + self.OFFSET
-            self._mem = ctypes.c_void_p.from_address(addr).value
-        except Exception:  # noqa: BLE001 - diagnostics only, never fatal
+            self._mem = ctypes.c_void_p.from_address(id(cy_solver) + self.OFFSET).value
+        except Exception as exc:  # noqa: BLE001 - diagnostics only, never fatal
             self._lib = None
+            self.problem = f"the SUNDIALS library cannot be loaded ({exc})"
 
     def validate(self, nfev: int) -> None:
         if self._lib is None or not self._mem:
@@ -478,9 +557,13 @@ def solve_ida(system: System, *, progress: bool | None = None,
         # sksundae warns that its own sparse FD Jacobian is unused: we pass an analytic one
         warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
         solver = sun.ida.IDA(resfn, **options)
-    cy = solver._IDA__IDA  # the Cython object: skip one Python layer per step
-    cy.init_step(t_start, y, yp)
-    counters = _IdaCounters(cy)
+    solver.init_step(t_start, y, yp)
+    # the Cython object behind the public solver, only to read IDA's statistics through the C
+    # API (docs/architecture.md, Conventions); _IdaCounters checks its layout first
+    counters = _IdaCounters(vars(solver).get("_IDA__IDA"))
+    if counters.problem is not None:
+        warnings.warn(f"IDA step statistics unavailable and restarts use IDA's own first step: "
+                      f"{counters.problem}", RuntimeWarning, stacklevel=2)
     h_restart = 0.0  # first step after the latest restart [s] (0: IDA's own estimate)
     h_restart_cap = RESTART_STEP_FRACTION * out_cfg.step
     if resume is not None and resume.loop.get("h_restart", 0.0) > 0:
@@ -557,7 +640,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
         while k < n:
             jac_count[0] = 0
             try:
-                r = cy.step(grid[k], "normal", None)
+                r = solver.step(grid[k], "normal", None)
             except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
                 raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
                                     f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
@@ -583,7 +666,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
                 y, yp = book.apply(te, np.asarray(r_event.y, dtype=float), fired)
                 # first step after the restart: RESTART_STEP_FRACTION of the last step
                 h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
-                cy.init_step(te, y, yp)
+                solver.init_step(te, y, yp)
                 counters.set_init_step(h_restart)
                 # one instant may take several restarts (IDA reports simultaneous roots up to
                 # ~1e-16 s apart): the functions switched at any of them count as just switched
@@ -635,7 +718,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
                 if scene_toml:
                     write_cp(k, t_cp, y_cp)
                 y, yp = system.consistent(t_cp, y_cp, reg, rf)
-                cy.init_step(t_cp, y, yp)
+                solver.init_step(t_cp, y, yp)
                 counters.set_init_step(h_restart)
                 r = None
         if r is not None:

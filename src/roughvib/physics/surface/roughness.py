@@ -838,7 +838,7 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
     from roughvib.physics.surface.topography import read_topography_map, uses_topography
 
     r = roughness
-    if not uses_topography(r.path, r.format):
+    if not uses_topography(r.path, r.format, base_dir=base_dir):
         return read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
                                  min_length=min_length, min_length_reason=min_length_reason)
     p = Path(r.path) if Path(r.path).is_absolute() else Path(base_dir) / r.path
@@ -846,7 +846,9 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
     z, y = tm.z, None
     if z.ndim == 2:
         y_all = (np.arange(z.shape[1]) - (z.shape[1] - 1) / 2.0) * tm.dy
-        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-9)
+        # a trace on the block's edge stays: files may store pixel sizes in float32 (netCDF
+        # from SurfaceTopography does), 6e-8 relative, so the edge is matched to 1e-6
+        keep = np.abs(y_all) <= block.width / 2.0 * (1.0 + 1e-6)
         z, y = z[:, keep], y_all[keep]
         if z.shape[1] == 1:
             z, y = z[:, 0], None
@@ -864,6 +866,16 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
 # --------------------------------------------------------------------------------------------
 # build the profile
 # --------------------------------------------------------------------------------------------
+
+
+def _check_filtered(before: np.ndarray, after: np.ndarray, r: Roughness, length: float) -> None:
+    """Refuse a functional filter that removed the whole profile (a block shorter than every
+    wavelength of the profile: ``highpass`` then leaves zero heights)."""
+    peak = float(np.max(np.abs(before))) if before.size else 0.0
+    if peak > 0 and not float(np.max(np.abs(after))) > 1e-12 * peak:
+        raise SceneError(f"roughness.filter = {r.filter!r} over block.length = {length:g} m "
+                         f"removes the whole profile (the block must be longer than the "
+                         f"profile's shortest wavelengths), got block.length {length:g} m")
 
 
 def _reduction_db(reduced: np.ndarray, raw_rms: float) -> float:
@@ -936,7 +948,9 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
                                      for key in ("rms", "rms_slope", "rms_curvature"))
         if r.filter != "none":
+            raw_z = z
             z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
     else:
         dx = r.spacing
         n = _n_points(r)
@@ -950,16 +964,22 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
             z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
         elif not r.reduce_3d:
             periodic = True
-            z = _synthesize_raw(r)
-            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            raw_z = _synthesize_raw(r)
+            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
             zr = float(np.sqrt(np.mean(z**2)))
             z = z * (r.rms / zr) if zr > 0 else z
             stats.update(seed=r.seed, target_rms=r.rms)
         else:
             periodic = True
-            z = _reduce_3d(r, block, stats)
-            z = functional_filter(z - z.mean(), dx, r.filter, bl)
+            raw_z = _reduce_3d(r, block, stats)
+            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
+            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
             stats.update(seed=r.seed)
+    if not np.all(np.isfinite(z)):  # the interpolant (spline) needs finite heights
+        raise SceneError(f"roughness.kind = {r.kind!r} gives a profile with non-finite heights "
+                         f"(check roughness.rms, amplitude, raw_rms and the band), got "
+                         f"{int(np.count_nonzero(~np.isfinite(z)))} of {z.size} samples")
     n = z.size
     stats.update(n=int(n), length=float((n - 1) * dx), filter=r.filter)
     stats.update(profile_statistics(z, dx, periodic=periodic))

@@ -2,10 +2,10 @@
 package (``pip install roughvib[topography]``).
 
 This module owns the boundary to that package: which files it reads (:func:`uses_topography`,
-by ``roughvib.format`` and the file suffix), and :func:`read_topography_map`, which returns
-the heights of a file in metres on its uniform grid. Everything after that (cropping to the
-block width, the 3-D to 2-D span average, the functional filter, the summit statistics) is
-the same as for a plain-text trace matrix and lives in
+by ``roughness.format``, the file suffix and the file's first bytes), and
+:func:`read_topography_map`, which returns the heights of a file in metres on its uniform grid.
+Everything after that (cropping to the block width, the 3-D to 2-D span average, the functional
+filter, the summit statistics) is the same as for a plain-text trace matrix and lives in
 :mod:`roughvib.physics.surface.roughness`. SurfaceTopography is imported only here and only
 when such a file is read, so roughvib runs without it.
 """
@@ -19,7 +19,8 @@ import numpy as np
 
 from roughvib.scene import SceneError
 
-__all__ = ["INSTRUMENT_SUFFIXES", "TopographyMap", "read_topography_map", "uses_topography"]
+__all__ = ["BINARY_SIGNATURES", "INSTRUMENT_SUFFIXES", "TopographyMap", "read_topography_map",
+           "uses_topography"]
 
 #: file suffixes that ``roughness.format = "auto"`` hands to SurfaceTopography (instrument and
 #: exchange formats); anything else (.txt, .csv, .dat, .asc, ...) goes to the text reader
@@ -32,19 +33,39 @@ INSTRUMENT_SUFFIXES = frozenset({
 _INSTALL = "pip install 'roughvib[topography]'"
 
 
-def uses_topography(path: str | Path, fmt: str) -> bool:
+#: leading bytes of the binary exchange formats SurfaceTopography reads, whatever the file's
+#: suffix: netCDF classic, 64-bit offset and 64-bit data (the exchange format of
+#: contact.engineering, written by SurfaceTopography's ``to_netcdf``) and HDF5 (netCDF-4)
+BINARY_SIGNATURES = (b"CDF\x01", b"CDF\x02", b"CDF\x05", b"\x89HDF\r\n\x1a\n")
+
+
+def uses_topography(path: str | Path, fmt: str, *, base_dir: str | Path = ".") -> bool:
     """Whether a profile file is read through SurfaceTopography.
 
     Parameters
     ----------
     path : str or Path
-        The file (only its suffix is looked at).
+        The file. ``fmt = "auto"`` looks at its suffix (:data:`INSTRUMENT_SUFFIXES`) and, if
+        it exists, at its first bytes (:data:`BINARY_SIGNATURES`: netCDF or HDF5, whatever the
+        suffix).
     fmt : {"auto", "text", "topography"}
         ``roughness.format``.
+    base_dir : str or Path
+        Directory a relative ``path`` is resolved against.
     """
     if fmt != "auto":
         return fmt == "topography"
-    return Path(path).suffix.lower().lstrip(".") in INSTRUMENT_SUFFIXES
+    p = Path(path)
+    if p.suffix.lower().lstrip(".") in INSTRUMENT_SUFFIXES:
+        return True
+    if not p.is_absolute():
+        p = Path(base_dir) / p
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(8)
+    except OSError:
+        return False  # the text reader names the problem
+    return head.startswith(BINARY_SIGNATURES)
 
 
 @dataclass(frozen=True)
