@@ -382,11 +382,14 @@ def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData
     win = whole_period_window(t, scene.period if math.isfinite(scene.period) else 0.0,
                               transient)
     lay = system.layout
+    # the solver's modal states are mass-normalised (shapes in 1/sqrt(kg)); the radiation
+    # module works with the plate's unit-amplitude shapes and its modal mass: q = q_n * scale
+    q0 = raw.y_initial[lay.slice("plate.q")] * system.mode_scale
+    dq0 = raw.y_initial[lay.slice("plate.dq")] * system.mode_scale
     t0 = time.perf_counter()
     try:
         bands = radiation_bands(ds["contact_force"], system.contact_xy, scene.output.step,
-                                scene.plate, win, q0=raw.y_initial[lay.slice("plate.q")],
-                                dq0=raw.y_initial[lay.slice("plate.dq")],
+                                scene.plate, win, q0=q0, dq0=dq0,
                                 sides=scene.output.radiating_sides,
                                 air_density=scene.output.air_density,
                                 sound_speed=scene.output.sound_speed)
@@ -400,8 +403,8 @@ def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData
     if mics:
         band_hz, spl = microphone_bands(
             ds["contact_force"], system.contact_xy, scene.output.step, scene.plate, win, mics,
-            q0=raw.y_initial[lay.slice("plate.q")], dq0=raw.y_initial[lay.slice("plate.dq")],
-            air_density=scene.output.air_density, sound_speed=scene.output.sound_speed)
+            q0=q0, dq0=dq0, air_density=scene.output.air_density,
+            sound_speed=scene.output.sound_speed)
         result.extra["microphones"] = pd.DataFrame(
             {"band_hz": band_hz, **{f"mic{i + 1}_spl_db": spl[i] for i in range(len(mics))}})
     total = bands.total_sound_power()
