@@ -61,7 +61,7 @@ def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffnes
     assert saved["model"]["contact"]["stiffness_total"] == pytest.approx(cs.s_total)
     html = write_report(tmp_path / "run").read_text()
     assert "contact points from" in html and "micro-contacts (statistical model)" in html
-    assert f"{cs.s_total:.6g}" in html and f"{cs.micro_contacts:.6g}" in html
+    assert f"{cs.s_total:.4g}" in html and f"{cs.micro_contacts:.4g}" in html
     # a synthetic surface is one draw: the report says so and names the ensemble command
     assert "one draw of a random surface (roughness.seed = 1)" in html
     assert "roughvib run paper --seeds 10" in html
