@@ -137,7 +137,7 @@ def code_identity() -> dict:
     from roughvib._version import __version__
 
     return {"roughvib": __version__,
-            "roughvib_sources": source_digest(Path(__file__).resolve().parents[1]),
+            "roughvib_sources": source_digest(Path(__file__).resolve().parent.parent),
             **library_versions()}
 
 
