@@ -107,6 +107,17 @@ I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 N_IST = 10
 
+#: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1`` (N_SLOTS, R, 2),
+#: ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and ``hslot`` (N_SLOTS,) the step of each
+#: slot (0: empty); numba passes a namedtuple of arrays at the cost of its fields
+Propagators = collections.namedtuple("Propagators", ["Phi", "G0", "G1", "G1c", "hslot"])
+#: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
+#: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
+Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
+#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 2 R + 5 K + 3),
+#: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
+Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
+
 # components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
 MODE_Q = 0
 MODE_DQ = 1
@@ -206,8 +217,10 @@ def step_maps(omega2, cdamp, h, Phi, G0, G1):
 
 
 @njit(cache=True)
-def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot):
-    """Propagators of step h into cache slot ``slot``, with G1 in contact coordinates."""
+def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
+    """Propagators of step h into cache slot ``slot`` of ``prop``, with G1 in contact
+    coordinates."""
+    Phi, G0, G1, G1c, hslot = prop
     step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
     R = omega2.size
     K = cres.shape[0]
@@ -283,8 +296,8 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
 
 
 @njit(cache=True)
-def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, off, fp, cdamp, phi,
-                  phiT, stiff, spos, prof, reg, ws, jac, ipiv, ist):
+def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp, phi, phiT,
+                  stiff, spos, prof, reg, scratch, ist):
     """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
 
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
@@ -297,9 +310,11 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     iteration removes. Returns False when Newton does not converge (the caller takes a smaller
     step).
 
-    ``ws`` is scratch of length >= 2 R + 5 K + 3; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
-    (int64) of length >= K + 1.
+    ``prop``: the :data:`Propagators` cache; ``scratch``: :data:`Scratch` (``ws`` of length
+    >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
+    Phi, G0, G1, G1c, _hslot = prop
+    ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
@@ -489,9 +504,9 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 
 
 @njit(cache=True)
-def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
-             atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, ipiv, track_latch, fresh, max_steps):
+def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp, omega2, cdamp,
+             phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, scratch, track_latch, fresh,
+             max_steps):
     """Integrate from ``tt[T_NOW]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[T_NOW]``
@@ -505,12 +520,16 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     if it had not returned: chunk returns, and the checkpoints written at them, leave the
     result bit-identical.
 
-    Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
-    half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
-    ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`) and modal forces
-    (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at the step start,
-    half step, end, and of the latest trial.
+    Buffers (``buf``, :data:`Buffers`; rows are views): ``Y`` (7, n) states y, ya (one full
+    step), ym, yb (the two half steps), yt (root-search trial), ybest (state at the root), wts
+    (tolerance weights); ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`)
+    and modal forces (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at
+    the step start, half step, end, and of the latest trial; ``armed``, ``fired`` the roots.
+    ``prop``: the :data:`Propagators` cache; ``scratch``: :data:`Scratch`.
     """
+    Y, D, U, G, armed, fired = buf
+    hslot = prop.hslot
+    work = scratch.work
     y, ya, ym, yb, yt, ybest, wts = (Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_TRIAL],
                                      Y[B_BEST], Y[B_WTS])
     d, da, dm, db, dt_, dbest = D[B_NOW], D[B_FULL], D[B_HALF], D[B_END], D[B_TRIAL], D[B_BEST]
@@ -568,25 +587,23 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             s_full = lev
             s_half = lev + 1
             if hslot[s_full] <= 0.0:
-                _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+                _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
             if hslot[s_half] <= 0.0:
-                _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                           hslot)
+                _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
             h = hslot[s_full]
         else:
             s_full = SLOT_FLY
             s_half = SLOT_FLY2
-            _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
-            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+            _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, prop)
+            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
             ist[I_MAPS] += 2
         hh = 0.5 * h
         for i in range(nstate):
             wts[i] = rtol * abs(y[i]) + atol[i]
         # the full step (for the error estimate) and the two half steps (kept)
-        model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, ws,
-                 jac, ipiv, ist)
+        model = (prop, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, scratch, ist)
         ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
         ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
         ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
@@ -659,8 +676,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                     if not (lo + 1e-3 * w_ < th < hi - 1e-3 * w_):
                         th = 0.5 * (lo + hi)
                     hs = th * L
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                               hslot)
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_ROOT_EVALS] += 1
                     ist[I_STEP_EVALS] += 1
@@ -686,8 +702,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                     for j in range(nstate):
                         ybest[j] = src[j]
                 else:
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                               hslot)
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_STEP_EVALS] += 1
                     if not implicit_step(tb, hs, yb0, db0, ub0, ybest, dbest, ubest, SLOT_ROOT,
@@ -819,6 +834,9 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
+    prop = Propagators(Phi, G0, G1, G1c, hslot)
+    buf = Buffers(Y, D, U, G, armed, fired)
+    scratch = Scratch(work, ws, jac, ipiv)
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
@@ -880,10 +898,9 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
                 k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
                              + cp_stride + 1)
-            code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
-                            G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
-                            phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            ipiv, track_latch, fresh, budget)
+            code = _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, scfg.rtol, outs, off,
+                            fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg,
+                            rf, scratch, track_latch, fresh, budget)
             fresh = False
             regime.v_ext = float(rf[kn.RF_VEXT])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
