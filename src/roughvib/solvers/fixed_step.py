@@ -19,6 +19,7 @@ located by sign changes between steps with linear interpolation and written to t
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 
@@ -197,15 +198,26 @@ def _solve_contacts(active, stiff, beta, G1c, rhs, F, comp, K):
     return False
 
 
+#: the state the fixed-step loop advances in place: modal q, q' (R,), ``zv`` (ZV_*), contact
+#: forces ``Fv`` (K,), the active contact set ``active`` (K,) int64, ``tang`` (TG_*) and the
+#: running energy integrals ``energy`` (E_*)
+LoopState = collections.namedtuple("LoopState",
+                                   ["q", "dq", "zv", "Fv", "active", "tang", "energy"])
+#: the event log of a fixed-step loop: times, kinds (EV_KINDS) and contacts, preallocated
+EventArrays = collections.namedtuple("EventArrays", ["t", "kind", "contact"])
+
+
 @njit(cache=True)
 def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
-         prof, fp, law, tangential, moreau, q, dq, zv, Fv, active, tang, energy, out, ev_t,
-         ev_kind, ev_contact):
-    """The fixed-step loop. Mutates the state arrays; returns (n_events, status code, step).
+         prof, fp, law, tangential, moreau, state, out, evs):
+    """The fixed-step loop. Mutates ``state`` (:data:`LoopState`), ``out`` and ``evs``
+    (:data:`EventArrays`); returns (n_events, status code, step).
 
     ``zv`` = [z, vz, az]; ``tang`` = [x, vx, latch s, v_ext, stick phase]; ``energy`` the six
     running integrals; status 0 ok, 1 Newton failure (tangential), 2 active set failure.
     """
+    q, dq, zv, Fv, active, tang, energy = state
+    ev_t, ev_kind, ev_contact = evs
     R = Phi.shape[0]
     K = stiff.size
     M = fp[kn.FP_MMODAL]
@@ -503,8 +515,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
                               system.omega2, system.cdamp, system.stiff, system.cres,
                               system.contact_s, system.prof, system.fp,
                               int(system.off[kn.OFF_LAW]), lay.tangential, moreau,
-                              q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
-                              ev_contact)
+                              LoopState(q, dq, zv, Fv, active, tang, energy), out,
+                              EventArrays(ev_t, ev_kind, ev_contact))
     wall = time.perf_counter() - wall0
     status, message = "success", "reached the end of the output grid"
     if code == 1:
