@@ -310,7 +310,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     iteration removes. Returns False when Newton does not converge (the caller takes a smaller
     step).
 
-    ``prop``: the :data:`Propagators` cache; ``scratch``: :data:`Scratch` (``ws`` of length
+    ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
     >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
     Phi, G0, G1, G1c, _hslot = prop
@@ -520,12 +520,12 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
     if it had not returned: chunk returns, and the checkpoints written at them, leave the
     result bit-identical.
 
-    Buffers (``buf``, :data:`Buffers`; rows are views): ``Y`` (7, n) states y, ya (one full
+    Buffers (``buf``, ``Buffers``; rows are views): ``Y`` (7, n) states y, ya (one full
     step), ym, yb (the two half steps), yt (root-search trial), ybest (state at the root), wts
     (tolerance weights); ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`)
     and modal forces (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at
     the step start, half step, end, and of the latest trial; ``armed``, ``fired`` the roots.
-    ``prop``: the :data:`Propagators` cache; ``scratch``: :data:`Scratch`.
+    ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch``.
     """
     Y, D, U, G, armed, fired = buf
     hslot = prop.hslot

@@ -210,8 +210,8 @@ EventArrays = collections.namedtuple("EventArrays", ["t", "kind", "contact"])
 @njit(cache=True)
 def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
          prof, fp, law, tangential, moreau, state, out, evs):
-    """The fixed-step loop. Mutates ``state`` (:data:`LoopState`), ``out`` and ``evs``
-    (:data:`EventArrays`); returns (n_events, status code, step).
+    """The fixed-step loop. Mutates ``state`` (``LoopState``), ``out`` and ``evs``
+    (``EventArrays``); returns (n_events, status code, step).
 
     ``zv`` = [z, vz, az]; ``tang`` = [x, vx, latch s, v_ext, stick phase]; ``energy`` the six
     running integrals; status 0 ok, 1 Newton failure (tangential), 2 active set failure.
