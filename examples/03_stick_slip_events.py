@@ -19,7 +19,7 @@ import roughvib
 from roughvib.analysis.events import phase_table, stick_intervals
 from roughvib.views.figures import plot_events
 
-scene = roughvib.load_scene("paper", {"output.duration": 0.1428, "output.transient": 0.0,
+scene = roughvib.load_scene("paper", {"output.duration": 1 / 7, "output.transient": 0.0,
                                       "plate.max_frequency": 2000.0,
                                       "solver.method": "adaptive-modal",
                                       "output.progress": False})

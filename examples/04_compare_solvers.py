@@ -11,12 +11,14 @@ relative rms error of the tangential velocity and the times of the matched event
 """
 
 import time
+import warnings
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 import roughvib
 from roughvib.analysis.compare import band_level_errors, match_events, relative_rms_error
+from roughvib.scene import ModelValidityWarning
 from roughvib.views.figures import plot_band_comparison
 
 BASE = {"output.duration": 0.02, "output.transient": 0.0, "plate.max_frequency": 10e3,
@@ -30,11 +32,17 @@ RUNS = {
     "paper scheme, 10 us": {"solver.method": "paper", "solver.step": 1e-5},
 }
 
+# 20 ms is less than one excitation period (1/7 s): the summary levels of such a run average
+# over part of a cycle, and roughvib says so with a ModelValidityWarning. This example measures
+# its errors over the same 20 ms of every run and reads no summary level, so it silences that
+# one warning, for these runs only.
 results = {}
-for label, settings in RUNS.items():
-    t0 = time.perf_counter()
-    results[label] = roughvib.simulate(roughvib.load_scene("paper", {**BASE, **settings}))
-    print(f"{label:28s} {time.perf_counter() - t0:6.2f} s  {results[label].status}")
+with warnings.catch_warnings():
+    warnings.filterwarnings("ignore", "the analysis window", ModelValidityWarning)
+    for label, settings in RUNS.items():
+        t0 = time.perf_counter()
+        results[label] = roughvib.simulate(roughvib.load_scene("paper", {**BASE, **settings}))
+        print(f"{label:28s} {time.perf_counter() - t0:6.2f} s  {results[label].status}")
 
 # %%
 # Errors against the reference. The band levels are compared where the reference band lies

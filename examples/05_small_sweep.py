@@ -29,7 +29,7 @@ sweep = {
 }
 out = Path(tempfile.mkdtemp()) / "velocity-demo"
 with Client(processes=False, n_workers=1, threads_per_worker=2,
-            dashboard_address=None) as client:
+            dashboard_address=":0") as client:  # any free port: no clash with another cluster
     run = run_sweep(sweep, out, client=client, progress=False)
 print(f"ran {run.ran}, failed {run.failed}, skipped {run.skipped}")
 

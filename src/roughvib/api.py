@@ -14,6 +14,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the names and where they live (imported on first use, see __getattr__)
+    from roughvib.records import export_run, read_record
     from roughvib.results import Result, load_result
     from roughvib.scene import Scene, SceneError, builtin_scenes, load_scene
     from roughvib.simulation import energy_audit, resume, simulate
@@ -21,10 +22,12 @@ if TYPE_CHECKING:  # the names and where they live (imported on first use, see _
     from roughvib.studies.sweep import builtin_sweeps, load_sweep, run_sweep, sweep_report
     from roughvib.views.report import write_report
     from roughvib.views.surface_report import write_surface_report
+    from roughvib.views.validation import validate
 
 __all__ = ["Result", "Scene", "SceneError", "builtin_scenes", "builtin_sweeps", "energy_audit",
-           "load_result", "load_scene", "load_sweep", "resume", "run_study", "run_sweep",
-           "simulate", "sweep_report", "write_report", "write_surface_report"]
+           "export_run", "load_result", "load_scene", "load_sweep", "read_record", "resume",
+           "run_study", "run_sweep", "simulate", "sweep_report", "validate", "write_report",
+           "write_surface_report"]
 
 _OWNER = {
     "Result": "roughvib.results", "load_result": "roughvib.results",
@@ -37,6 +40,8 @@ _OWNER = {
     "run_sweep": "roughvib.studies.sweep", "sweep_report": "roughvib.studies.sweep",
     "write_report": "roughvib.views.report",
     "write_surface_report": "roughvib.views.surface_report",
+    "export_run": "roughvib.records", "read_record": "roughvib.records",
+    "validate": "roughvib.views.validation",
 }
 
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
-from roughvib.rundir import RunDirectory
+from roughvib.rundir import RUN_FILES, RunDirectory
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 if TYPE_CHECKING:
@@ -42,7 +42,8 @@ if TYPE_CHECKING:
 # them (RunData, _write_events_csv)
 
 __all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MixedRunError", "REGIME_NOTATION", "Result",
-           "RunData", "VARIABLES", "check_run_files", "load_result"]
+           "RunData", "RunDirectoryError", "SUMMARY_DIGEST", "VARIABLES", "check_run_files",
+           "load_result", "read_summary", "seal_summary"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -78,8 +79,10 @@ class RunData:
     scipy.sparse, scipy.special and scipy.fft, for xarray's duck-array checks), about half a
     second of a short run on the 2-core machine (docs/performance.md, "Fixed cost of a run").
     :meth:`to_dataset` gives the xarray.Dataset (``Result.dataset`` calls it on first use) and
-    :meth:`write_netcdf` writes the very file xarray's ``to_netcdf`` writes (tested group for
-    group, attribute for attribute and byte for byte).
+    :meth:`write_netcdf` writes it with h5netcdf's public API as a netCDF-4 file of the CF
+    conventions that ``xarray.open_dataset`` and :func:`load_result` read back to the same
+    Dataset (tested, also against the file ``to_netcdf`` writes, group for group and attribute
+    for attribute).
 
     Attributes
     ----------
@@ -121,6 +124,31 @@ class RunData:
             out.update(zip(dims, values.shape, strict=True))
         return out
 
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset) -> RunData | None:
+        """The arrays of a Dataset: its variables in its order, its coordinates and attributes.
+
+        Parameters
+        ----------
+        ds : xarray.Dataset
+            Any Dataset; its values are read into memory.
+
+        Returns
+        -------
+        RunData or None
+            None if a variable is not numeric (integer or float: text, booleans and times
+            are not what :meth:`write_netcdf` writes).
+        """
+        data = cls()
+        coords = set(ds.coords)
+        for name, var in ds.variables.items():
+            if var.dtype.kind not in "iuf":
+                return None
+            data.add(str(name), tuple(str(d) for d in var.dims), np.asarray(var.values),
+                     dict(var.attrs), coord=name in coords)
+        data.attrs = dict(ds.attrs)
+        return data
+
     def to_dataset(self) -> xr.Dataset:
         """The xarray.Dataset of these arrays (variables, coordinates and attributes)."""
         import xarray as xr
@@ -154,12 +182,15 @@ class RunData:
         return per_var, (" ".join(rest) if rest else None)
 
     def write_netcdf(self, path: str | os.PathLike, attrs: dict) -> None:
-        """Write the arrays as netCDF-4 (h5netcdf) with global attributes ``attrs``.
+        """Write the arrays as netCDF-4 with global attributes ``attrs`` (h5netcdf's public
+        API).
 
-        The file is the one ``to_dataset().assign_attrs(attrs).to_netcdf(path,
-        engine="h5netcdf")`` writes, in the same order (global attributes, dimensions,
-        variables): float variables carry a NaN ``_FillValue``, integer ones none, and the
-        data variables list their non-dimension coordinates in ``coordinates``.
+        The layout is CF's, as xarray decodes it: global attributes, dimensions, variables in
+        order; float variables carry a NaN ``_FillValue``, integer ones none, and the data
+        variables list their non-dimension coordinates in the ``coordinates`` attribute
+        (coordinates on no variable's dimensions in the global one). ``to_dataset()
+        .assign_attrs(attrs).to_netcdf(path, engine="h5netcdf")`` writes the same file
+        (tested).
         """
         import h5netcdf
 
@@ -243,26 +274,20 @@ def _write_events_csv(records: list, path: Path) -> None:
 
 
 def _write_netcdf(ds: xr.Dataset, path: Path) -> None:
-    """``ds.to_netcdf(path, engine="h5netcdf")`` without asking dask for its scheduler.
+    """Write a Dataset as ``result.nc`` / ``partial.nc``, through public APIs only.
 
-    ``to_netcdf`` looks up the active dask scheduler (importing ``dask.distributed`` and its
-    dependencies: about 0.4 s of a short run on the 2-core machine) to decide whether to close
-    the file between chunk writes, which only matters for dask arrays; ours are numpy arrays.
-    Writing through the same h5netcdf store with xarray's HDF5 lock gives the same file
-    (tested against ``to_netcdf``). With an xarray that no longer has these names, the public
-    ``to_netcdf`` is used.
+    A Dataset of numeric variables (every Dataset a run makes or :func:`load_result` reads)
+    goes through :meth:`RunData.from_dataset` and :meth:`RunData.write_netcdf` (h5netcdf's
+    public API): the same file as for a run that never built its Dataset, and no look-up of
+    the dask scheduler that ``to_netcdf`` makes (about 0.4 s of a short run, importing
+    ``dask.distributed``). Anything else (a Dataset with text, booleans or times, made by
+    hand) is written by ``Dataset.to_netcdf(engine="h5netcdf")``.
     """
-    try:
-        from xarray.backends import H5NetCDFStore
-        from xarray.backends.locks import HDF5_LOCK
-    except ImportError:  # pragma: no cover - another xarray layout
+    data = RunData.from_dataset(ds)
+    if data is None:
         ds.to_netcdf(path, engine="h5netcdf")
-        return
-    store = H5NetCDFStore.open(str(path), mode="w", lock=HDF5_LOCK)
-    try:
-        ds.dump_to_store(store, unlimited_dims=ds.encoding.get("unlimited_dims"))
-    finally:
-        store.close()
+    else:
+        data.write_netcdf(path, dict(ds.attrs))
 
 
 def _jsonable(obj: Any) -> Any:
@@ -396,8 +421,8 @@ class Result:
             attrs["run_id"] = run_id
             if isinstance(data, RunData):
                 data.write_netcdf(tmp / nc, attrs)
-            else:
-                ds = data.copy()
+            else:  # the Dataset was asked for (and may have been changed)
+                ds = data.copy(deep=False)
                 ds.attrs = attrs
                 _write_netcdf(ds, tmp / nc)
             names.append(nc)
@@ -412,13 +437,185 @@ class Result:
             names.append("events.csv")
         self.summary["run_id"] = run_id
         self.summary["files"] = {n: _file_info(tmp / n) for n in names}
-        (tmp / "summary.json").write_text(json.dumps(_jsonable(self.summary), indent=2),
-                                          encoding="utf-8")
+        self.summary.pop(SUMMARY_DIGEST, None)
+        sealed = seal_summary(_jsonable(self.summary))
+        self.summary[SUMMARY_DIGEST] = sealed[SUMMARY_DIGEST]
+        (tmp / "summary.json").write_text(json.dumps(sealed, indent=2), encoding="utf-8")
         return [*names, "summary.json"]
 
 
-class MixedRunError(ValueError):
+class RunDirectoryError(ValueError):
+    """A file of a run directory that is not what roughvib wrote (wrong type or shape, not
+    readable, edited after saving); the message is one line naming the file (exit status 2)."""
+
+
+class MixedRunError(RunDirectoryError):
     """A run directory whose files do not all belong to the run of its summary.json."""
+
+
+#: the key of ``summary.json`` that holds the SHA-256 of the rest of the summary
+SUMMARY_DIGEST = "summary_sha256"
+
+
+def _canonical(obj: Any) -> bytes:
+    """The JSON text a summary's digest is taken of: sorted keys, no spaces, ASCII."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True
+                      ).encode("ascii")
+
+
+def seal_summary(summary: dict) -> dict:
+    """A copy of a JSON-able summary with its digest ``summary[SUMMARY_DIGEST]``.
+
+    The digest is the SHA-256 of the summary without that key, as canonical JSON (sorted keys,
+    no spaces, ASCII): :func:`read_summary` refuses a ``summary.json`` whose values were
+    changed after the run wrote it. It guards against edits and damage, not against someone
+    who recomputes it.
+
+    Parameters
+    ----------
+    summary : dict
+        The summary, JSON-able (finite floats, str keys).
+
+    Returns
+    -------
+    dict
+        ``summary`` and its digest (the digest key last).
+    """
+    body = {k: v for k, v in summary.items() if k != SUMMARY_DIGEST}
+    return {**body, SUMMARY_DIGEST: hashlib.sha256(_canonical(body)).hexdigest()}
+
+
+def _json_type(value: Any) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    name = {dict: "an object", list: "an array", str: "a string", int: "an integer",
+            float: "a number"}.get(type(value), type(value).__name__)
+    text = json.dumps(value) if not isinstance(value, dict | list) else ""
+    if len(text) > 40:
+        text = text[:37] + "..."
+    return f"{name} {text}".rstrip()
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+#: what each kind of value in the shape of summary.json accepts, and its name in a message
+_KINDS: dict[str, tuple[Any, str]] = {
+    "int": (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
+    "num?": (lambda v: v is None or _is_number(v), "a number or null"),
+    "str": (lambda v: isinstance(v, str), "a string"),
+    "str?": (lambda v: v is None or isinstance(v, str), "a string or null"),
+    "dict": (lambda v: isinstance(v, dict), "an object"),
+    "dict?": (lambda v: v is None or isinstance(v, dict), "an object or null"),
+    "list": (lambda v: isinstance(v, list), "an array"),
+}
+#: the shape of summary.json: dotted key -> kind (every key optional except format_version
+#: and status; ``*`` stands for every key of an object, ``[]`` for every item of an array)
+_SUMMARY_SHAPE: dict[str, str] = {
+    "format_version": "int", "status": "str", "message": "str?", "scene": "str?",
+    "run_id": "str", SUMMARY_DIGEST: "str", "force_amplitude": "num?",
+    "solver": "dict", "calibration": "dict", "model": "dict", "events_by_kind": "dict",
+    "metrics": "dict", "energy_audit": "dict", "warnings": "list", "files": "dict",
+    "last_events": "list", "partial_result": "dict?", "accuracy": "dict?",
+    "solver.method": "str?", "solver.wall_time": "num?",
+    "calibration.target_rms_velocity": "num?", "calibration.achieved_rms_velocity": "num?",
+    "model.modes": "int", "model.contacts": "int", "model.states": "int",
+    "model.contact_stiffness_total": "num?", "model.contact": "dict?", "model.profile": "dict",
+    "events_by_kind.*": "int", "metrics.*": "num?", "energy_audit.*": "num?",
+    "warnings.[]": "str", "last_events.[]": "dict", "partial_result.t_end": "num?",
+    "accuracy.verdict": "str?", "accuracy.failures": "list",
+    "files.*": "dict", "files.*.bytes": "int", "files.*.sha256": "str",
+}
+
+
+def _check_shape(summary: dict, path: Path) -> None:
+    """Refuse a summary whose values have another type than roughvib writes (one line)."""
+    for key, kind in _SUMMARY_SHAPE.items():
+        parts = key.split(".")
+        found: list[tuple[str, Any]] = [("", summary)]
+        for part in parts:
+            nxt = []
+            for where, obj in found:
+                if part == "*" and isinstance(obj, dict):
+                    nxt += [(f"{where}.{k}", v) for k, v in obj.items()]
+                elif part == "[]" and isinstance(obj, list):
+                    nxt += [(f"{where}[{i}]", v) for i, v in enumerate(obj)]
+                elif isinstance(obj, dict) and part in obj:
+                    nxt.append((f"{where}.{part}", obj[part]))
+            found = nxt
+        ok, what = _KINDS[kind]
+        for where, value in found:
+            if not ok(value):
+                raise RunDirectoryError(f"{path}: {where[1:]} must be {what}, got "
+                                        f"{_json_type(value)} (not a summary roughvib wrote)")
+    bad = [n for n in summary.get("files", {}) if n not in RUN_FILES or n == "summary.json"]
+    if bad:
+        raise RunDirectoryError(f"{path}: files lists {bad[0]!r}, which is not a file of a run "
+                                f"({', '.join(n for n in RUN_FILES if n != 'summary.json')})")
+
+
+def read_summary(directory: str | os.PathLike) -> dict:
+    """Read and check ``summary.json`` of a run directory.
+
+    The file must hold a JSON object of the shape roughvib writes (type of every value it
+    reads) and of a supported format version; a summary with a digest (every summary this
+    version writes, :func:`seal_summary`) must match it. A summary without a digest (written by
+    an older roughvib) is read unchecked in its values.
+
+    Parameters
+    ----------
+    directory : path
+        The run directory.
+
+    Returns
+    -------
+    dict
+        The summary.
+
+    Raises
+    ------
+    FileNotFoundError
+        No summary.json.
+    RunDirectoryError
+        Not readable, not JSON, not an object, another format version, a value of the wrong
+        type, or edited after saving (one line naming the file).
+    """
+    d = Path(directory)
+    path = d / "summary.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{d} is not a roughvib result directory (no summary.json)")
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise RunDirectoryError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise RunDirectoryError(f"{path} is not UTF-8 text (not a summary roughvib wrote)"
+                                ) from None
+    except json.JSONDecodeError as exc:
+        raise RunDirectoryError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno} "
+                                f"column {exc.colno})") from None
+    except RecursionError:
+        raise RunDirectoryError(f"{path}: JSON nested too deeply (not a summary roughvib "
+                                f"wrote)") from None
+    if not isinstance(summary, dict):
+        raise RunDirectoryError(f"{path} must hold a JSON object, got {_json_type(summary)} "
+                                f"(not a summary roughvib wrote)")
+    fv = summary.get("format_version")
+    if fv != FORMAT_VERSION:
+        raise RunDirectoryError(f"{d}: result format version {fv} is not supported (this "
+                                f"roughvib reads version {FORMAT_VERSION})")
+    if "status" not in summary:
+        raise RunDirectoryError(f"{path} has no status (not a summary roughvib wrote)")
+    _check_shape(summary, path)
+    digest = summary.get(SUMMARY_DIGEST)
+    if digest is not None and seal_summary(summary)[SUMMARY_DIGEST] != digest:
+        raise RunDirectoryError(f"{path} was changed after the run wrote it (it no longer "
+                                f"matches its {SUMMARY_DIGEST}): its values are not the run's; "
+                                f"run the scene again (its scene.toml)")
+    return summary
 
 
 def _file_info(path: Path) -> dict[str, Any]:
@@ -446,13 +643,21 @@ def check_run_files(directory: str | os.PathLike, summary: dict, *, hashes: bool
     ------
     MixedRunError
         One line naming the directory, the file and the run.
+    RunDirectoryError
+        ``summary`` or its list of files is not of the shape roughvib writes.
     """
+    d = Path(directory)
+    if not isinstance(summary, dict):
+        raise RunDirectoryError(f"{d / 'summary.json'} must hold a JSON object, got "
+                                f"{_json_type(summary)} (not a summary roughvib wrote)")
     files = summary.get("files")
     if not isinstance(files, dict):
         return
-    d = Path(directory)
     run = summary.get("run_id", "?")
     for name, info in files.items():
+        if not isinstance(info, dict) or name not in RUN_FILES:
+            raise RunDirectoryError(f"{d / 'summary.json'}: files.{name} is not an entry "
+                                    f"roughvib wrote")
         path = d / name
         if not path.is_file():
             raise MixedRunError(f"{d}: {name} of run {run} is missing: the directory is "
@@ -463,6 +668,88 @@ def check_run_files(directory: str | os.PathLike, summary: dict, *, hashes: bool
             raise MixedRunError(f"{d}: {name} is not the file run {run} wrote (summary.json "
                                 f"lists another size or SHA-256): the directory mixes files of "
                                 f"different runs, or {name} was changed after saving")
+
+
+def _short(exc: BaseException) -> str:
+    """An exception as a short single line (first line, at most 160 characters)."""
+    lines = str(exc).strip().splitlines()
+    text = lines[0] if lines else ""
+    text = text if len(text) <= 160 else text[:157] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _read_scene_toml(d: Path) -> str:
+    import tomllib
+
+    path = d / "scene.toml"
+    if not path.exists():
+        return ""
+    try:
+        text = path.read_text(encoding="utf-8")
+        tomllib.loads(text)
+    except OSError as exc:
+        raise RunDirectoryError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise RunDirectoryError(f"{path} is not UTF-8 text (not a scene roughvib wrote)"
+                                ) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RunDirectoryError(f"{path} is not valid TOML ({_short(exc)})") from None
+    return text
+
+
+def _read_dataset(path: Path) -> xr.Dataset:
+    """A run's time series, checked to be one: a time coordinate, our variables along it."""
+    import xarray as xr
+
+    try:
+        ds = xr.load_dataset(path, engine="h5netcdf")
+    except Exception as exc:  # any reader error of a damaged or foreign file: one line
+        raise RunDirectoryError(f"{path} cannot be read as netCDF-4 ({_short(exc)}): a "
+                                f"damaged file, or not one roughvib wrote") from None
+    t = ds.variables.get("time")
+    if t is None or t.dims != ("time",) or t.dtype.kind != "f" or not (
+            np.all(np.isfinite(t.values)) and np.all(np.diff(t.values) > 0)):
+        raise RunDirectoryError(f"{path} has no time coordinate of increasing finite seconds "
+                                f"(not a time series roughvib wrote)")
+    ours = [n for n in VARIABLES if n in ds.variables]
+    if not ours:
+        raise RunDirectoryError(f"{path} holds none of the variables of a run (e.g. "
+                                f"block_tangential_velocity): not a file roughvib wrote")
+    for name in ours:
+        v = ds.variables[name]
+        if v.dims[:1] != ("time",) or v.dtype.kind not in "fiub":
+            raise RunDirectoryError(f"{path}: {name} must be numbers along time, got "
+                                    f"{v.dtype} over {v.dims} (not a file roughvib wrote)")
+    return ds
+
+
+def _read_events(path: Path) -> pd.DataFrame:
+    """A run's event log, checked to be one: our columns, numbers where we write numbers."""
+    import pandas as pd
+
+    if not path.exists() or path.stat().st_size == 0:
+        return pd.DataFrame(columns=EVENT_COLUMNS)
+    try:
+        ev = pd.read_csv(path, dtype={"contact": "Int64"})
+    except Exception as exc:  # any parser error of a damaged or foreign file: one line
+        raise RunDirectoryError(f"{path} cannot be read as an event log ({_short(exc)})"
+                                ) from None
+    missing = [c for c in EVENT_COLUMNS if c not in ev.columns]
+    if missing:
+        shown = ", ".join(missing[:3]) + (f", ... ({len(missing) - 3} more)"
+                                          if len(missing) > 3 else "")
+        raise RunDirectoryError(f"{path} lacks the column{'s' if len(missing) > 1 else ''} "
+                                f"{shown} (not an event log roughvib wrote)")
+    if len(ev):
+        for c in EVENT_COLUMNS:
+            if c not in _TEXT_COLUMNS and c != "contact" and \
+                    not pd.api.types.is_numeric_dtype(ev[c]):
+                raise RunDirectoryError(f"{path}: column {c} must hold numbers (not an event "
+                                        f"log roughvib wrote)")
+        if not np.all(np.isfinite(ev["time"].to_numpy(dtype=float))):
+            raise RunDirectoryError(f"{path}: column time must hold finite seconds (not an "
+                                    f"event log roughvib wrote)")
+    return ev
 
 
 def events_frame(records: list) -> pd.DataFrame:
@@ -479,6 +766,12 @@ def events_frame(records: list) -> pd.DataFrame:
 def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Result:
     """Read a result directory written by :meth:`Result.save <roughvib.results.Result.save>`.
 
+    Every file is checked as untrusted input before it is used (docs/robustness.md, "Reading
+    a run directory"): ``summary.json`` by :func:`read_summary` (a JSON object of the shape
+    roughvib writes, unchanged since the run wrote it), the other files against its list
+    (:func:`check_run_files`), ``scene.toml`` as TOML, ``result.nc`` / ``partial.nc`` as a
+    time series and ``events.csv`` as an event log.
+
     Parameters
     ----------
     directory : path
@@ -488,31 +781,38 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
 
     Raises
     ------
-    FileNotFoundError, ValueError
-        Missing files, or a directory from an incompatible format version.
+    FileNotFoundError
+        No summary.json.
+    RunDirectoryError
+        A file that is not what roughvib wrote: not readable, of another type or shape,
+        edited after saving, or a status that contradicts the files (one line naming the
+        file); also a directory from an incompatible format version.
     MixedRunError
         A file listed in ``summary.json`` is missing or is not the one the run wrote (a
         directory left half-replaced, or edited after saving).
     """
     d = Path(directory)
-    summary_path = d / "summary.json"
-    if not summary_path.exists():
-        raise FileNotFoundError(f"{d} is not a roughvib result directory (no summary.json)")
-    summary = json.loads(summary_path.read_text())
-    fv = summary.get("format_version")
-    if fv != FORMAT_VERSION:
-        raise ValueError(f"{d}: result format version {fv} is not supported (this roughvib "
-                         f"reads version {FORMAT_VERSION})")
+    summary = read_summary(d)
     check_run_files(d, summary)
-    scene_toml = (d / "scene.toml").read_text() if (d / "scene.toml").exists() else ""
+    scene_toml = _read_scene_toml(d)
     import pandas as pd
     import xarray as xr
 
-    ok = summary.get("status") == "success"
+    status = summary["status"]
+    ok = status == "success"
+    files = summary.get("files")
+    listed = set(files) if isinstance(files, dict) else None
+    if ok and not (d / "result.nc").is_file():
+        raise RunDirectoryError(f"{d}: summary.json says the run succeeded, but result.nc is "
+                                f"missing")
+    wrong = "partial.nc" if ok else "result.nc"
+    if (wrong in listed) if listed is not None else (not ok and (d / wrong).is_file()):
+        raise RunDirectoryError(
+            f"{d / 'summary.json'}: status {status!r} contradicts {wrong} in the directory "
+            f"({'a failed' if ok else 'only a complete'} run writes it): the summary was "
+            f"edited or belongs to another run")
     if not ok and not (partial and (d / "partial.nc").exists()):
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ds = xr.load_dataset(d / ("result.nc" if ok else "partial.nc"), engine="h5netcdf")
-    if not (d / "events.csv").exists() or (d / "events.csv").stat().st_size == 0:
-        return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
-    ev = pd.read_csv(d / "events.csv", dtype={"contact": "Int64"})
+    ds = _read_dataset(d / ("result.nc" if ok else "partial.nc"))
+    ev = _read_events(d / "events.csv")
     return Result(ds, ev, summary, scene_toml)

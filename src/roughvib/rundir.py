@@ -50,9 +50,11 @@ __all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "OutputWa
 #: the files of a saved run (``summary.json`` lists which of them the run wrote)
 RUN_FILES = ("summary.json", "scene.toml", "result.nc", "partial.nc", "events.csv")
 #: every name roughvib writes into a run directory (the run, its checkpoint, the report and the
-#: figures of ``roughvib report`` and ``roughvib plot``); a directory holding a roughvib run and
-#: nothing else is replaced as a whole by the next run into it
-OWNED_NAMES = frozenset(RUN_FILES + (CHECKPOINT_NAME, "report.html", "figures"))
+#: figures of ``roughvib report`` and ``roughvib plot``, the folders of ``roughvib validate``
+#: and ``roughvib export``); a directory holding a roughvib run and nothing else is replaced as
+#: a whole by the next run into it
+OWNED_NAMES = frozenset(RUN_FILES + (CHECKPOINT_NAME, "report.html", "figures", "validation",
+                                     "export"))
 _CHECKPOINT_TMP = f".{CHECKPOINT_NAME}."  # write_checkpoint's temporary files
 _INSIDE = ".roughvib"  # lock and staging directory inside the output directory (read-only parent)
 

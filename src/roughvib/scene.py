@@ -52,6 +52,31 @@ class ModelValidityWarning(UserWarning):
     issues it before its expensive work and lists it in ``summary["warnings"]``."""
 
 
+def user_stacklevel() -> int:
+    """The ``stacklevel`` for ``warnings.warn`` that names the first caller outside roughvib.
+
+    A warning issued deep inside a run then points at the user's own line (``result =
+    roughvib.simulate(scene)``) instead of an internal one, and Python's default filter shows
+    it once per such line.
+
+    Returns
+    -------
+    int
+        For a ``warnings.warn`` call in the function that calls this one (1 if that function
+        is not part of roughvib).
+    """
+    import os
+    import sys
+
+    root = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame = sys._getframe(1)  # the function that calls warnings.warn: level 1
+    level = 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(root):
+        frame = frame.f_back
+        level += 1
+    return level
+
+
 #: upper limit of ``contact.points`` (also for the derived count of ``points = "auto"``)
 MAX_CONTACTS = 200
 
@@ -895,6 +920,10 @@ class Output:
             raise SceneError(f"{p}.step gives more than 2e7 output samples, got {self.step} s")
 
 
+#: longest scene description [characters]
+DESCRIPTION_MAX = 10_000
+
+
 @dataclass(frozen=True)
 class Scene:
     """A complete, validated simulation scene (SI units throughout).
@@ -908,7 +937,8 @@ class Scene:
         it must be a plain file name: 1 to 100 characters, no leading ``.``, no leading or
         trailing blank, no ``/`` or ``\\``, none of ``: * ? " < > |`` and no control character.
     description : str
-        One line about the scene.
+        About the scene, at most ``DESCRIPTION_MAX`` (10 000) characters (it is copied into
+        scene.toml and result.nc of every run).
     """
 
     name: str = "paper"
@@ -927,6 +957,9 @@ class Scene:
         _file_name("name", self.name)
         if not isinstance(self.description, str):
             raise SceneError(f"description must be a string, got {_fmt(self.description)}")
+        if len(self.description) > DESCRIPTION_MAX:
+            raise SceneError(f"description must have at most {DESCRIPTION_MAX} characters, got "
+                             f"{len(self.description)}")
         bx, by = self.plate.block_position
         hl, hw = self.block.length / 2, self.block.width / 2
         if bx - hl <= 0 or bx + hl >= self.plate.length or by - hw <= 0 or \

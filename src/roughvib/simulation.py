@@ -38,8 +38,8 @@ from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_input
 if TYPE_CHECKING:
     from roughvib.solvers.ida import RawSolution
 
-__all__ = ["checkpoint_scene", "energy_audit", "resume", "simulate", "verification_scene",
-           "verify_result"]
+__all__ = ["check_verifiable", "checkpoint_scene", "energy_audit", "resume", "simulate",
+           "verification_scene", "verify_result"]
 
 
 def energy_audit(system: System, raw: RawSolution) -> dict:
@@ -229,8 +229,7 @@ def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
 
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
-             checkpoint_dir: str | os.PathLike | None = None, verify: bool = False,
-             _resume_from: Checkpoint | None = None) -> Result:
+             checkpoint_dir: str | os.PathLike | None = None, verify: bool = False) -> Result:
     """Run a scene and return its :class:`~roughvib.results.Result`.
 
     Parameters
@@ -263,15 +262,28 @@ def simulate(scene: Scene, *, progress: bool | None = None,
     >>> result = roughvib.simulate(scene, progress=False)   # doctest: +SKIP
     >>> result.to_dataset()["block_vertical_acceleration"]   # doctest: +SKIP
     """
+    return _simulate(scene, progress=progress, force_amplitude=force_amplitude,
+                     checkpoint_dir=checkpoint_dir, verify=verify, resume_from=None)
+
+
+def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | None,
+              checkpoint_dir: str | os.PathLike | None, verify: bool,
+              resume_from: Checkpoint | None, warn: bool = True) -> Result:
+    """:func:`simulate`, or with ``resume_from`` the continuation of a checkpoint
+    (:func:`resume`); ``warn=False`` keeps the scene's validity warnings quiet (a second solve
+    of a scene whose warnings the first one issued)."""
+    if verify:
+        check_verifiable(scene)
     t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene))
+    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene),
+                      warn=warn)
     t_pre = time.perf_counter() - t0
     pilot = None
-    if (scene.solver.atol_acceleration is None and _resume_from is None
+    if (scene.solver.atol_acceleration is None and resume_from is None
             and system.scene.solver.atol_acceleration_relative is not None):
         system, pilot = _scale_atol_acceleration(system)
     solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
-    raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=_resume_from)
+    raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=resume_from)
     ds = _build_dataset(system, raw)
     events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
@@ -408,6 +420,24 @@ def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> Raw
     return solve_fixed_step(system, progress=progress)
 
 
+def check_verifiable(scene: Scene) -> None:
+    """Refuse to verify a run that cannot meet the accuracy contract whatever its accuracy.
+
+    The paper's convolution scheme (``solver.method = "paper"``) keeps no energy audit, one
+    item of the contract (docs/accuracy.md), so its verdict would be FAIL by construction.
+
+    Raises
+    ------
+    SceneError
+        One line naming the method.
+    """
+    if scene.resolved_solver().method == "paper":
+        raise SceneError("--verify (verify=True) judges a run by the accuracy contract, which "
+                         "includes the energy audit; solver.method = 'paper' keeps none, so it "
+                         "cannot pass: verify a run of another method, or compare the paper "
+                         "scheme with 'roughvib compare'")
+
+
 def verification_scene(scene: Scene) -> tuple[Scene, str]:
     """The second, independent solve that checks a run of ``scene`` (``verify=True``).
 
@@ -475,9 +505,11 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
     vscene, label = verification_scene(scene)
     system = result.extra.get("system")
     t0 = time.perf_counter()
-    ref = simulate(vscene, progress=progress,
-                   force_amplitude=result.summary.get("force_amplitude")
-                   if system is None or system.tangential else None)
+    # the same scene but for its solver section: its validity warnings were the run's
+    ref = _simulate(vscene, progress=progress,
+                    force_amplitude=result.summary.get("force_amplitude")
+                    if system is None or system.tangential else None, checkpoint_dir=None,
+                    verify=False, resume_from=None, warn=False)
     info = {"method": ref.summary["solver"]["method"], "how": label,
             "settings": _tol_text(vscene.solver), "status": ref.status,
             "wall_time": time.perf_counter() - t0}
@@ -521,8 +553,9 @@ def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Res
         checkpoint was written.
     """
     cp = read_checkpoint(directory)
-    return simulate(_scene_of_checkpoint(cp, directory), progress=progress,
-                    checkpoint_dir=directory, _resume_from=cp)
+    return _simulate(_scene_of_checkpoint(cp, directory), progress=progress,
+                     force_amplitude=None, checkpoint_dir=directory, verify=False,
+                     resume_from=cp)
 
 
 def checkpoint_scene(directory: str | os.PathLike) -> Scene:

@@ -17,6 +17,7 @@ STAGES = {
     "model": 2,
     "solvers": 3,
     "results": 4, "rundir": 4,  # a run directory: checks, lock, atomic publish
+    "records": 4,  # measured records in (CSV, WAV, UFF 58, TDMS), a run's exchange files out
     "analysis": 5,
     "simulation": 6,  # simulate(): runs a solver and summarises the result with analysis.levels
     "views": 7,  # figures, the HTML builder and the reports

@@ -22,6 +22,12 @@ def test_intervals_recognise_runs_starting_inside_a_phase():
     table = phase_table(ev, 1.0, 0.5, 2)
     assert list(table["lift_offs_1"]) == [1, 0]
     assert table["lift_off_time_1"].tolist() == pytest.approx([0.3, 0.5])
+    # a record of two whole periods ends on the first sample at or after 1.0 s: still two
+    # cycles, not a third one of 1e-5 s; a tenth of a period more is a cycle of its own
+    table = phase_table(ev, 1.0 + 1e-5, 0.5, 2)
+    assert table["end"].tolist() == [0.5, 1.0 + 1e-5]
+    assert table["lift_off_time_1"].tolist() == pytest.approx([0.3, 0.5 + 1e-5])
+    assert len(phase_table(ev, 1.05, 0.5, 2)) == 3
 
 
 @pytest.fixture(scope="module")

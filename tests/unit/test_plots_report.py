@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import html
 import io
 import math
 import re
@@ -80,6 +81,9 @@ def test_figure_renders_with_units_on_every_axis(run, name):
     for ax in fig.axes:
         assert ax.has_data(), f"{name}: an empty axes"
         xl, yl = ax.get_xlabel(), ax.get_ylabel()
+        if not xl:  # a panel over a shared axis: the panel that shows it names it
+            xl = next(o.get_xlabel() for o in fig.axes if o is not ax and o.get_xlabel()
+                      and ax.get_shared_x_axes().joined(ax, o))
         assert UNIT.search(xl), f"{name}: x label without unit: {xl!r}"
         if not _categorical(ax.yaxis):
             assert UNIT.search(yl), f"{name}: y label without unit: {yl!r}"
@@ -442,3 +446,77 @@ def test_report_screenshot_in_headless_chromium(report, tmp_path):
     assert img.shape[0] >= 2000 and img.shape[1] >= 1100
     # a page that rendered text, tables and figures is not one flat colour
     assert float(np.std(img[..., :3])) > 0.02
+
+
+def _tone_result(block: np.ndarray, plate: np.ndarray, fs: float) -> Result:
+    """A Result that holds only the two accelerations (on a 1 s scene)."""
+    scene = Scene().with_overrides({"output.duration": 1.0})
+    ds = xr.Dataset({fd.ACCELERATIONS[0]: ("time", block), fd.ACCELERATIONS[1]: ("time", plate)},
+                    coords={"time": np.arange(block.size) / fs})
+    return Result(ds, pd.DataFrame(columns=EVENT_COLUMNS), {}, scene_to_toml(scene))
+
+
+def test_acceleration_spectra_filters_from_the_record_start_and_averages_over_the_window():
+    # a loud 100 Hz tone and a tone 120 dB below it at 10 kHz; the filter bank (run from
+    # t = 0, averaged over the window) reads both; filters started at the window would ring
+    # in on the loud tone's onset and bury the quiet one
+    fs = 1e5
+    t = np.arange(100_001) / fs
+    loud, quiet = 1.0, 1e-6
+    block = loud * np.sin(2 * np.pi * 100 * t + 0.5) + quiet * np.sin(2 * np.pi * 10e3 * t)
+    res = _tone_result(block, 0.5 * block, fs)
+    win = fd.analysis_window(res)
+    assert win.start > 0  # there is a run-in to settle the filters
+    sp = fd.acceleration_spectra(res)
+    assert sp.band_method == "filter"
+    i100 = int(np.argmin(abs(sp.centres - 100)))
+    i10k = int(np.argmin(abs(sp.centres - 10e3)))
+    expect = 20 * math.log10(quiet / math.sqrt(2) / 1e-6)
+    assert sp.band_db["block"][i100] == pytest.approx(expect + 120, abs=0.1)
+    assert sp.band_db["block"][i10k] == pytest.approx(expect, abs=0.2)
+    assert sp.band_db["plate"][i10k] == pytest.approx(expect - 20 * math.log10(2), abs=0.2)
+    from roughvib.analysis.bands import band_levels as bank_levels
+
+    cold = bank_levels(block[win], fs, fmax=50e3)  # the filters started at the window
+    assert cold.level_db[i10k] > expect + 20
+    # band_method="fft" is the Hann-tapered FFT band sum of the window
+    sf = fd.acceleration_spectra(res, band_method="fft")
+    np.testing.assert_array_equal(sf.band_db["block"],
+                                  fd.tapered_band_levels(block[win], fs)[1])
+
+
+def _kv_rows(html_text: str, section: str) -> list[tuple[str, str, str]]:
+    """The (quantity, value, unit) rows of the quantity/value/unit tables of one section."""
+    body = html_text.split(f"<section id='{section}'>", 1)[1].split("</section>", 1)[0]
+    cell = r"<td(?: class='key')?>(.*?)</td>"
+    return [tuple(html.unescape(c) for c in m.groups())
+            for m in re.finditer(rf"<tr>{cell}{cell}{cell}</tr>", body)]
+
+
+def _significant_digits(text: str) -> int:
+    mantissa = text.lstrip("-").split("e")[0].replace(".", "").lstrip("0")
+    return len(mantissa)
+
+
+def test_report_solver_statistics_read_as_labels_with_units(run, report):
+    result, _ = run
+    solver = result.summary["solver"]
+    text = report.read_text(encoding="utf-8")
+    rows = _kv_rows(text, "solver")
+    by_label = {q: (v, u) for q, v, u in rows}
+    assert len(rows) >= 10
+    for q, _, _ in rows:  # labels, not the summary's keys
+        assert "_" not in q, q
+    assert by_label["largest step taken"] == (f"{solver['largest_step']:.4g}", "s")
+    assert by_label["steps"] == (str(solver["steps"]), "")  # a count: whole, no unit
+    assert by_label["solver wall time"][1] == "s"
+    assert by_label["relative tolerance (rtol)"] == (f"{solver['rtol']:.4g}", "-")
+    for kind, n in result.summary["events_by_kind"].items():
+        assert by_label[f"events: {kind.replace('_', ' ')}"] == (str(n), "")
+    # every number of the report's quantity tables with at most 4 significant digits
+    for section in ("levels", "model", "solver", "energy"):
+        for q, v, _ in _kv_rows(text, section):
+            if re.fullmatch(r"-?\d+(\.\d+)?(e[-+]\d+)?", v) and ("." in v or "e" in v):
+                assert _significant_digits(v) <= 4, (section, q, v)
+    energy = {q for q, _, _ in _kv_rows(text, "energy")}
+    assert "dissipated by friction" in energy and all("_" not in q for q in energy)

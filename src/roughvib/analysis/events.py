@@ -76,7 +76,9 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
     t_end : float
         End of the run [s].
     period : float
-        Excitation period [s]; ``inf`` or 0 gives one row for the whole run.
+        Excitation period [s]; ``inf`` or 0 gives one row for the whole run. A piece at the
+        end shorter than a thousandth of a period (a record of whole periods ends on the first
+        output sample at or after its last period's end) belongs to the last cycle.
     n_contacts : int
 
     Returns
@@ -91,8 +93,9 @@ def phase_table(events: pd.DataFrame, t_end: float, period: float, n_contacts: i
     if not math.isfinite(period) or period <= 0:
         edges = np.array([0.0, t_end])
     else:
-        n = max(1, int(math.ceil(t_end / period - 1e-9)))
+        n = max(1, int(math.ceil(t_end / period - 1e-3)))
         edges = np.minimum(np.arange(n + 1) * period, t_end)
+        edges[-1] = t_end
     ev = events.sort_values("time", kind="stable")
     tk = [(float(t), str(k)) for t, k in zip(ev["time"], ev["kind"], strict=True)]
     sticks_o = _intervals(tk, "stick", "slip", 0.0, t_end, with_origin=True)

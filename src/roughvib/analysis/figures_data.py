@@ -12,13 +12,17 @@ This module owns the reductions that the figures (:mod:`roughvib.views.figures`)
   actually crosses (Fig. 5);
 * estimates of the contact resonance, and the velocity exponent over a set of runs.
 
-Third-octave levels here are taken from a **Hann-tapered** record (:func:`tapered_band_levels`).
-The rectangular-window band sums of :func:`roughvib.analysis.spectra.band_levels` are
-Parseval-exact, but the jump between the two ends of a record of a non-periodic response leaks
-into every band with a power falling only as 1/f^2 per bin. On the ``paper`` scene that leakage
-floor lies 55-80 dB below the spectral maximum, above the block's own roll-off beyond the
-contact resonance, and would hide it (docs/paper-comparison.md gives the numbers). With the taper
-the sidelobes fall off at 18 dB per octave and the roll-off shows.
+Third-octave levels of the accelerations (:func:`acceleration_spectra`) come from the IEC
+61260-1 class 1 filter bank of :mod:`roughvib.analysis.bands`; the filters run from the start of
+the record and their outputs are averaged over the analysis window (docs/bands.md compares them
+with the FFT band sums). :func:`tapered_band_levels` gives the FFT alternative, from a
+**Hann-tapered** record. The rectangular-window band sums of
+:func:`roughvib.analysis.spectra.band_levels` are Parseval-exact, but the jump between the two
+ends of a record of a non-periodic response leaks into every band with a power falling only as
+1/f^2 per bin. On the ``paper`` scene that leakage floor lies 55-80 dB below the spectral
+maximum, above the block's own roll-off beyond the contact resonance, and would hide it
+(docs/paper-comparison.md gives the numbers). With the taper the sidelobes fall off at 18 dB per
+octave and the roll-off shows.
 
 Units: SI throughout; levels in dB re 1e-6 m/s^2 (accelerations) unless stated otherwise.
 """
@@ -34,6 +38,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
 
+from roughvib.analysis.bands import band_levels as filtered_band_levels
 from roughvib.analysis.levels import (
     VelocityExponent,
     global_tangential_stiffness,
@@ -356,6 +361,9 @@ class AccelerationSpectra:
         rms of the simulated accelerometer noise added to ``block_noisy`` [m/s^2] (0: none).
     window : tuple of float
         Start and end of the analysed samples [s].
+    band_method : str
+        How ``band_db`` was measured: ``"filter"`` (IEC 61260-1 filter bank) or ``"fft"``
+        (Hann-tapered FFT band sums), see :func:`roughvib.analysis.bands.band_levels`.
     """
 
     centres: np.ndarray
@@ -366,16 +374,24 @@ class AccelerationSpectra:
     resolution: float
     noise_rms: float
     window: tuple[float, float]
+    band_method: str = "filter"
 
 
 def acceleration_spectra(result: Result, *, resolution: float = 25.0,
                          noise_rms: float | None = None, noise_seed: int = 0,
-                         fmin: float = 20.0, fmax: float = 50e3) -> AccelerationSpectra:
+                         fmin: float = 20.0, fmax: float = 50e3,
+                         band_method: str = "filter") -> AccelerationSpectra:
     """Third-octave and narrow-band spectra of block and plate acceleration (paper Fig. 14).
 
-    Both use the analysis window (:func:`analysis_window`). Band levels:
-    :func:`tapered_band_levels`. Narrow band: :func:`roughvib.analysis.spectra.narrowband_psd`
-    (Welch, periodic Hann segments of ``fs / resolution`` samples, 50 % overlap).
+    Both describe the analysis window (:func:`analysis_window`). Band levels:
+    :func:`roughvib.analysis.bands.band_levels`. With ``band_method="filter"`` (default) the
+    IEC 61260-1 class 1 filter bank runs over the record from its first sample to the end of
+    the window and averages its outputs over the window only, so that the run-in settles the
+    filters (started at the window, the bands' onset ringing would add up to 35 dB to the
+    quiet bands of the ``paper`` scene); ``"fft"`` gives the Hann-tapered FFT band sums of the
+    window (:func:`tapered_band_levels`). Narrow band:
+    :func:`roughvib.analysis.spectra.narrowband_psd` (Welch, periodic Hann segments of
+    ``fs / resolution`` samples, 50 % overlap).
 
     Parameters
     ----------
@@ -390,29 +406,41 @@ def acceleration_spectra(result: Result, *, resolution: float = 25.0,
         Seed of that noise.
     fmin, fmax : float
         Range of band centres [Hz].
+    band_method : {'filter', 'fft'}
+        How the band levels are measured (see above).
 
     Returns
     -------
     AccelerationSpectra
     """
+    if band_method not in ("filter", "fft"):
+        raise ValueError(f"band_method must be 'filter' or 'fft', got {band_method!r}")
     win = analysis_window(result)
     fs = _fs(result)
     ds = result.dataset
     t = ds["time"].values[win]
-    signals = {"block": ds[ACCELERATIONS[0]].values[win],
-               "plate": ds[ACCELERATIONS[1]].values[win]}
+    # the band filters see the record from its start; everything else sees the window
+    first = 0 if band_method == "filter" else win.start
+    span = slice(first, win.stop)
+    signals = {"block": ds[ACCELERATIONS[0]].values[span],
+               "plate": ds[ACCELERATIONS[1]].values[span]}
     noise = float(noise_rms or 0.0)
     if noise > 0:
         signals["block_noisy"] = add_noise_floor(signals["block"], fs, noise, noise_seed)
+    settle = (win.start - first) / fs
     band, psd, tot = {}, {}, {}
     centres = frequency = None
     for key, x in signals.items():
-        centres, band[key] = tapered_band_levels(x, fs, fmin=fmin, fmax=fmax)
-        frequency, psd[key] = narrowband_psd(x, fs, resolution=resolution, ref=1e-6)
-        tot[key] = float(total_level(x))
+        bl = filtered_band_levels(x, fs, fmin=fmin, fmax=fmax, method=band_method,
+                                  settle=settle)
+        centres, band[key] = bl.exact_hz, bl.level_db
+        xw = x[win.start - first:]
+        frequency, psd[key] = narrowband_psd(xw, fs, resolution=resolution, ref=1e-6)
+        tot[key] = float(total_level(xw))
     return AccelerationSpectra(centres=centres, band_db=band, frequency=frequency, psd_db=psd,
                                total_db=tot, resolution=float(frequency[1] - frequency[0]),
-                               noise_rms=noise, window=(float(t[0]), float(t[-1])))
+                               noise_rms=noise, window=(float(t[0]), float(t[-1])),
+                               band_method=band_method)
 
 
 # --------------------------------------------------------------------------------------------

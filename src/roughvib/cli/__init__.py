@@ -13,8 +13,16 @@ import os
 import sys
 
 from roughvib._version import __version__
-from roughvib.cli import compare, report, results, run, surface, sweep
-from roughvib.cli.args import EXIT_INPUT, EXIT_PIPE, InputError, Terminated, on_sigterm
+from roughvib.cli import compare, lab, report, results, run, surface, sweep
+from roughvib.cli.args import (
+    EXIT_INPUT,
+    EXIT_INTERRUPT,
+    EXIT_PIPE,
+    EXIT_TERM,
+    InputError,
+    Terminated,
+    on_sigterm,
+)
 
 __all__ = ["build_parser", "main"]
 
@@ -40,7 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib compare paper --out runs/wp --budget 900\n"
                "  roughvib surface paper --out runs/paper-surface\n"
                "  roughvib report runs/paper\n"
-               "  roughvib sweep paper-velocity --out runs/velocity\n\n"
+               "  roughvib sweep paper-velocity --out runs/velocity\n"
+               "  roughvib validate runs/paper lab/plate.wav --signal plate --scale 50\n"
+               "  roughvib export runs/paper --format uff\n\n"
                "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
                "(Ctrl-C), 141 output pipe closed, 143 terminated (SIGTERM)")
     p.add_argument("--version", action="version", version=f"roughvib {__version__}")
@@ -51,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     surface.add_parsers(sub)
     report.add_parsers(sub)
     sweep.add_parsers(sub)
+    lab.add_parsers(sub)
     return p
 
 
@@ -92,14 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     from roughvib.rundir import OutputWarning
     from roughvib.scene import ModelValidityWarning, SceneError
 
-    shown = warnings.showwarning
-
-    def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, (ModelValidityWarning, OutputWarning)):  # one line
-            print(f"roughvib: warning: {message}", file=sys.stderr)
-        else:
-            shown(message, category, filename, lineno, file, line)
-
+    show = _warning_printer()
     previous = signal.getsignal(signal.SIGTERM)
     try:
         signal.signal(signal.SIGTERM, on_sigterm)
@@ -108,7 +112,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = show
+            # roughvib's own warnings reach the printer every time (Python's once-per-place
+            # memory is reset whenever a library touches the filters); it prints each once
             warnings.simplefilter("always", ModelValidityWarning)
+            warnings.simplefilter("always", OutputWarning)
             status = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return status
@@ -121,10 +128,36 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
               file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
+        return EXIT_TERM if isinstance(exc, Terminated) else EXIT_INTERRUPT
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _warning_line(message: Warning | str, category: type[Warning]) -> str:
+    """The one line a warning is shown as on the command line: ``roughvib: warning:
+    <message>``, the message on one line, no source file or line. A warning that is not a
+    :class:`UserWarning` (roughvib's own are) names its category, e.g. ``roughvib: warning:
+    RuntimeWarning: overflow encountered in exp``."""
+    text = " ".join(str(message).split())
+    if not issubclass(category, UserWarning):
+        text = f"{category.__name__}: {text}"
+    return f"roughvib: warning: {text}"
+
+
+def _warning_printer():
+    """A ``warnings.showwarning`` for one command: each warning as ``_warning_line`` on
+    stderr, each distinct line once (a command that builds a scene twice, as ``run --verify``
+    does, or runs it many times, as ``compare`` does, repeats its warnings)."""
+    seen: set[str] = set()
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = _warning_line(message, category)
+        if text not in seen:
+            seen.add(text)
+            print(text, file=sys.stderr, flush=True)
+
+    return show
 
 
 def _discard_stdout() -> None:

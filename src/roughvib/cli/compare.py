@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, parse_sets
+from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, out_path, parse_sets
 
 __all__ = ["add_parsers", "cmd_compare"]
 
@@ -28,6 +28,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              f"got {m!r}")
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 s, got {args.budget}")
+    out_path(args.out)  # an empty --out is refused
     rtols = tuple(float(v) for v in args.rtols.split(",")) if args.rtols else DEFAULT_RTOLS
     steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else DEFAULT_STEPS
     try:

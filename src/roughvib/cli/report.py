@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 
-from roughvib.cli.args import failed_run_note
+from roughvib.cli.args import failed_run_note, out_path
 
 __all__ = ["add_parsers", "cmd_report"]
 
@@ -33,7 +32,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from roughvib.views.report import write_report
 
     try:
-        path = write_report(args.dir, out=getattr(args, "out", None), dpi=dpi,
+        path = write_report(args.dir, out=out_path(getattr(args, "out", None)), dpi=dpi,
                             noise_rms=noise)
     except (FileNotFoundError, ValueError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
@@ -46,10 +45,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def _summary_of(result_dir) -> dict:
-    import json
+    from roughvib.results import read_summary
 
-    try:
-        return json.loads((Path(result_dir) / "summary.json").read_text())
+    try:  # write_report has read and checked it
+        return read_summary(result_dir)
     except (OSError, ValueError):
         return {}
 

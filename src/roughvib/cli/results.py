@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
-from roughvib.cli.args import EXIT_OK, InputError, failed_run_note
+from roughvib.cli.args import EXIT_OK, InputError, failed_run_note, out_path
 
 __all__ = ["add_parsers", "cmd_events", "cmd_plot"]
 
@@ -34,10 +34,14 @@ def _load(dir_: str, what: str):
     return r
 
 
-def _scene_of(result):
-    from roughvib.scene import scene_from_dict
+def _scene_of(result, dir_: str):
+    from roughvib.scene import SceneError, scene_from_dict
 
-    return scene_from_dict(tomllib.loads(result.scene_toml))
+    try:  # load_result has checked that it is TOML
+        return scene_from_dict(tomllib.loads(result.scene_toml))
+    except (SceneError, ValueError, TypeError, KeyError) as exc:
+        raise InputError(f"{Path(dir_) / 'scene.toml'}: not a scene this roughvib reads "
+                         f"({' '.join(str(exc).split())})") from None
 
 
 def cmd_events(args: argparse.Namespace) -> int:
@@ -52,7 +56,7 @@ def cmd_events(args: argparse.Namespace) -> int:
         raise InputError(f"--kind must be one of {', '.join(EVENT_KINDS)}, got "
                          f"{', '.join(map(repr, unknown))}")
     r = _load(args.dir, "events")
-    scene = _scene_of(r)
+    scene = _scene_of(r, args.dir)
     ds = r.dataset
     K = int(ds.sizes["contact"]) if "contact" in ds.sizes else \
         int(r.summary.get("model", {}).get("contacts", 0))
@@ -110,8 +114,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     if args.figure not in FIGURES:
         raise InputError(f"--figure must be one of {', '.join(sorted(FIGURES))}, got "
                          f"{args.figure!r}")
+    given = out_path(args.out)
     r = _load(args.dir, "figure")
-    out = Path(args.out) if args.out else Path(args.dir) / "figures" / f"{args.figure}.png"
+    out = given or Path(args.dir) / "figures" / f"{args.figure}.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     save_figure(FIGURES[args.figure](r), out)
     print(out)

@@ -6,7 +6,16 @@ import argparse
 import sys
 from pathlib import Path
 
-from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, Terminated, parse_sets
+from roughvib.cli.args import (
+    EXIT_INTERRUPT,
+    EXIT_OK,
+    EXIT_SOLVER,
+    EXIT_TERM,
+    InputError,
+    Terminated,
+    out_path,
+    parse_sets,
+)
 
 __all__ = ["add_parsers", "cmd_run", "cmd_scenes"]
 
@@ -95,14 +104,16 @@ def _run_ensemble(args: argparse.Namespace) -> int:
     if args.resume:
         raise InputError("--seeds runs an ensemble of new runs; give no --resume with it")
     spec = seed_sweep(args.scene or "paper", args.seeds, parse_sets(args.set))
-    out = Path(args.out) if args.out else Path("runs") / spec.name
+    out = out_path(args.out) or Path("runs") / spec.name
     try:
         run = run_sweep(spec, out, workers=args.workers, progress=not args.no_progress,
                         log=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
-    except KeyboardInterrupt:
-        print(f"roughvib: ensemble interrupted; completed draws are kept in {out}/cases, run "
-              f"the same command again to resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        term = isinstance(exc, Terminated)
+        print(f"roughvib: ensemble {'terminated' if term else 'interrupted'}; completed draws "
+              f"are kept in {out}/cases, run the same command again to resume",
+              file=sys.stderr)
+        return EXIT_TERM if term else EXIT_INTERRUPT
     report = sweep_report(run.directory)
     ens = ensemble_tables(run.directory)
     if not args.quiet:
@@ -131,11 +142,44 @@ def _verify(result, scene, out_dir: Path, args: argparse.Namespace) -> None:
     result.save(out_dir, overwrite=args.overwrite)
 
 
+def _check_resumable(directory: Path) -> None:
+    """``--resume DIR``: refuse in one line, before the directory is touched, what cannot be
+    resumed: no directory, no checkpoint (an ended run, or user files), a checkpoint file that
+    is empty, foreign, truncated or of another format (the file is not unpickled here)."""
+    from roughvib.results import read_summary
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME, check_checkpoint_file
+
+    if not directory.is_dir():
+        raise InputError(f"--resume {directory}: no such directory (give the output directory "
+                         f"of a run that wrote checkpoints)")
+    cp = directory / CHECKPOINT_NAME
+    if not cp.exists():
+        try:
+            status = read_summary(directory).get("status")
+        except (OSError, ValueError):
+            status = None
+        if status is not None:
+            raise InputError(f"--resume {directory}: the run there has ended ({status}; a run "
+                             f"removes its checkpoint when it ends), there is nothing to "
+                             f"resume; run it again with 'roughvib run "
+                             f"{directory / 'scene.toml'}'")
+        raise InputError(f"--resume {directory}: no {CHECKPOINT_NAME} there, nothing to resume "
+                         f"(a run writes checkpoints into its output directory when "
+                         f"output.checkpoint_interval > 0 s)")
+    check_checkpoint_file(cp)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from roughvib.rundir import RunDirectory
     from roughvib.scene import load_scene
     from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
+    out_path(args.out)  # an empty --out is refused, not taken for the default
+    out_path(args.resume, "--resume")  # and an empty --resume is not a new run
+    if args.workers is not None and args.seeds is None:
+        raise InputError(f"--workers sets the worker processes of an ensemble (--seeds N); a "
+                         f"single run uses one process, got --workers {args.workers} without "
+                         f"--seeds")
     if args.seeds is not None:
         if args.verify:
             raise InputError("--verify checks one run; give no --seeds with it (verify a draw "
@@ -143,15 +187,20 @@ def cmd_run(args: argparse.Namespace) -> int:
                              "roughness.seed=N --verify')")
         return _run_ensemble(args)
     if args.resume:
-        if args.scene is not None or args.set or args.out:
+        if args.scene is not None or args.set or args.out is not None:
             raise InputError("--resume DIR continues the run stored in DIR; give no scene, "
                              "--set or --out with it")
         out_dir = Path(args.resume)
+        _check_resumable(out_dir)
     else:
         scene = load_scene(args.scene or "paper", parse_sets(args.set))
+        if args.verify:  # before the run: a verdict that cannot pass is refused up front
+            from roughvib.simulation import check_verifiable
+
+            check_verifiable(scene)
         if args.no_progress:
             scene = scene.with_overrides({"output.progress": False})
-        out_dir = Path(args.out) if args.out else Path("runs") / scene.name
+        out_dir = out_path(args.out) or Path("runs") / scene.name
         cp_dir = out_dir if scene.output.checkpoint_interval > 0 else None
     # the output directory is checked and locked before anything expensive (imports included)
     rundir = RunDirectory(out_dir, overwrite=args.overwrite, resume=bool(args.resume)).open()
@@ -164,9 +213,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
             if args.resume:
                 if args.verify:  # read before the run: a finished run removes its checkpoint
-                    from roughvib.simulation import checkpoint_scene
+                    from roughvib.simulation import check_verifiable, checkpoint_scene
 
                     scene = checkpoint_scene(out_dir)
+                    check_verifiable(scene)
                 result = resume(out_dir, progress=False if args.no_progress else None)
             else:
                 result = simulate(scene, checkpoint_dir=cp_dir)
@@ -178,7 +228,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                       f"'roughvib run --resume {out_dir}'", file=sys.stderr)
             else:
                 print(f"roughvib: {what}; nothing was written", file=sys.stderr)
-            return 143 if isinstance(exc, Terminated) else 130
+            return EXIT_TERM if isinstance(exc, Terminated) else EXIT_INTERRUPT
         result.save(rundir)
     finally:
         rundir.close()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from roughvib.cli.args import EXIT_OK, parse_sets
+from roughvib.cli.args import EXIT_OK, out_path, parse_sets
 
 __all__ = ["add_parsers", "cmd_surface"]
 
@@ -17,7 +17,7 @@ def cmd_surface(args: argparse.Namespace) -> int:
     from roughvib.views.surface_report import write_surface_report
 
     scene = load_scene(args.scene, parse_sets(args.set))
-    out = Path(args.out) if args.out else Path("runs") / f"{scene.name}-surface"
+    out = out_path(args.out) or Path("runs") / f"{scene.name}-surface"
     paths = write_surface_report(scene, out)
     info = json.loads(paths["contacts_json"].read_text())
     stat = info.get("statistical_contact", {})

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from roughvib.cli.args import parse_sets
+from roughvib.cli.args import EXIT_INTERRUPT, EXIT_TERM, Terminated, out_path, parse_sets
 from roughvib.scene import SceneError
 from roughvib.studies.sweep.report import sweep_report
 from roughvib.studies.sweep.run import run_sweep
@@ -35,7 +35,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise SceneError(f"sweep: name a sweep file or a built-in sweep "
                          f"({', '.join(builtin_sweeps()) or 'none installed'})")
     spec = load_sweep(args.sweep, parse_sets(getattr(args, "set", None)))
-    out = Path(args.out) if getattr(args, "out", None) else Path("runs") / spec.name
+    out = out_path(getattr(args, "out", None)) or Path("runs") / spec.name
     scheduler = getattr(args, "scheduler", None)
     workers = getattr(args, "workers", None)
     if scheduler and workers is not None:
@@ -47,10 +47,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         run = run_sweep(spec, out, scheduler=scheduler, workers=workers,
                         progress=not getattr(args, "no_progress", False),
                         log=None if quiet_log else (lambda m: print(m, file=sys.stderr)))
-    except KeyboardInterrupt:
-        print(f"roughvib: sweep interrupted; completed cases are kept in {out}/cases, run the "
-              f"same command again to resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        term = isinstance(exc, Terminated)
+        print(f"roughvib: sweep {'terminated' if term else 'interrupted'}; completed cases are "
+              f"kept in {out}/cases, run the same command again to resume", file=sys.stderr)
+        return EXIT_TERM if term else EXIT_INTERRUPT
     n = len(run.table)
     print(f"{n} cases: {run.skipped} complete before, {run.ran} run now, {n - run.failed} "
           f"succeeded, {run.failed} failed -> {run.directory}/sweep.csv, sweep.nc")

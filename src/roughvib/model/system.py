@@ -24,7 +24,13 @@ from roughvib.physics.plate import PlateModes, mode_shapes, plate_modes, residua
 from roughvib.physics.surface.contact import contact_layout
 from roughvib.physics.surface.interp import cached_coefficients
 from roughvib.physics.surface.roughness import Profile, build_profile
-from roughvib.scene import ModelValidityWarning, Scene, SceneError, validity_warnings
+from roughvib.scene import (
+    ModelValidityWarning,
+    Scene,
+    SceneError,
+    user_stacklevel,
+    validity_warnings,
+)
 
 # Regime is re-exported from .regimes
 __all__ = ["GRAVITY", "MAX_RMS_SLOPE", "MAX_RMS_TO_BLOCK", "Regime", "System", "WARN_RMS_SLOPE",
@@ -352,7 +358,7 @@ def _check_travel(scene: Scene, profile: Profile, contact_s: np.ndarray, travel:
 
 
 def assemble(scene: Scene, *, force_amplitude: float | None = None,
-             travel: float | None = None) -> System:
+             travel: float | None = None, warn: bool = True) -> System:
     """Turn a validated scene into a :class:`System` (preprocessing happens here, once).
 
     Every check of the input runs before the expensive steps (plate modes, residual
@@ -372,6 +378,9 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     travel : float, optional
         Check that the profile covers this tangential travel of the contacts [m] (see
         :func:`estimate_travel`).
+    warn : bool
+        Issue the validity warnings (they are in ``System.warnings`` either way); off for a
+        second assembly of a scene whose warnings were already issued.
     """
     scene = replace(scene, solver=scene.resolved_solver())
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
@@ -386,8 +395,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
     if travel is not None:
         _check_travel(scene, profile, spos, travel)
-    for note in notes:
-        warnings.warn(note, ModelValidityWarning, stacklevel=2)
+    for note in notes if warn else ():
+        warnings.warn(note, ModelValidityWarning, stacklevel=user_stacklevel())
     stiff = np.full(K, s_total / K)
     r1 = (2.0 * blk.vertical_damping_ratio * math.sqrt(s_total * blk.mass)
           if isinstance(blk.vertical_damping, str) else float(blk.vertical_damping))

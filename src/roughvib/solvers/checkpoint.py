@@ -13,7 +13,12 @@ It also records what the run read besides the scene (the SHA-256 of a roughness 
 code that ran it (:func:`code_identity`), and :func:`check_inputs` refuses to resume when
 either has changed.
 
-The file is a Python pickle written by roughvib for roughvib: load only checkpoints you made.
+The file is a header line ``roughvib-checkpoint``, a line with the format version, the
+SHA-256 and the length of what follows, and then a Python pickle of the :class:`Checkpoint`.
+:func:`read_checkpoint` unpickles only a file whose header and digest match: an empty,
+truncated, damaged or foreign file is refused in one line naming it, before any unpickling.
+The digest detects damage, not intent: a pickle runs code when it is loaded, so load only
+checkpoints you made.
 """
 
 from __future__ import annotations
@@ -36,13 +41,15 @@ if TYPE_CHECKING:  # the model (numba kernels) is needed only to start a run, no
     from roughvib.model.regimes import Regime
     from roughvib.model.system import System
 
-__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_inputs",
-           "check_resume", "code_identity", "input_fingerprint", "read_checkpoint", "start_state",
-           "write_checkpoint"]
+__all__ = ["CHECKPOINT_NAME", "CHECKPOINT_VERSION", "Checkpoint", "check_checkpoint_file",
+           "check_inputs", "check_resume", "code_identity", "input_fingerprint",
+           "read_checkpoint", "start_state", "write_checkpoint"]
 
 CHECKPOINT_NAME = "checkpoint.pkl"
-CHECKPOINT_VERSION = 1
+#: 2: header line, version / SHA-256 / length line, pickle (1: a pickled dict, no digest)
+CHECKPOINT_VERSION = 2
 _MAGIC = "roughvib-checkpoint"
+_HEADER = _MAGIC.encode() + b"\n"
 
 
 @dataclass
@@ -280,15 +287,21 @@ def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpo
 
 
 def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:
-    """Write ``directory/checkpoint.pkl`` atomically; return its path."""
+    """Write ``directory/checkpoint.pkl`` atomically; return its path.
+
+    The file is the header line, ``<version> <sha256> <bytes>`` of the pickle, and the pickle
+    of ``cp`` (see the module docstring).
+    """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     path = out / CHECKPOINT_NAME
+    payload = pickle.dumps(cp, protocol=pickle.HIGHEST_PROTOCOL)
+    head = _HEADER + f"{CHECKPOINT_VERSION} {_sha256(payload)} {len(payload)}\n".encode()
     fd, tmp = tempfile.mkstemp(prefix=f".{CHECKPOINT_NAME}.", dir=out)
     try:
         with os.fdopen(fd, "wb") as fh:
-            pickle.dump({"magic": _MAGIC, "version": CHECKPOINT_VERSION, "checkpoint": cp},
-                        fh, protocol=pickle.HIGHEST_PROTOCOL)
+            fh.write(head)
+            fh.write(payload)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
@@ -298,29 +311,104 @@ def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:
     return path
 
 
-def read_checkpoint(directory: str | os.PathLike) -> Checkpoint:
-    """Read ``directory/checkpoint.pkl``.
+def _read_head(fh, path: Path) -> tuple[str, int]:
+    """The digest and length of the pickle after a checkpoint's header (SceneError if the
+    file is not a checkpoint of this format)."""
+    again = "run the scene again"
+    first = fh.readline(len(_HEADER))
+    if first != _HEADER:
+        fh.seek(0)
+        start = fh.read(256)
+        if not start:
+            raise SceneError(f"{path}: an empty file, not a roughvib checkpoint (roughvib "
+                             f"replaces its checkpoints whole, never leaves one empty)")
+        if start[:1] == b"\x80" and _MAGIC.encode() in start:
+            raise SceneError(f"{path}: checkpoint format version 1 (an older roughvib) cannot "
+                             f"be resumed by this roughvib (format {CHECKPOINT_VERSION}); "
+                             f"{again}")
+        raise SceneError(f"{path}: not a roughvib checkpoint (it does not start with the "
+                         f"'{_MAGIC}' header); resume only a directory a roughvib run wrote "
+                         f"checkpoints into")
+    line = fh.readline(200)
+    parts = line.decode("ascii", errors="replace").split()
+    if len(parts) != 3:
+        parts = ["", "", ""]  # refused just below
+    version, digest, size = parts
+    if not version.isdigit() or not size.isdigit() or len(digest) != 64:
+        raise SceneError(f"{path}: a damaged roughvib checkpoint (its second header line is "
+                         f"not '<version> <sha256> <bytes>'); {again}")
+    if int(version) != CHECKPOINT_VERSION:
+        raise SceneError(f"{path}: checkpoint format version {version} cannot be resumed by "
+                         f"this roughvib (format {CHECKPOINT_VERSION}); {again}")
+    return digest, int(size)
+
+
+def check_checkpoint_file(path: str | os.PathLike) -> None:
+    """Check a checkpoint file's header, format version and length without unpickling it.
+
+    Parameters
+    ----------
+    path : path
+        The checkpoint file (``DIR/checkpoint.pkl``).
 
     Raises
     ------
     SceneError
-        No checkpoint, an unreadable file, or one written by another checkpoint version (one
-        line naming the file and the problem).
+        Missing, unreadable, empty, foreign, of another format version, or truncated (one
+        line naming the file).
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            _, length = _read_head(fh, path)
+            pos = fh.tell()
+            size = fh.seek(0, os.SEEK_END)
+    except FileNotFoundError:
+        raise SceneError(f"{path}: no checkpoint to resume from (a run writes one when "
+                         f"output.checkpoint_interval > 0 s)") from None
+    except OSError as exc:
+        raise SceneError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    if size - pos != length:
+        raise SceneError(f"{path}: a truncated or damaged roughvib checkpoint ({size - pos} "
+                         f"bytes after the header, {length} written); run the scene again")
+
+
+def read_checkpoint(directory: str | os.PathLike) -> Checkpoint:
+    """Read ``directory/checkpoint.pkl``.
+
+    The pickle is loaded only after the header, the format version, the length and the
+    SHA-256 of the file have been checked.
+
+    Raises
+    ------
+    SceneError
+        No checkpoint, an unreadable, empty, truncated, damaged or foreign file, or one written
+        by another checkpoint version (one line naming the file and the problem).
     """
     path = Path(directory) / CHECKPOINT_NAME
     if not path.is_file():
         raise SceneError(f"{path}: no checkpoint to resume from (a run writes one when "
                          f"output.checkpoint_interval > 0 s)")
+    again = "run the scene again"
     try:
         with path.open("rb") as fh:
-            data = pickle.load(fh)
-    except Exception as exc:  # a truncated or foreign file: any unpickling error
-        raise SceneError(f"{path}: not a readable roughvib checkpoint "
-                         f"({type(exc).__name__})") from None
-    if not isinstance(data, dict) or data.get("magic") != _MAGIC:
-        raise SceneError(f"{path}: not a roughvib checkpoint")
-    if data.get("version") != CHECKPOINT_VERSION:
-        raise SceneError(f"{path}: checkpoint format version {data.get('version')} cannot be "
-                         f"resumed by this roughvib (format {CHECKPOINT_VERSION}); run the "
-                         f"scene again")
-    return data["checkpoint"]
+            digest, length = _read_head(fh, path)
+            payload = fh.read()
+    except OSError as exc:
+        raise SceneError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    if len(payload) != length:
+        raise SceneError(f"{path}: a truncated or damaged roughvib checkpoint ({len(payload)} "
+                         f"bytes after the header, {length} written); {again}")
+    if _sha256(payload) != digest:
+        raise SceneError(f"{path}: a damaged roughvib checkpoint (its contents do not match "
+                         f"the SHA-256 in its header); {again}")
+    try:
+        cp = pickle.loads(payload)
+    except Exception as exc:  # written by roughvib, intact, yet unreadable: other code
+        raise SceneError(f"{path}: the checkpoint cannot be read by this roughvib "
+                         f"({type(exc).__name__}: {' '.join(str(exc).split())[:120]}); "
+                         f"{again}") from None
+    if not isinstance(cp, Checkpoint):
+        raise SceneError(f"{path}: not a roughvib checkpoint (it holds a "
+                         f"{type(cp).__name__}); {again}")
+    return cp

@@ -27,6 +27,7 @@ import shutil
 import sys
 import tempfile
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -35,7 +36,7 @@ import pandas as pd
 
 from roughvib.analysis.accuracy import CONTRACT, contract_ratio, measure_accuracy
 from roughvib.results import Result, load_result
-from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene
+from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene, user_stacklevel
 from roughvib.simulation import simulate
 
 __all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS",
@@ -160,23 +161,27 @@ def crossings(table: pd.DataFrame, metric: str, against: str = "ida") -> list[di
 
 
 def _serve(conn) -> None:  # pragma: no cover - runs in the worker process
-    """The worker's loop: run each scene it is sent, save the result, report the times."""
+    """The worker's loop: run each scene it is sent, save the result, report the times and the
+    warnings the run issued (as ``(category, message)`` pairs: the study shows them, once)."""
     while True:
         job = conn.recv()
         if job is None:
             return
         scene, save_to, progress = job
-        try:
-            t0 = time.perf_counter()
-            c0 = time.process_time()
-            res = simulate(scene, progress=progress)
-            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-            if save_to:
-                res.save(save_to)
-            conn.send({"wall_time": wall, "cpu_time": cpu, "status": res.status,
-                       "message": res.summary.get("message", "")})
-        except Exception as exc:  # noqa: BLE001 - reported as the run's row
-            conn.send({"status": "error", "message": f"{type(exc).__name__}: {exc}"})
+        with warnings.catch_warnings(record=True) as caught:  # under the default filters
+            try:
+                t0 = time.perf_counter()
+                c0 = time.process_time()
+                res = simulate(scene, progress=progress)
+                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+                if save_to:
+                    res.save(save_to)
+                info = {"wall_time": wall, "cpu_time": cpu, "status": res.status,
+                        "message": res.summary.get("message", "")}
+            except Exception as exc:  # noqa: BLE001 - reported as the run's row
+                info = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
+        info["warnings"] = list(dict.fromkeys((w.category, str(w.message)) for w in caught))
+        conn.send(info)
 
 
 class _Worker:
@@ -228,6 +233,20 @@ class _Worker:
                 self.proc.join()
             self.conn.close()
         self.proc = self.conn = None
+
+
+class _Warnings:
+    """Issues the warnings of the study's runs in this process, each distinct one once (every
+    run of the study repeats the scene's validity warnings)."""
+
+    def __init__(self) -> None:
+        self.seen: set[tuple[type[Warning], str]] = set()
+
+    def issue(self, info: dict) -> None:
+        for category, message in info.get("warnings", ()):
+            if (category, message) not in self.seen:
+                self.seen.add((category, message))
+                warnings.warn(message, category, stacklevel=user_stacklevel())
 
 
 def _reference_scene(base: Scene, method: str, rtol: float) -> Scene:
@@ -304,6 +323,7 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
            steps, reference_rtol, reference_method, presets, progress) -> pd.DataFrame:
     from roughvib._progress import progress_bar
 
+    issued = _Warnings()
     if reference is not None:
         ref = load_result(reference)
         ref_label = f"given {reference}"
@@ -315,6 +335,7 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
         print(f"reference: {ref_label} (within the budget of {budget:g} s)", file=sys.stderr,
               flush=True)
         info = worker.run(rscene, out / "reference", remaining(), progress=progress)
+        issued.issue(info)
         if info["status"] == "over_budget":
             raise BudgetExceeded(
                 f"the reference run ({ref_label}) did not finish within --budget {budget:g} s; "
@@ -330,7 +351,8 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
         tiny = {**_overrides(m, rtols[0] if m not in FIXED_STEP_METHODS else base.output.step,
                              base.output.step),
                 "output.duration": 20 * base.output.step}
-        worker.run(base.with_overrides(tiny), None, remaining())  # a failure shows later
+        # a failure shows later; the warnings are those of its 20 steps, not of the study
+        worker.run(base.with_overrides(tiny), None, remaining())
     rows = []
     last_cost: dict[str, float] = {}
     period = base.period
@@ -349,6 +371,7 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
                 continue
             save_to = Path(scratch) / f"run{i}"
             info = worker.run(base.with_overrides(run.overrides), save_to, remaining())
+            issued.issue(info)
             row.update(status=info["status"], message=info.get("message", ""),
                        wall_time=info.get("wall_time"), cpu_time=info.get("cpu_time"))
             if save_to.exists():

@@ -58,14 +58,16 @@ def _plt():
 
 
 def _ax(ax, figsize=(8, 3)):
+    # a figure made here lays itself out (constrained layout) wherever it is shown: saved,
+    # in the report, in a notebook or the docs gallery, without a tight_layout by the caller
     if ax is None:
-        _, ax = _plt().subplots(figsize=figsize)
+        _, ax = _plt().subplots(figsize=figsize, layout="constrained")
     return ax
 
 
 def _axes(axes, n: int, figsize, **kw):
     if axes is None:
-        _, axes = _plt().subplots(n, 1, figsize=figsize, **kw)
+        _, axes = _plt().subplots(n, 1, figsize=figsize, layout="constrained", **kw)
     axes = list(np.atleast_1d(axes))
     if len(axes) != n:
         raise ValueError(f"axes must hold {n} Axes, got {len(axes)}")
@@ -202,6 +204,9 @@ def plot_events(result: Result, *, axes=None):
     axes[1].set_ylabel("normal force [N]")
     axes[1].set_title("total normal contact force")
     plot_regime_timeline(result, ax=axes[2])
+    for ax in axes[:-1]:  # on a shared time axis only the bottom panel says what it is
+        if ax.get_shared_x_axes().joined(ax, axes[-1]):
+            ax.set_xlabel("")
     return axes
 
 
@@ -260,7 +265,7 @@ def plot_friction_velocity_pair(result: Result, *, axes=None):
         [coefficient, force].
     """
     if axes is None:
-        _, axes = _plt().subplots(1, 2, figsize=(10, 4))
+        _, axes = _plt().subplots(1, 2, figsize=(10, 4), layout="constrained")
     axes = _axes(axes, 2, None)
     plot_friction_velocity(result, ax=axes[0], quantity="coefficient")
     plot_friction_velocity(result, ax=axes[1], quantity="force")
@@ -274,8 +279,8 @@ def plot_tangential_stiffness(result: Result, *, ax: Axes | None = None,
 
     dT/dx is not evaluated where ``|v| < v_guard`` (gaps in the line); see
     :func:`roughvib.analysis.figures_data.tangential_stiffness`. The ordinate is symmetric-
-    logarithmic: linear within ±1e3 N/m (sliding, about 0), logarithmic beyond (the stiff
-    stick branch, up to 1e9 N/m).
+    logarithmic: linear within ±1e3 N/m (sliding, about 0; as tall as four decades, so that its
+    labels stand apart), logarithmic beyond (the stiff stick branch, up to 1e9 N/m).
 
     Parameters
     ----------
@@ -294,7 +299,7 @@ def plot_tangential_stiffness(result: Result, *, ax: Axes | None = None,
     loop, k, guard = fd.tangential_stiffness(result, periods=periods, v_guard=v_guard)
     ax.plot(loop.time, k, lw=0.5, color="C2")
     _shade_stick(ax, result, float(loop.time[0]), float(loop.time[-1]))
-    ax.set_yscale("symlog", linthresh=1e3)
+    ax.set_yscale("symlog", linthresh=1e3, linscale=2.0)  # room for the labels -1e3, 0, 1e3
     top = np.nanmax(np.abs(k)) if np.isfinite(k).any() else 1e3
     decades = [10.0**e for e in range(3, max(4, int(math.ceil(math.log10(max(top, 1e3)))) + 1),
                                       3)]
@@ -302,7 +307,7 @@ def plot_tangential_stiffness(result: Result, *, ax: Axes | None = None,
     ax.set_xlim(loop.time[0], loop.time[-1])
     ax.set_xlabel("time [s]")
     ax.set_ylabel("dT/dx [N/m]")
-    ax.set_title(f"(b) global tangential stiffness (gaps: |v| < {guard * 1e6:.3g} µm/s; "
+    ax.set_title(f"(b) global tangential stiffness (gaps: |v| < {guard * 1e6:.2g} µm/s; "
                  f"grey: stick)", fontsize=9)
     return ax
 
@@ -348,8 +353,8 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
                  resolution: float = 25.0):
     """Acceleration spectra of block and plate (paper Fig. 14): third octaves and narrow band.
 
-    Band levels are from the Hann-tapered analysis window
-    (:func:`roughvib.analysis.figures_data.tapered_band_levels`), the narrow band is Welch
+    Band levels are those of the IEC 61260-1 class 1 filter bank averaged over the analysis
+    window (:func:`roughvib.analysis.figures_data.acceleration_spectra`), the narrow band is Welch
     (Hann, 50 % overlap, ``resolution``). The dashed line marks the spring-mass estimate of
     the contact resonance, sqrt(s/m)/2 pi.
 
@@ -369,7 +374,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
     list of Axes
     """
     if axes is None:
-        _, axes = _plt().subplots(1, 2, figsize=(11, 4.2))
+        _, axes = _plt().subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     axes = _axes(axes, 2, None)
     sp = fd.acceleration_spectra(result, resolution=resolution, noise_rms=noise_rms)
     cr = fd.contact_resonance(result, spectra=sp)
@@ -391,7 +396,7 @@ def plot_spectra(result: Result, *, axes=None, noise_rms: float | None = None,
     axes[1].set_xlim(max(sp.frequency[1], 10.0), sp.frequency[-1])
     axes[0].set_ylabel("third-octave level [dB re 1e-6 m/s²]")
     axes[1].set_ylabel("PSD [dB re (1e-6 m/s²)²/Hz]")
-    axes[0].set_title(f"third-octave bands (Hann); dashed: sqrt(s/m)/2π = "
+    axes[0].set_title(f"third-octave bands (IEC 61260-1 filters); dashed: sqrt(s/m)/2π = "
                       f"{cr.spring_mass:.0f} Hz", fontsize=9)
     axes[1].set_title(f"narrow band, Welch Hann, Δf = {sp.resolution:.3g} Hz", fontsize=9)
     return axes
@@ -449,7 +454,8 @@ def save_figure(fig: Figure, path, *, dpi: int = 100) -> None:
     dpi : int
         Resolution [dots per inch].
     """
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:  # the figures made here lay themselves out
+        fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     _plt().close(fig)
 
@@ -550,6 +556,6 @@ def plot_band_comparison(results, labels, *, ax: Axes | None = None,
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("third-octave level [dB re 1e-6 m/s²]")
     name = "block (mass)" if quantity == "block" else "plate"
-    ax.set_title(f"{name} acceleration, third octaves (Hann)", fontsize=9)
+    ax.set_title(f"{name} acceleration, third octaves (IEC 61260-1 filters)", fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     return ax

@@ -81,17 +81,20 @@ def table(header: Sequence, rows: Iterable[Sequence]) -> str:
                   ((f"<td>{esc(c)}</td>" for c in r) for r in rows))
 
 
-def kv_table(rows: Iterable[tuple[str, object, str]]) -> str:
+def kv_table(rows: Iterable[tuple[str, object, str]], fmt: str = ".4g") -> str:
     """A quantity / value / unit table; values formatted with :func:`num`.
 
     Parameters
     ----------
     rows : iterable of (str, object, str)
         Quantity, value and unit of each row.
+    fmt : str
+        Format of the floating-point values (default: 4 significant digits, as a reader
+        compares them; integers are shown whole).
     """
     return _table(["<th class='key'>quantity</th>", "<th>value</th>",
                    "<th class='key'>unit</th>"],
-                  ([f"<td class='key'>{esc(k)}</td>", f"<td>{num(v)}</td>",
+                  ([f"<td class='key'>{esc(k)}</td>", f"<td>{num(v, fmt)}</td>",
                     f"<td class='key'>{esc(u)}</td>"] for k, v, u in rows))
 
 

@@ -38,7 +38,8 @@ _CAPTIONS = {
     "acceleration": "Vertical acceleration (positive down) of block and plate over the "
                     "analysis window; grey: stick (paper Figs. 10/11).",
     "spectra": "Acceleration spectra of block and plate over the analysis window: "
-               "third-octave band levels of the Hann-tapered record and Welch narrow band, "
+               "third-octave band levels (IEC 61260-1 class 1 filter bank) and Welch "
+               "narrow band, "
                "dB re 1e-6 m/s² (paper Fig. 14).",
     "wavenumber": "Wavenumber spectra of the global roughness input profile and of the "
                   "stretch of it one contact crosses in the analysis window (paper Fig. 5).",
@@ -97,8 +98,55 @@ def _model_section(summary: dict) -> str:
     return kv_table(rows)
 
 
-_SOLVER_UNITS = {"rtol": "-", "atol": "m", "atol_acceleration": "m/s²", "step": "s",
-                 "method": "", "accuracy": "", "wall_time": "s", "preprocessing_time": "s"}
+#: solver statistic (key of ``summary["solver"]``) -> label and unit ("" for a count or a name)
+_SOLVER_ROWS = {
+    "method": ("method", ""),
+    "accuracy": ("accuracy preset", ""),
+    "rtol": ("relative tolerance (rtol)", "-"),
+    "atol": ("absolute tolerance of displacements (atol)", "m"),
+    "atol_acceleration": ("absolute tolerance of the modal accelerations", "m/s²"),
+    "atol_acceleration_relative": ("same, relative to the pilot's acceleration level", "-"),
+    "step": ("time step of the fixed-step methods (solver.step)", "s"),
+    "step_size": ("time step", "s"),
+    "largest_step": ("largest step taken", "s"),
+    "steps": ("steps", ""),
+    "rejected_steps": ("rejected steps", ""),
+    "error_test_failures": ("error test failures", ""),
+    "step_evaluations": ("implicit step evaluations", ""),
+    "root_evaluations": ("trial steps of the event searches", ""),
+    "propagator_evaluations": ("modal propagators computed", ""),
+    "nonlinear_iterations": ("Newton iterations", ""),
+    "nonlinear_convergence_failures": ("Newton convergence failures", ""),
+    "linear_iterations": ("linear (Krylov) iterations", ""),
+    "linear_convergence_failures": ("linear convergence failures", ""),
+    "residual_evaluations": ("residual evaluations", ""),
+    "jacobian_evaluations": ("Jacobian evaluations", ""),
+    "restarts": ("restarts after events", ""),
+    "refires_ignored": ("repeated roots ignored at one instant", ""),
+    "switches_at_zero_margin": ("switches of contacts at zero margin", ""),
+    "events_total": ("events, total", ""),
+    "events_truncated": ("event log truncated", ""),
+    "checkpoints": ("checkpoints written", ""),
+    "resumes": ("resumed from a checkpoint", ""),
+    "wall_time": ("solver wall time", "s"),
+    "cpu_time": ("solver CPU time", "s"),
+    "preprocessing_time": ("preprocessing time", "s"),
+    "note": ("note", ""),
+}
+
+
+def _solver_row(key: str, value) -> tuple[str, object, str]:
+    """Label, value and unit of one solver statistic (a key not in ``_SOLVER_ROWS`` with its
+    underscores as spaces)."""
+    if key in _SOLVER_ROWS:
+        label, unit = _SOLVER_ROWS[key]
+    elif key.startswith("events_"):
+        label, unit = f"events: {key.removeprefix('events_').replace('_', ' ')}", ""
+    elif key.startswith("guard_"):
+        label, unit = f"guard activations: {key.removeprefix('guard_').replace('_', ' ')}", ""
+    else:
+        label, unit = key.replace("_", " "), ("s" if key.endswith("_time") else "")
+    return label, value, unit
 
 
 def _accuracy_section(summary: dict) -> str:
@@ -162,19 +210,50 @@ def _accuracy_section(summary: dict) -> str:
 
 def _solver_section(summary: dict) -> str:
     s = summary.get("solver", {})
-    rows = [(k, v, _SOLVER_UNITS.get(k, "s" if k.endswith("_time") else "-"))
-            for k, v in s.items() if not isinstance(v, dict | list)]
+    order = list(_SOLVER_ROWS)
+    after_events = order.index("events_total") + 0.5
+
+    def rank(key: str) -> float:
+        if key in _SOLVER_ROWS:
+            return order.index(key)
+        return after_events if key.startswith(("events_", "guard_")) else len(order)
+
+    keys = sorted((k for k, v in s.items() if not isinstance(v, dict | list)),
+                  key=lambda k: (rank(k), k))
+    rows = [_solver_row(k, s[k]) for k in keys]
+    if s.get("from_preset"):
+        rows.insert(2, ("settings from the preset", ", ".join(s["from_preset"]), ""))
     ev = summary.get("events_by_kind", {})
-    ev_rows = [(f"events: {k}", v, "-") for k, v in sorted(ev.items())
-               if f"events_{k}" not in s]
-    return kv_table(rows + ev_rows)
+    rows += [(f"events: {k.replace('_', ' ')}", v, "") for k, v in sorted(ev.items())
+             if f"events_{k}" not in s]
+    pilot = s.get("pilot")
+    if isinstance(pilot, dict) and pilot.get("duration") is not None:
+        rows += [("pilot solve for the acceleration level", pilot.get("duration"), "s"),
+                 ("pilot solve wall time", pilot.get("wall_time"), "s")]
+    return kv_table(rows)
+
+
+#: energy audit entry -> label (work and dissipation integrated from 0 to t_end)
+_ENERGY_LABELS = {
+    "excitation_work": "work of the tangential excitation",
+    "friction_dissipation": "dissipated by friction",
+    "tangential_damping": "dissipated by the tangential damper",
+    "vertical_damping": "dissipated by the vertical (contact) damper",
+    "plate_damping": "dissipated by the plate's modal damping",
+    "roughness_work": "work of the roughness input",
+    "stored_energy_change": "change of stored energy",
+    "residual": "residual",
+    "relative_residual": "residual relative to the sum of |terms|",
+    "t_end": "end of the audit",
+}
 
 
 def _energy_section(summary: dict) -> str:
     a = summary.get("energy_audit", {})
     if not a:
         return "<p class='note'>no energy audit in this result</p>"
-    rows = [(k, v, "-" if k == "relative_residual" else ("s" if k == "t_end" else "J"))
+    rows = [(_ENERGY_LABELS.get(k, k.replace("_", " ")), v,
+             "-" if k == "relative_residual" else ("s" if k == "t_end" else "J"))
             for k, v in a.items()]
     return (kv_table(rows) + "<p class='note'>residual = inputs (excitation and roughness "
             "work) − dissipation − change of stored energy; of the order of the integration "
@@ -202,9 +281,11 @@ def _resonance_and_bands(result) -> tuple[str, str]:
                        "plate − block [dB]": (sp.band_db["plate"] - sp.band_db["block"])[ok]})
     fmt = {c: (lambda v: num(v, ".1f")) for c in df.columns[1:]}
     fmt["band centre [Hz]"] = lambda v: num(float(v), "g")
-    bands = (f"<p class='note'>Hann-tapered whole-window band levels over "
-             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands with fewer than 4 FFT bins "
-             f"omitted). Total: block {sp.total_db['block']:.1f} dB, plate "
+    bands = (f"<p class='note'>Band levels of an IEC 61260-1:2014 class 1 third-octave filter "
+             f"bank, the filters run from t = 0 and their outputs averaged over "
+             f"{sp.window[0]:.4f} … {sp.window[1]:.4f} s (bands too narrow for the window, "
+             f"bandwidth × duration < 4, omitted). Total: block "
+             f"{sp.total_db['block']:.1f} dB, plate "
              f"{sp.total_db['plate']:.1f} dB re 1e-6 m/s².</p>" + frame_table(df, fmt))
     return res, bands
 
@@ -289,7 +370,8 @@ def _figures_section(result, dpi: int, noise_rms: float | None) -> tuple[str, li
             else:
                 fig = draw(result)
             try:
-                fig.tight_layout()
+                if fig.get_layout_engine() is None:  # FIGURES lay themselves out
+                    fig.tight_layout()
                 uri = figure_data_uri(fig, dpi=dpi)
             finally:
                 _plt().close(fig)
@@ -318,7 +400,7 @@ def _safe(fn, *args) -> str:
 
 
 def build_report(result, *, title: str | None = None, dpi: int = 90,
-                 noise_rms: float | None = None) -> str:
+                 noise_rms: float | None = None, run_dir: str | Path | None = None) -> str:
     """The report of a result as one HTML document (a string).
 
     Parameters
@@ -333,6 +415,9 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
         Resolution of the embedded PNG figures [dots per inch].
     noise_rms : float, optional
         Simulated accelerometer noise on the block in the spectra figure [m/s^2 rms].
+    run_dir : str or Path, optional
+        The run's directory: its validations against measurements (``validation/``,
+        ``roughvib validate``) get a section.
 
     Returns
     -------
@@ -371,6 +456,12 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
         sections.append(("phases", "Event phase table", _safe(_phase_section, result)))
         figs, _ = _figures_section(result, dpi, noise_rms)
         sections.append(("figures", "Figures", figs))
+    if run_dir is not None:  # measured records compared with this run (roughvib validate)
+        from roughvib.views.validation import validation_section
+
+        val = _safe(validation_section, run_dir)
+        if val:
+            sections.append(("validation", "Validation against measurements", val))
     sections.append(("scene", "Scene (resolved, repeatable)",
                      f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
     created = result.dataset.attrs.get("created", "")
@@ -413,7 +504,7 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
 
     result = load_result(result_dir, partial=True)
     path = Path(out) if out is not None else Path(result_dir) / "report.html"
-    text = build_report(result, dpi=dpi, noise_rms=noise_rms)
+    text = build_report(result, dpi=dpi, noise_rms=noise_rms, run_dir=result_dir)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(text, encoding="utf-8")

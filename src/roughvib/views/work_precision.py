@@ -66,27 +66,56 @@ def _set_ticks(ax, axis: str) -> None:
     a.set_minor_formatter(NullFormatter())
 
 
-def _spread_labels(fig, axes, step: float = 7.0, tries: int = 16) -> None:
-    """Move each point label that overlaps an earlier label of its panel up or down.
+def _spread_labels(fig, axes, step: float = 7.0, tries: int = 8) -> None:
+    """Place each point label near its point where it covers no other text.
 
-    Labels are visited in drawing order; each keeps its first free offset among 0, -step,
-    +step, -2 step, ... [points] (the original offset when none of ``tries`` is free).
+    Labels are visited in drawing order; each takes the best place among: right of its point
+    at offsets 0, -step, +step, -2 step, ... [points] up, then the same left of it (``tries``
+    heights per side, nearest first). A place costs 10 for each label placed before it, tick
+    label, axis label or title it covers and for leaving its panel, and 1 for each point
+    marker of the panel it covers; the first place of the least cost wins.
     """
-    fig.draw_without_rendering()  # lays the figure out: label boxes in display units
+    from matplotlib.transforms import Bbox
+
+    fig.draw_without_rendering()  # lays the figure out: boxes in display units
     renderer = fig.canvas.get_renderer()
+    pad = fig.dpi / 72.0  # one point in pixels
     for ax in axes:
-        placed = []
+        inside = ax.get_window_extent(renderer)
+        texts = [t.get_window_extent(renderer)
+                 for t in (*ax.get_xticklabels(), *ax.get_yticklabels(), ax.xaxis.label,
+                           ax.yaxis.label, ax.title) if t.get_visible() and t.get_text()]
+        markers = []
+        for line in ax.lines:
+            if line.get_marker() in (None, "", "None", " "):
+                continue
+            r = 0.5 * line.get_markersize() * pad
+            markers += [Bbox.from_extents(x - r, y - r, x + r, y + r)
+                        for x, y in line.get_transform().transform(line.get_xydata())
+                        if np.isfinite(x) and np.isfinite(y)]
         for ann in ax.texts:
             x0, y0 = ann.xyann
-            for k in range(tries):
-                ann.xyann = (x0, y0 + ((k + 1) // 2) * step * (-1) ** k)
-                box = ann.get_window_extent(renderer)
-                if not any(box.overlaps(p) for p in placed):
+            best = None
+            for side in (1, -1):
+                for k in range(tries):
+                    xy = (side * abs(x0), y0 + ((k + 1) // 2) * step * (-1) ** k)
+                    ha = "left" if side > 0 else "right"
+                    ann.xyann = xy
+                    ann.set_horizontalalignment(ha)
+                    box = ann.get_window_extent(renderer)
+                    out = not (inside.contains(box.x0, box.y0)
+                               and inside.contains(box.x1, box.y1))
+                    cost = (10 * (sum(box.overlaps(o) for o in texts) + out)
+                            + sum(box.overlaps(m) for m in markers))
+                    if best is None or cost < best[0]:
+                        best = (cost, xy, ha)
+                    if cost == 0:
+                        break
+                if best[0] == 0:
                     break
-            else:
-                ann.xyann = (x0, y0)
-                box = ann.get_window_extent(renderer)
-            placed.append(box)
+            ann.xyann = best[1]
+            ann.set_horizontalalignment(best[2])
+            texts.append(ann.get_window_extent(renderer))
 
 
 def label_boxes(fig) -> list[list]:

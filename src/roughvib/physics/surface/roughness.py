@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.scene import Block, Roughness, SceneError
+from roughvib.scene import Block, Roughness, SceneError, user_stacklevel
 
 __all__ = [
     "MeasuredProfile",
@@ -602,7 +602,7 @@ def functional_filter(z: np.ndarray, dx: float, kind: str, length: float, *,
     else:
         warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
                       "block length: it removes almost all short-wavelength input "
-                      "(docs/theory.md)", stacklevel=2)
+                      "(docs/theory.md)", stacklevel=user_stacklevel())
         h = sinc
     return np.fft.irfft(np.fft.rfft(ext) * h, m)[:n]
 
@@ -1096,5 +1096,5 @@ def select_contacts(profile: Profile, n: int, window_length: float, min_separati
                              f"contact.points or contact.min_separation, got {n}")
         warnings.warn(f"only {n_max} local maxima at least {min_separation} m apart under the "
                       f"block; the other {n - n_max} contact points are the highest remaining "
-                      f"profile points", stacklevel=2)
+                      f"profile points", stacklevel=user_stacklevel())
     return np.sort(s[chosen])

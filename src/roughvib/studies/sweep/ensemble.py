@@ -9,7 +9,8 @@ mean and spread over the seeds, per group of the other varied keys:
 * the total block and plate levels (mean, standard deviation, min, max);
 * per run, the contact count, micro-contacts, total stiffness, the spring-mass and the
   measured (transmissibility) contact resonance, lift-offs and the loudest bands;
-* the third-octave band spectra of block and plate (Hann-tapered, as in the run report):
+* the third-octave band spectra of block and plate (IEC 61260-1 filter bank, as in the run
+  report):
   mean, standard deviation, min and max of the band levels in dB.
 
 The sweep report (:mod:`roughvib.studies.sweep.report`) shows these tables and the figure of

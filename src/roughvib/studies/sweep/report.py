@@ -17,6 +17,10 @@ from roughvib.views.sweep_report import render_html, render_markdown, study_figu
 
 __all__ = ["sweep_report"]
 
+#: the columns of ``report/fits.csv``: the study, its x column, the level and the group of
+#: cases fitted, then the slope fit (``tables._fit``), ``per_seed`` as space-separated slopes
+FIT_COLUMNS = ["study", "x", "quantity", "group", "db_per_doubling", "ci_low", "ci_high",
+               "exponent_power", "n_seeds", "n_points", "method", "intercept", "per_seed"]
 #: the varied keys a report plots against, with the x quantity of the plot
 _STUDIES: tuple[tuple[str, tuple[str, ...], str | None, str], ...] = (
     ("velocity", ("excitation.target_rms_velocity", "excitation.velocity"),
@@ -133,7 +137,9 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     if not fit_rows:
         blocks.append(("p", "No velocity, load or roughness key varies over two or more "
                             "successful cases; nothing to fit."))
-    pd.DataFrame(fit_rows).to_csv(rep / "fits.csv", index=False, float_format="%.6g")
+    # the header also when nothing was fitted (an ensemble of one setting): an empty table
+    pd.DataFrame(fit_rows, columns=FIT_COLUMNS).to_csv(rep / "fits.csv", index=False,
+                                                       float_format="%.6g")
 
     if (ens := ensemble_tables(d)) is not None:
         blocks += ensemble_blocks(ens, rep)

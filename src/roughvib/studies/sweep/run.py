@@ -110,10 +110,12 @@ def _complete_case(final: Path, name: str) -> dict[str, Any] | None:
 
 
 def _failure_summary(name: str, status: str, message: str) -> dict[str, Any]:
-    from roughvib.results import FORMAT_VERSION
+    """The summary.json of a case that failed before its run could write one (sealed with its
+    digest, as a run's own summary)."""
+    from roughvib.results import FORMAT_VERSION, seal_summary
 
-    return {"format_version": FORMAT_VERSION, "status": status, "message": message,
-            "scene": name, "solver": {}, "metrics": {}}
+    return seal_summary({"format_version": FORMAT_VERSION, "status": status,
+                         "message": message, "scene": name, "solver": {}, "metrics": {}})
 
 
 def _one_line(exc: BaseException) -> str:
@@ -203,9 +205,18 @@ def _local_dask():
     return dask.config.set(scheduler="synchronous")
 
 
+#: loggers of a worker process whose warnings are Dask's own bookkeeping when a sweep stops
+#: early (``Async instruction ... ended with CancelledError`` for each cancelled case); the
+#: sweep reports the interruption itself, in one line
+_WORKER_QUIET_LOGGERS = ("distributed.worker.state_machine", "distributed.worker")
+
+
 def _ignore_sigint() -> bool:
     """Run on the workers of a sweep's own LocalCluster: Ctrl-C in the terminal reaches the
-    whole process group; the client shuts the workers down, so they need not react."""
+    whole process group; the client shuts the workers down, so they need not react. Also
+    lowers the workers' logging of cancelled tasks to errors (:data:`_WORKER_QUIET_LOGGERS`)."""
+    for name in _WORKER_QUIET_LOGGERS:
+        logging.getLogger(name).setLevel(logging.ERROR)
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread of the worker process
@@ -214,12 +225,12 @@ def _ignore_sigint() -> bool:
 
 
 def _is_complete(case_dir: Path) -> bool:
-    from roughvib.results import check_run_files
+    from roughvib.results import check_run_files, read_summary
 
-    try:
-        summary = json.loads((case_dir / "summary.json").read_text())
+    try:  # an edited or foreign summary.json (RunDirectoryError) is run again
+        summary = read_summary(case_dir)
         check_run_files(case_dir, summary, hashes=False)  # sizes: cheap
-    except (OSError, ValueError):  # MixedRunError is a ValueError
+    except (OSError, ValueError):  # MixedRunError and RunDirectoryError are ValueErrors
         return False
     return summary.get("status") == SUCCESS and (case_dir / "result.nc").is_file()
 

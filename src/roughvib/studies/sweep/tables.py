@@ -14,6 +14,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from roughvib.results import read_summary
 from roughvib.scene import Scene
 from roughvib.studies.sweep.spec import CASES_DIR, SUCCESS, Sweep, _canonical, _replace_file
 
@@ -96,10 +97,13 @@ def collect_table(sweep: Sweep, directory: str | os.PathLike,
         row: dict[str, Any] = {"case": case.name}
         for k in keys:
             row[k] = case.values[k] if k in case.values else sweep.base_value(k)
-        try:
-            summary = json.loads((cases_dir / case.name / "summary.json").read_text())
-        except (OSError, ValueError):
+        damaged = None
+        try:  # checked as load_result checks it: an edited case is not taken at its word
+            summary = read_summary(cases_dir / case.name)
+        except OSError:
             summary = None
+        except ValueError as exc:  # RunDirectoryError: one line naming the file
+            summary, damaged = {}, str(exc)
         try:
             info = json.loads((cases_dir / case.name / "case.json").read_text())
         except (OSError, ValueError):
@@ -107,6 +111,8 @@ def collect_table(sweep: Sweep, directory: str | os.PathLike,
         if summary is None:
             status, message = (errors or {}).get(case.name, ("missing", "not run (yet)"))
             summary = {}
+        elif damaged is not None:
+            status, message = "damaged", damaged
         else:
             status, message = summary.get("status", "unknown"), summary.get("message", "")
         row["status"] = status
