@@ -651,17 +651,28 @@ class Roughness:
                              f"'file', got ''")
 
 
+#: the names ``friction.law`` accepts (the laws are registered in roughvib.physics.friction.LAWS;
+#: a test keeps both lists equal) and those of them with a set-valued stick
+FRICTION_LAWS = ("feldmann", "coulomb", "table")
+SET_VALUED_LAWS = ("coulomb", "table")
+
+
 @dataclass(frozen=True)
 class Friction:
     """Friction law between block and plate.
 
     Attributes
     ----------
-    law : {"feldmann", "coulomb"}
+    law : {"feldmann", "coulomb", "table"}
         ``feldmann``: the paper's Eq. 10 with the latched hysteresis of docs/theory.md
         (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
         Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
-        zero and the friction force is an algebraic unknown (docs/theory.md).
+        zero and the friction force is an algebraic unknown (docs/theory.md). ``table``: the
+        same set-valued law with the kinetic coefficient read from ``table``
+        (docs/friction.md).
+    table : str or None
+        ``table``: CSV file of the kinetic curve, columns ``velocity`` [m/s] (from 0,
+        increasing) and ``mu`` [-], relative to the scene file's folder.
     mu_slip, mu_stick : float
         Quasi-static kinetic and static coefficients [-].
     a1, a2 : float
@@ -696,6 +707,7 @@ class Friction:
     """
 
     law: str = "feldmann"
+    table: str | None = None
     mu_slip: float = 0.30
     mu_stick: float = 0.40
     a1: float = 500.0
@@ -711,7 +723,14 @@ class Friction:
 
     def __post_init__(self) -> None:
         p = "friction"
-        _set(self, "law", _choice(f"{p}.law", self.law, ("feldmann", "coulomb")))
+        _set(self, "law", _choice(f"{p}.law", self.law, FRICTION_LAWS))
+        if self.law == "table":
+            if not isinstance(self.table, str) or not self.table.strip():
+                raise SceneError(f"{p}.table must name a CSV file (velocity [m/s], mu [-]) when "
+                                 f"friction.law = 'table', got {_fmt(self.table)}")
+        elif self.table is not None:
+            raise SceneError(f"{p}.table is read by friction.law = 'table' only, got law "
+                             f"{self.law!r} with table {self.table!r}")
         _set(self, "stribeck_velocity",
              _opt_positive(f"{p}.stribeck_velocity", self.stribeck_velocity, "m/s"))
         _set(self, "switching_hysteresis",
@@ -1186,7 +1205,7 @@ class Scene:
         s = self.solver
         if s.method != "auto":
             return s.resolved()
-        needs_ida = (self.friction.law == "coulomb"
+        needs_ida = (self.friction.law in SET_VALUED_LAWS
                      or (self.plate.kind == "modal" and self.plate.loss_factor >= 2.0))
         return s.resolved("ida" if needs_ida else "adaptive-modal")
 

@@ -81,10 +81,8 @@ def _build_dataset(system: System, raw: RawSolution) -> RunData:
     t = raw.time[:n]
     out = raw.outputs[:n]
     ds = RunData()
-    n0 = kn.N_OUT_FIXED
-    columns = [(name, "time", out[:, j]) for j, name in enumerate(kn.OUT_NAMES)]
-    columns += [("contact_force", ("time", "contact"), out[:, n0:n0 + K]),
-                ("roughness_input", ("time", "contact"), out[:, n0 + K:n0 + 2 * K])]
+    columns = [(name, "time" if isinstance(col, int) else ("time", "contact"), out[:, col])
+               for name, col in kn.output_columns(K).items()]
     no_friction = {"comment": "prescribed tangential motion: no friction model"}
     for name, dims, values in columns:
         units, long = VARIABLES[name]
@@ -459,8 +457,7 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
                     note="pilot failed: the preset's absolute atol_acceleration is used")
         return system, info
     rows = raw.extra.get("rows_filled", raw.time.size)
-    cols = [kn.OUT_NAMES.index(v) for v in ("block_vertical_acceleration",
-                                            "plate_vertical_acceleration")]
+    cols = [kn.OUT_AZ, kn.OUT_PLATE_ACC]
     acc = raw.outputs[:rows, cols]
     level = float(np.max(np.sqrt(np.mean(acc * acc, axis=0))))
     atol = s.atol_acceleration_relative * max(level, PILOT_LEVEL_FLOOR)

@@ -4,8 +4,11 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 ``NUMBA_DISABLE_JIT=1``. All share one argument tail, built once by
 :func:`roughvib.model.system.assemble` and documented here::
 
-    off     int64 [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL] (StateLayout.offsets)
-    fp      float64 scalars, indices FP_* below
+    off     int64 header, positions OFF_* (roughvib.model.layout, StateLayout.offsets): state
+            offsets iq, idq, iz, ivz, ix, ivx, iF, iE, the sizes R, K, the friction-force
+            state iL and the friction-law id (roughvib.physics.friction.LAW_*)
+    fp      float64 scalars, positions FP_* below; from N_FP on, the packed kinetic curve
+            of the table law (roughvib.physics.friction.law_table), empty otherwise
     omega2  (R,) squared modal angular frequencies [rad^2/s^2]
     cdamp   (R,) 2 zeta_r omega_r [1/s]
     phi     (R, K) mode shapes at the contacts [-]
@@ -14,9 +17,11 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
     cres    (K, K) residual compliance of the truncated modes [m/N]
     spos    (K,) profile coordinates of the contacts at x = 0 [m]
     prof    (ncell, deg+1) profile interpolant (roughvib.physics.surface.interp)
-    reg     int64 regime [b, latch s, phase (1 stick, 0 slip), closed_0..closed_K-1]; b is the
-            friction-law branch (feldmann) or the slip direction +1/-1, 0 = stick (coulomb)
-    rf      float64 regime data [v_ext (latch's running velocity extremum), dwell end time]
+    reg     int64 regime, positions REG_*: b, latch s, phase (1 stick, 0 slip), then
+            closed_0..closed_K-1; b is the friction-law branch (feldmann) or the slip
+            direction +1/-1, 0 = stick (set-valued laws)
+    rf      float64 regime data, positions RF_*: the latch's running velocity extremum, the
+            end time of a dwell hold
     work    float64 scratch, length >= 5 K
 
 The residual is ``res = yp - f(y)`` for differential rows, so ``yp = -res(t, y, 0)`` gives the
@@ -24,9 +29,14 @@ consistent derivative. Closed contact k: ``F_k / s_k - (z - w_k + h(s_k + x)) = 
 plate displacement ``w_k = sum_r phi_rk q_r + sum_j C_kj F_j``; open contact: ``F_k / s_k = 0``.
 No Heaviside, no max(): contact state and friction branch are regimes switched by roots.
 
-Set-valued Coulomb law (``iL >= 0``): the friction force lambda is algebraic. In stick
-``lambda = T_exc - r2 v`` so that v' = 0 exactly (index 1); in slip b ``lambda = b mu_k(b v)
-F_N`` with the Stribeck-type kinetic coefficient of :func:`coulomb_kinetic`.
+Set-valued laws (``coulomb``, ``table``: the kernels branch on the law id
+``off[OFF_LAW]``): the friction force lambda is algebraic. In stick ``lambda = T_exc - r2 v``
+so that v' = 0 exactly (index 1); in slip b ``lambda = b mu_k(b v) F_N`` with the law's kinetic
+coefficient (:func:`roughvib.physics.friction.kinetic_coefficient`).
+
+Outputs are named (``OUTPUTS``, each with its unit); a kernel writes the column ``OUT_*`` of a
+fixed output, and :func:`out_force_column` / :func:`out_roughness_column` give the column of a
+per-contact output: no other code computes a column number.
 """
 
 from __future__ import annotations
@@ -36,7 +46,32 @@ import math
 import numpy as np
 from numba import njit
 
-from roughvib.physics.friction import feldmann_mu
+from roughvib.model.layout import (
+    E_EXCITATION,  # noqa: F401  (E_*, N_ENERGY: re-exported for the solvers)
+    E_FRICTION,
+    E_PLATE_DAMPING,
+    E_ROUGHNESS,
+    E_TANGENTIAL_DAMPING,
+    E_VERTICAL_DAMPING,
+    N_ENERGY,  # noqa: F401
+    OFF_IDQ,
+    OFF_IE,
+    OFF_IF,
+    OFF_IL,
+    OFF_IQ,
+    OFF_IVX,
+    OFF_IVZ,
+    OFF_IX,
+    OFF_IZ,
+    OFF_K,
+    OFF_LAW,
+    OFF_R,
+)
+from roughvib.physics.friction import (
+    feldmann_mu,
+    is_set_valued,
+    kinetic_coefficient,
+)
 from roughvib.physics.surface.interp import profile_eval
 
 FP_MASS = 0
@@ -67,12 +102,81 @@ REG_S = 1
 REG_PHASE = 2
 REG_CLOSED = 3
 
-#: output columns of :func:`outputs` before the per-contact blocks
-OUT_NAMES = ("block_vertical_displacement", "block_vertical_velocity",
-             "block_vertical_acceleration", "plate_vertical_acceleration",
-             "block_tangential_displacement", "block_tangential_velocity", "friction_force",
-             "normal_force", "friction_coefficient")
-N_OUT_FIXED = len(OUT_NAMES)
+RF_VEXT = 0    # the latch's running velocity extremum [m/s]
+RF_DWELL = 1   # end of the current dwell hold [s]
+N_RF = 2
+
+# the friction law's root functions follow the K contact roots: ev[K + ROOT_*]
+ROOT_BRANCH = 0  # feldmann: branch b X; set-valued: break-away margin (stick), b v (slip)
+ROOT_LATCH = 1   # feldmann: latch margin; set-valued: threshold without hysteresis (stick)
+ROOT_PHASE = 2   # feldmann: stick/slip phase margin; set-valued: dwell timer (stick)
+N_LAW_ROOTS = 3
+
+#: the fixed outputs of :func:`outputs`, in column order: (name, unit)
+OUTPUTS = (("block_vertical_displacement", "m"), ("block_vertical_velocity", "m s-1"),
+           ("block_vertical_acceleration", "m s-2"), ("plate_vertical_acceleration", "m s-2"),
+           ("block_tangential_displacement", "m"), ("block_tangential_velocity", "m s-1"),
+           ("friction_force", "N"), ("normal_force", "N"), ("friction_coefficient", "1"))
+OUT_Z = 0
+OUT_VZ = 1
+OUT_AZ = 2
+OUT_PLATE_ACC = 3
+OUT_X = 4
+OUT_VX = 5
+OUT_FRICTION = 6
+OUT_NORMAL = 7
+OUT_MU = 8
+#: the per-contact outputs after the fixed ones, each a block of K columns: (name, unit)
+CONTACT_OUTPUTS = (("contact_force", "N"), ("roughness_input", "m"))
+OUT_NAMES = tuple(name for name, _ in OUTPUTS)
+N_OUT_FIXED = len(OUTPUTS)
+
+
+@njit(cache=True)
+def out_force_column(k, K):
+    """Output column of the contact force F_k [N] (contact k of K)."""
+    return N_OUT_FIXED + k
+
+
+@njit(cache=True)
+def out_roughness_column(k, K):
+    """Output column of the roughness displacement -h(s_k + x) [m] at contact k of K."""
+    return N_OUT_FIXED + K + k
+
+
+def n_output_columns(K: int) -> int:
+    """Number of output columns with K contacts: the fixed ones, then two per contact."""
+    return N_OUT_FIXED + len(CONTACT_OUTPUTS) * K
+
+
+def output_columns(K: int) -> dict[str, int | slice]:
+    """Where each named output lies in a row of :func:`outputs` with K contacts.
+
+    Returns
+    -------
+    dict
+        Name -> column (fixed outputs) or slice of K columns (per-contact outputs), in the
+        order of ``OUTPUTS`` then ``CONTACT_OUTPUTS``.
+    """
+    cols: dict[str, int | slice] = {name: j for j, (name, _) in enumerate(OUTPUTS)}
+    starts = (out_force_column(0, K), out_roughness_column(0, K))
+    for (name, _), start in zip(CONTACT_OUTPUTS, starts, strict=True):
+        cols[name] = slice(start, start + K)
+    return cols
+
+
+@njit(cache=True)
+def state_offsets(off):
+    """The state offsets and sizes of the header ``off``.
+
+    Returns
+    -------
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K : int
+        First plate.q, plate.dq, block.z, block.vz, block.x, block.vx (-1 for prescribed
+        motion), first contact.force and energy integral; number of modes and contacts.
+    """
+    return (off[OFF_IQ], off[OFF_IDQ], off[OFF_IZ], off[OFF_IVZ], off[OFF_IX], off[OFF_IVX],
+            off[OFF_IF], off[OFF_IE], off[OFF_R], off[OFF_K])
 
 
 @njit(cache=True)
@@ -105,28 +209,37 @@ def tangential_kinematics(t, y, off, fp):
     x, vx : float
         [m], [m/s].
     """
-    ix = off[4]
+    ix = off[OFF_IX]
     if ix >= 0:
-        return y[ix], y[off[5]]
+        return y[ix], y[off[OFF_IVX]]
     return prescribed_motion(t, fp)
 
 
 @njit(cache=True)
-def coulomb_kinetic(v, mu_slip, mu_stick, vs):
-    """Kinetic coefficient mu_k(v) = mu_slip + (mu_stick - mu_slip) exp(-v / vs), v >= 0.
+def kinetic(v, off, fp):
+    """The set-valued law's kinetic coefficient at sliding speed v >= 0 and its slope.
 
-    Returns (mu_k, dmu_k/dv); ``vs <= 0`` gives the constant mu_slip.
+    Returns
+    -------
+    mu_k : float
+        [-].
+    dmu_k_dv : float
+        [s/m].
     """
-    if vs <= 0.0:
-        return mu_slip, 0.0
-    e = math.exp(-v / vs)
-    return mu_slip + (mu_stick - mu_slip) * e, -(mu_stick - mu_slip) * e / vs
+    return kinetic_coefficient(off[OFF_LAW], v, fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_VSTRIB],
+                               fp[N_FP:])
+
+
+@njit(cache=True)
+def set_valued(off):
+    """Whether the scene's friction law is set-valued (friction force an algebraic state)."""
+    return is_set_valued(off[OFF_LAW])
 
 
 @njit(cache=True)
 def coulomb_friction(t, y, off, fp, reg):
     """Algebraic friction force lambda [N] of the set-valued law for the current regime."""
-    ivx, iF, K = off[5], off[6], off[9]
+    ivx, iF, K = off[OFF_IVX], off[OFF_IF], off[OFF_K]
     vx = y[ivx]
     b = reg[REG_B]
     if b == 0:
@@ -134,14 +247,14 @@ def coulomb_friction(t, y, off, fp, reg):
     fsum = 0.0
     for k in range(K):
         fsum += y[iF + k]
-    muk, _ = coulomb_kinetic(b * vx, fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_VSTRIB])
+    muk, _ = kinetic(b * vx, off, fp)
     return b * muk * fsum
 
 
 @njit(cache=True)
 def _plate_at_contacts(y, off, phi, cres, w):
     """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k)."""
-    iq, iF, R, K = off[0], off[6], off[8], off[9]
+    iq, iF, R, K = off[OFF_IQ], off[OFF_IF], off[OFF_R], off[OFF_K]
     for k in range(K):
         w[k] = 0.0
     for r in range(R):
@@ -162,8 +275,8 @@ def compressions(t, y, off, fp, phi, cres, spos, prof, work):
     Fills ``work[0:K]`` with compression [m], ``work[K:2K]`` with z'(s_k + x) [-] and
     ``work[2K:3K]`` with z''(s_k + x) [1/m]; uses ``work[3K:4K]`` as scratch.
     """
-    K = off[9]
-    iz = off[2]
+    K = off[OFF_K]
+    iz = off[OFF_IZ]
     x, _ = tangential_kinematics(t, y, off, fp)
     wk = work[3 * K:4 * K]
     _plate_at_contacts(y, off, phi, cres, wk)
@@ -179,8 +292,7 @@ def compressions(t, y, off, fp, phi, cres, spos, prof, work):
 def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof,
              reg, rf, work):
     """DAE residual ``res = F(t, y, yp)`` of the current regime (see module docstring)."""
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
-                                               off[6], off[7], off[8], off[9])
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = state_offsets(off)
     m = fp[FP_MASS]
     M = fp[FP_MMODAL]
     fsum = 0.0
@@ -205,11 +317,11 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     x, vx = tangential_kinematics(t, y, off, fp)
     texc = 0.0
     fric = 0.0
-    iL = off[10]
+    iL = off[OFF_IL]
     if ix >= 0:
         texc = fp[FP_T0] * math.cos(fp[FP_OMEGA] * t)
         res[ix] = yp[ix] - vx
-        if iL >= 0:
+        if set_valued(off):
             fric = y[iL]
             res[iL] = fric - coulomb_friction(t, y, off, fp, reg)
         else:
@@ -230,15 +342,15 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     # energy audit integrals
     if ix >= 0:
         res[iE] = yp[iE] - texc * vx
-        res[iE + 1] = yp[iE + 1] - fric * vx
-        res[iE + 2] = yp[iE + 2] - fp[FP_R2] * vx * vx
+        res[iE + E_FRICTION] = yp[iE + E_FRICTION] - fric * vx
+        res[iE + E_TANGENTIAL_DAMPING] = yp[iE + E_TANGENTIAL_DAMPING] - fp[FP_R2] * vx * vx
     else:
         res[iE] = yp[iE]
-        res[iE + 1] = yp[iE + 1]
-        res[iE + 2] = yp[iE + 2]
-    res[iE + 3] = yp[iE + 3] - fp[FP_R1] * vz * vz
-    res[iE + 4] = yp[iE + 4] - M * pdiss
-    res[iE + 5] = yp[iE + 5] - rough_power
+        res[iE + E_FRICTION] = yp[iE + E_FRICTION]
+        res[iE + E_TANGENTIAL_DAMPING] = yp[iE + E_TANGENTIAL_DAMPING]
+    res[iE + E_VERTICAL_DAMPING] = yp[iE + E_VERTICAL_DAMPING] - fp[FP_R1] * vz * vz
+    res[iE + E_PLATE_DAMPING] = yp[iE + E_PLATE_DAMPING] - M * pdiss
+    res[iE + E_ROUGHNESS] = yp[iE + E_ROUGHNESS] - rough_power
 
 
 def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -267,12 +379,13 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     add(ivz, ivz)
     for k in range(K):
         add(ivz, iF + k)
-    iL = int(off[10])
+    iL = int(off[OFF_IL])
+    sv = bool(is_set_valued(int(off[OFF_LAW])))
     if ix >= 0:
         add(ix, ix)
         add(ix, ivx)
         add(ivx, ivx)
-        if iL >= 0:
+        if sv:
             add(ivx, iL)
         else:
             for k in range(K):
@@ -285,7 +398,7 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             add(iF + k, iq + r)
         if ix >= 0:
             add(iF + k, ix)
-    if iL >= 0:
+    if sv:
         add(iL, iL)
         add(iL, ivx)
         for k in range(K):
@@ -294,28 +407,28 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     add(iE, iE)
     if ix >= 0:
         add(iE, ivx)
-    add(iE + 1, iE + 1)
+    add(iE + E_FRICTION, iE + E_FRICTION)
     if ix >= 0:
-        add(iE + 1, ivx)
-        if iL >= 0:
-            add(iE + 1, iL)
+        add(iE + E_FRICTION, ivx)
+        if sv:
+            add(iE + E_FRICTION, iL)
         else:
             for k in range(K):
-                add(iE + 1, iF + k)
-    add(iE + 2, iE + 2)
+                add(iE + E_FRICTION, iF + k)
+    add(iE + E_TANGENTIAL_DAMPING, iE + E_TANGENTIAL_DAMPING)
     if ix >= 0:
-        add(iE + 2, ivx)
-    add(iE + 3, iE + 3)
-    add(iE + 3, ivz)
-    add(iE + 4, iE + 4)
+        add(iE + E_TANGENTIAL_DAMPING, ivx)
+    add(iE + E_VERTICAL_DAMPING, iE + E_VERTICAL_DAMPING)
+    add(iE + E_VERTICAL_DAMPING, ivz)
+    add(iE + E_PLATE_DAMPING, iE + E_PLATE_DAMPING)
     for r in range(R):
-        add(iE + 4, idq + r)
-    add(iE + 5, iE + 5)
+        add(iE + E_PLATE_DAMPING, idq + r)
+    add(iE + E_ROUGHNESS, iE + E_ROUGHNESS)
     for k in range(K):
-        add(iE + 5, iF + k)
+        add(iE + E_ROUGHNESS, iF + k)
     if ix >= 0:
-        add(iE + 5, ix)
-        add(iE + 5, ivx)
+        add(iE + E_ROUGHNESS, ix)
+        add(iE + E_ROUGHNESS, ivx)
     return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
 
 
@@ -323,8 +436,7 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
                     spos, prof, reg, rf, work):
     """Values of dF/dy + cj dF/dyp in the order of :func:`jacobian_pattern`."""
-    _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
-                                               off[6], off[7], off[8], off[9])
+    _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = state_offsets(off)
     m = fp[FP_MASS]
     M = fp[FP_MMODAL]
     fsum = 0.0
@@ -352,12 +464,13 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     mu = 0.0
     dmu = 0.0
     texc = 0.0
-    iL = off[10]
+    iL = off[OFF_IL]
+    sv = set_valued(off)
     if ix >= 0:
         texc = fp[FP_T0] * math.cos(fp[FP_OMEGA] * t)
         vals[p] = cj
         vals[p + 1] = -1.0
-        if iL >= 0:
+        if sv:
             vals[p + 2] = cj + fp[FP_R2] / m
             vals[p + 3] = 1.0 / m
             p += 4
@@ -386,7 +499,7 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         if ix >= 0:
             vals[p] = -work[K + k] if closed else 0.0
             p += 1
-    if iL >= 0:
+    if sv:
         b = reg[REG_B]
         vals[p] = 1.0
         if b == 0:
@@ -396,7 +509,7 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
                 vals[p] = 0.0
                 p += 1
         else:
-            muk, dmuk = coulomb_kinetic(b * vx, fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_VSTRIB])
+            muk, dmuk = kinetic(b * vx, off, fp)
             vals[p + 1] = -dmuk * fsum
             p += 2
             for _k in range(K):
@@ -411,7 +524,7 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     vals[p] = cj
     p += 1
     if ix >= 0:
-        if iL >= 0:
+        if sv:
             vals[p] = -y[iL]
             vals[p + 1] = -vx
             p += 2
@@ -470,44 +583,44 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     All are watched for downward crossings only; prescribed motion disables the last three
     (constant 1).
     """
-    ix, iF, K = off[4], off[6], off[9]
+    ix, iF, K = off[OFF_IX], off[OFF_IF], off[OFF_K]
     compressions(t, y, off, fp, phi, cres, spos, prof, work)
     for k in range(K):
         if reg[REG_CLOSED + k] == 1:
             ev[k] = work[k]
         else:
             ev[k] = -work[k]
-    iL = off[10]
-    if ix >= 0 and iL >= 0:
-        vx = y[off[5]]
+    iL = off[OFF_IL]
+    if ix >= 0 and set_valued(off):
+        vx = y[off[OFF_IVX]]
         b = reg[REG_B]
         if b == 0:
             fsum = 0.0
             for k in range(K):
                 fsum += y[iF + k]
             lam = abs(y[iL])
-            ev[K] = fp[FP_MU_STICK] * fsum * (1.0 + fp[FP_HYST]) - lam
+            ev[K + ROOT_BRANCH] = fp[FP_MU_STICK] * fsum * (1.0 + fp[FP_HYST]) - lam
             # the bare threshold counts the holds of a hysteresis; without one it is ev[K]
-            ev[K + 1] = fp[FP_MU_STICK] * fsum - lam if fp[FP_HYST] > 0.0 else 1.0
-            ev[K + 2] = rf[1] - t
+            ev[K + ROOT_LATCH] = fp[FP_MU_STICK] * fsum - lam if fp[FP_HYST] > 0.0 else 1.0
+            ev[K + ROOT_PHASE] = rf[RF_DWELL] - t
         else:
-            ev[K] = b * vx
-            ev[K + 1] = 1.0
-            ev[K + 2] = 1.0
+            ev[K + ROOT_BRANCH] = b * vx
+            ev[K + ROOT_LATCH] = 1.0
+            ev[K + ROOT_PHASE] = 1.0
     elif ix >= 0:
-        vx = y[off[5]]
+        vx = y[off[OFF_IVX]]
         xx = vx + reg[REG_S] * fp[FP_VH]
-        ev[K] = reg[REG_B] * xx
-        ev[K + 1] = fp[FP_EPS] - reg[REG_S] * (vx - rf[0])
+        ev[K + ROOT_BRANCH] = reg[REG_B] * xx
+        ev[K + ROOT_LATCH] = fp[FP_EPS] - reg[REG_S] * (vx - rf[RF_VEXT])
         vs2 = fp[FP_VSTICK] * fp[FP_VSTICK]
         if reg[REG_PHASE] == 1:
-            ev[K + 2] = vs2 - vx * vx
+            ev[K + ROOT_PHASE] = vs2 - vx * vx
         else:
-            ev[K + 2] = vx * vx - vs2
+            ev[K + ROOT_PHASE] = vx * vx - vs2
     else:
-        ev[K] = 1.0
-        ev[K + 1] = 1.0
-        ev[K + 2] = 1.0
+        ev[K + ROOT_BRANCH] = 1.0
+        ev[K + ROOT_LATCH] = 1.0
+        ev[K + ROOT_PHASE] = 1.0
     _ = iF
 
 
@@ -515,8 +628,7 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
 def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
             work):
     """One row of the stored outputs (columns ``OUT_NAMES``, then F_k, then xi_rough_k)."""
-    iq, idq, iz, ivz, ix, iF, R, K = (off[0], off[1], off[2], off[3], off[4], off[6], off[8],
-                                      off[9])
+    iq, idq, iz, ivz, ix, _ivx, iF, _iE, R, K = state_offsets(off)
     m = fp[FP_MASS]
     M = fp[FP_MMODAL]
     # an open contact carries exactly zero force: report the regime, not the Newton round-off
@@ -535,8 +647,8 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
     x, vx = tangential_kinematics(t, y, off, fp)
     mu = np.nan
     fr = np.nan
-    if ix >= 0 and off[10] >= 0:
-        fr = y[off[10]]
+    if ix >= 0 and set_valued(off):
+        fr = y[off[OFF_IL]]
         mu = fr / fsum if fsum > 0.0 else np.nan
         if reg[REG_B] == 0:
             vx = 0.0  # stick holds the velocity at zero: report the regime, not round-off
@@ -545,17 +657,16 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
         mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
                             fp[FP_A2])
         fr = mu * fsum
-    out[0] = y[iz]
-    out[1] = vz
-    out[2] = fp[FP_GRAV] - fp[FP_R1] * vz / m - fsum / m
-    out[3] = acc
-    out[4] = x
-    out[5] = vx
-    out[6] = fr
-    out[7] = fsum
-    out[8] = mu
-    n0 = N_OUT_FIXED
+    out[OUT_Z] = y[iz]
+    out[OUT_VZ] = vz
+    out[OUT_AZ] = fp[FP_GRAV] - fp[FP_R1] * vz / m - fsum / m
+    out[OUT_PLATE_ACC] = acc
+    out[OUT_X] = x
+    out[OUT_VX] = vx
+    out[OUT_FRICTION] = fr
+    out[OUT_NORMAL] = fsum
+    out[OUT_MU] = mu
     for k in range(K):
-        out[n0 + k] = fk[k]
+        out[out_force_column(k, K)] = fk[k]
         h, _, _ = profile_eval(prof, fp[FP_S0], fp[FP_DX], spos[k] + x)
-        out[n0 + K + k] = -h
+        out[out_roughness_column(k, K)] = -h

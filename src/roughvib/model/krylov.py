@@ -39,6 +39,14 @@ from roughvib.physics.friction import feldmann_mu
 __all__ = ["jac_vec", "krylov_workspace", "precond_solve", "tangential_coefficients"]
 
 
+# positions in the ``cache`` array of krylov_workspace
+C_CJ_P = 0   # cj of P and dinv
+C_T_A = 1    # t of the factorised Schur matrix A
+C_CJ_A = 2   # cj of A
+C_N_Y = 3    # number of valid entries in ycache
+N_CACHE = 4
+
+
 def krylov_workspace(n_states: int, n_modes: int, n_contacts: int) -> tuple[np.ndarray, ...]:
     """Scratch arrays for :func:`precond_solve`: (cache, ycache, piv, P, A, b, a, dinv).
 
@@ -47,7 +55,7 @@ def krylov_workspace(n_states: int, n_modes: int, n_contacts: int) -> tuple[np.n
     preconditioner twice per Newton iteration at the same iterate); ``piv`` (K,) its pivots.
     """
     K = n_contacts
-    cache = np.full(4, np.nan)
+    cache = np.full(N_CACHE, np.nan)
     return (cache, np.zeros(n_states), np.zeros(K, dtype=np.int64), np.zeros((K, K)),
             np.zeros((K, K)), np.zeros(K), np.zeros(n_modes), np.zeros(n_modes))
 
@@ -107,7 +115,7 @@ def tangential_coefficients(t, y, off, fp, reg):
     Feldmann law: friction mu(X) F_N with slope dmu [s/m]. Coulomb law (friction force lambda
     algebraic): the lambda row reads ``d lambda + alpha d vx + beta sum_k dF_k``.
     """
-    iF, K, iL = off[6], off[9], off[10]
+    iF, K = off[kn.OFF_IF], off[kn.OFF_K]
     fsum = 0.0
     for k in range(K):
         fsum += y[iF + k]
@@ -116,14 +124,13 @@ def tangential_coefficients(t, y, off, fp, reg):
     dmu = 0.0
     alpha = 0.0
     beta = 0.0
-    if off[4] >= 0:
-        if iL >= 0:
+    if off[kn.OFF_IX] >= 0:
+        if kn.set_valued(off):
             bb = reg[kn.REG_B]
             if bb == 0:
                 alpha = fp[kn.FP_R2]
             else:
-                muk, dmuk = kn.coulomb_kinetic(bb * vx, fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK],
-                                               fp[kn.FP_VSTRIB])
+                muk, dmuk = kn.kinetic(bb * vx, off, fp)
                 alpha = -dmuk * fsum
                 beta = -bb * muk
         else:
@@ -136,7 +143,7 @@ def tangential_coefficients(t, y, off, fp, reg):
 @njit(cache=True)
 def _same_iterate(t, y, cj, cache, ycache):
     """Whether the Schur matrix in the workspace was factorised at this (t, y, cj)."""
-    if cache[1] != t or cache[2] != cj or cache[3] != y.size:
+    if cache[C_T_A] != t or cache[C_CJ_A] != cj or cache[C_N_Y] != y.size:
         return False
     for i in range(y.size):
         if ycache[i] != y[i]:
@@ -165,14 +172,13 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
     cache ... dinv
         From :func:`krylov_workspace`.
     """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
-                                               off[6], off[7], off[8], off[9])
-    iL = off[10]
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
+    iL = off[kn.OFF_IL]
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
     r1 = fp[kn.FP_R1]
     r2 = fp[kn.FP_R2]
-    if cache[0] != cj:
+    if cache[C_CJ_P] != cj:
         for k in range(K):
             for j in range(K):
                 P[k, j] = 0.0
@@ -187,8 +193,8 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
             for j in range(k, K):
                 P[k, j] /= M
                 P[j, k] = P[k, j]
-        cache[0] = cj
-        cache[1] = np.nan
+        cache[C_CJ_P] = cj
+        cache[C_T_A] = np.nan
     vx, fsum, mu, dmu, alpha, beta = tangential_coefficients(t, y, off, fp, reg)
     # vertical pair: zvz = vz0 + rho_z S, zz = (r_z + zvz) / cj
     ez = cj + r1 / m
@@ -198,7 +204,7 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
     vx0 = 0.0
     rho_x = 0.0
     if ix >= 0:
-        if iL >= 0:
+        if kn.set_valued(off):
             ex = cj + (r2 - alpha) / m
             vx0 = (rv[ivx] - rv[iL] / m) / ex
             rho_x = beta / (m * ex)
@@ -223,9 +229,9 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
         lu_factor(A, piv)
         for i in range(y.size):
             ycache[i] = y[i]
-        cache[1] = t
-        cache[2] = cj
-        cache[3] = y.size
+        cache[C_T_A] = t
+        cache[C_CJ_A] = cj
+        cache[C_N_Y] = y.size
     # modal blocks: zq_r = a_r + (sum_k phi_rk zF_k) / (M d_r)
     for r in range(R):
         a[r] = (rv[idq + r] + (cj + cdamp[r]) * rv[iq + r]) * dinv[r]
@@ -261,7 +267,7 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
         zvx = vx0 + rho_x * S
         zv[ivx] = zvx
         zv[ix] = (rv[ix] + zvx) / cj
-        if iL >= 0:
+        if kn.set_valued(off):
             zL = rv[iL] - alpha * zvx - beta * S
             zv[iL] = zL
     # energy rows (lower triangular: cj zE + coupling = r)
@@ -281,14 +287,14 @@ def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
     product J v, ``sign = -1`` moves it to the right-hand side of a solve. ``work`` holds
     the compressions and profile slopes at y (:func:`roughvib.model.kernels.compressions`).
     """
-    idq, ivz, ix, ivx, iF, iE, R, K, iL = (off[1], off[3], off[4], off[5], off[6], off[7],
-                                           off[8], off[9], off[10])
+    _iq, idq, _iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
+    iL = off[kn.OFF_IL]
     c0 = 0.0
     c1 = 0.0
     c2 = 0.0
     if ix >= 0:
         c0 = -fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t) * v[ivx]
-        if iL >= 0:
+        if kn.set_valued(off):
             c1 = -y[iL] * v[ivx] - vx * v[iL]
         else:
             sv = 0.0
@@ -312,11 +318,11 @@ def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
     if ix >= 0:
         c5 -= s2 * vx * v[ix] + s1 * v[ivx]
     out[iE] += sign * c0
-    out[iE + 1] += sign * c1
-    out[iE + 2] += sign * c2
-    out[iE + 3] += sign * c3
-    out[iE + 4] += sign * c4
-    out[iE + 5] += sign * c5
+    out[iE + kn.E_FRICTION] += sign * c1
+    out[iE + kn.E_TANGENTIAL_DAMPING] += sign * c2
+    out[iE + kn.E_VERTICAL_DAMPING] += sign * c3
+    out[iE + kn.E_PLATE_DAMPING] += sign * c4
+    out[iE + kn.E_ROUGHNESS] += sign * c5
 
 
 @njit(cache=True)
@@ -326,9 +332,8 @@ def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, pr
     The same matrix as :func:`roughvib.model.kernels.jacobian_values` (the unit tests compare
     them); O(R K) per call.
     """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
-                                               off[6], off[7], off[8], off[9])
-    iL = off[10]
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
+    iL = off[kn.OFF_IL]
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
     vx, fsum, mu, dmu, alpha, beta = tangential_coefficients(t, y, off, fp, reg)
@@ -346,7 +351,7 @@ def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, pr
     out[ivz] = (cj + fp[kn.FP_R1] / m) * v[ivz] + sv / m
     if ix >= 0:
         out[ix] = cj * v[ix] - v[ivx]
-        if iL >= 0:
+        if kn.set_valued(off):
             out[ivx] = (cj + fp[kn.FP_R2] / m) * v[ivx] + v[iL] / m
             out[iL] = v[iL] + alpha * v[ivx] + beta * sv
         else:

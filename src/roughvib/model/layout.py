@@ -18,7 +18,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["ENERGY_TERMS", "StateLayout"]
+__all__ = ["ENERGY_TERMS", "N_OFF", "OFF_IDQ", "OFF_IE", "OFF_IF", "OFF_IL", "OFF_IQ", "OFF_IVX",
+           "OFF_IVZ", "OFF_IX", "OFF_IZ", "OFF_K", "OFF_LAW", "OFF_R", "StateLayout"]
+
+# Positions in the int64 header ``off`` that every kernel receives (:meth:`StateLayout.offsets`).
+# numba reads module-level integers as compile-time constants, so ``off[OFF_IZ]`` compiles to
+# the same code as a literal index.
+OFF_IQ = 0    #: first plate.q
+OFF_IDQ = 1   #: first plate.dq
+OFF_IZ = 2    #: block.z
+OFF_IVZ = 3   #: block.vz
+OFF_IX = 4    #: block.x, -1 for prescribed tangential motion
+OFF_IVX = 5   #: block.vx, -1 for prescribed tangential motion
+OFF_IF = 6    #: first contact.force
+OFF_IE = 7    #: first energy integral
+OFF_R = 8     #: number of plate modes R
+OFF_K = 9     #: number of contacts K
+OFF_IL = 10   #: friction.force (set-valued laws), -1 otherwise
+OFF_LAW = 11  #: friction-law id (roughvib.physics.friction.LAW_*)
+N_OFF = 12
 
 #: running integrals appended to the state (all in J): their time derivatives are powers
 ENERGY_TERMS = (
@@ -29,6 +47,15 @@ ENERGY_TERMS = (
     "plate_damping",            # int sum_r 2 zeta_r w_r M dq_r^2 dt
     "roughness_work",           # int sum_k F_k z'(s_k + x) vx dt  (kinematic input power)
 )
+#: positions of the energy integrals, relative to the first (``off[OFF_IE]``), in the order
+#: of ENERGY_TERMS
+E_EXCITATION = 0
+E_FRICTION = 1
+E_TANGENTIAL_DAMPING = 2
+E_VERTICAL_DAMPING = 3
+E_PLATE_DAMPING = 4
+E_ROUGHNESS = 5
+N_ENERGY = len(ENERGY_TERMS)
 
 
 @dataclass(frozen=True)
@@ -109,17 +136,24 @@ class StateLayout:
             idx.append(self.index("friction.force"))
         return np.array(idx, dtype=np.int64)
 
-    def offsets(self) -> np.ndarray:
-        """Integer array handed to the kernels: [iq, idq, iz, ivz, ix, ivx, iF, iE, R, K, iL].
+    def offsets(self, law: int = 0) -> np.ndarray:
+        """Integer header handed to the kernels, positions ``OFF_*`` of this module.
 
-        ``ix``/``ivx`` are -1 for prescribed tangential motion, ``iL`` (friction force) is -1
-        unless the friction force is a state.
+        ``off[OFF_IX]``/``off[OFF_IVX]`` are -1 for prescribed tangential motion,
+        ``off[OFF_IL]`` (friction force) is -1 unless the friction force is a state;
+        ``off[OFF_LAW]`` is the friction-law id ``law`` (``roughvib.physics.friction``).
         """
-        return np.array([
-            self._slices["plate.q"].start, self._slices["plate.dq"].start,
-            self.index("block.z"), self.index("block.vz"),
-            self.index("block.x"), self.index("block.vx"),
-            self._slices["contact.force"].start,
-            self._slices[f"energy.{ENERGY_TERMS[0]}"].start,
-            self.n_modes, self.n_contacts, self.index("friction.force"),
-        ], dtype=np.int64)
+        off = np.empty(N_OFF, dtype=np.int64)
+        off[OFF_IQ] = self._slices["plate.q"].start
+        off[OFF_IDQ] = self._slices["plate.dq"].start
+        off[OFF_IZ] = self.index("block.z")
+        off[OFF_IVZ] = self.index("block.vz")
+        off[OFF_IX] = self.index("block.x")
+        off[OFF_IVX] = self.index("block.vx")
+        off[OFF_IF] = self._slices["contact.force"].start
+        off[OFF_IE] = self._slices["energy." + next(iter(ENERGY_TERMS))].start
+        off[OFF_R] = self.n_modes
+        off[OFF_K] = self.n_contacts
+        off[OFF_IL] = self.index("friction.force")
+        off[OFF_LAW] = law
+        return off

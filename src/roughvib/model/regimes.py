@@ -41,7 +41,8 @@ class Regime:
     dwell_end : float
         coulomb: break-away is held until this time [s] (``NO_DWELL`` when inactive).
     coulomb : bool
-        Which law the regime belongs to.
+        Whether the law is set-valued (``coulomb`` or ``table``: stick is a regime with an
+        algebraic friction force); False for the Feldmann law.
     switch_times : list of float
         coulomb: times of the recent stick/slip switches [s], for the chatter guard (only
         those within its window are kept).
@@ -62,8 +63,8 @@ class Regime:
         reg[kn.REG_S] = self.latch
         reg[kn.REG_PHASE] = 1 if self.stick else 0
         reg[kn.REG_CLOSED:] = self.closed
-        rf[0] = self.v_ext
-        rf[1] = self.dwell_end
+        rf[kn.RF_VEXT] = self.v_ext
+        rf[kn.RF_DWELL] = self.dwell_end
 
     def describe(self) -> str:
         """Short text, e.g. ``closed=1111111011 slip+`` or ``... b=+1 s=-1 slip``."""

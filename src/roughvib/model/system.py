@@ -22,7 +22,7 @@ import numpy as np
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
-from roughvib.physics.friction import calibrated_force_amplitude
+from roughvib.physics.friction import LAWS, calibrated_force_amplitude, law_table
 from roughvib.physics.structures import Structure, build_structure
 from roughvib.physics.surface.contact import contact_layout
 from roughvib.physics.surface.interp import cached_coefficients
@@ -77,11 +77,11 @@ class System:
     # ---- sizes -----------------------------------------------------------------------
     @property
     def n_contacts(self) -> int:
-        return int(self.off[9])
+        return int(self.off[kn.OFF_K])
 
     @property
     def n_modes(self) -> int:
-        return int(self.off[8])
+        return int(self.off[kn.OFF_R])
 
     @property
     def tangential(self) -> bool:
@@ -433,7 +433,10 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     omega2 = structure.omega**2
     cdamp = 2.0 * structure.damping_ratio * structure.omega
     R = phi.shape[0]
-    layout = StateLayout(R, K, tangential, friction_state=tangential and fr.law == "coulomb")
+    law = LAWS[fr.law]
+    layout = StateLayout(R, K, tangential, friction_state=tangential and law.set_valued)
+    # the kinetic curve of the table law (read and checked before the calibration needs it)
+    table = law_table(fr, scene.base_dir) if tangential else np.zeros(0)
 
     calibration: dict = {}
     if not tangential:
@@ -448,13 +451,14 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         try:
             T0, cache = calibrated_force_amplitude(
                 exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
-                exc.omega, fr)
+                exc.omega, fr, table)
         except (RuntimeError, ValueError) as err:
             raise SceneError(
                 f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
                 f"friction law ({err}); check the friction keys or give "
                 f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
-        calibration = {"method": "tangential model (F_N = m g)",
+        calibration = {"method": ("tangential model (F_N = m g)" if law.calibration == "feldmann"
+                                  else "set-valued tangential model (F_N = m g)"),
                        "target_rms_velocity": exc.target_rms_velocity, "cache": cache}
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
@@ -482,11 +486,12 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_DX] = profile.dx
     fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
     fp[kn.FP_HYST] = fr.switching_hysteresis
+    fp = np.concatenate([fp, table])  # the table law's curve follows the scalars (N_FP on)
 
     return System(
         scene=scene, layout=layout, profile=profile, contact_s=spos, contact_xy=contact_xy,
         structure=structure, force_amplitude=T0, calibration=calibration,
-        off=layout.offsets(), fp=fp,
+        off=layout.offsets(law.law_id), fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
         work=np.zeros(5 * K + 8), warnings=notes,

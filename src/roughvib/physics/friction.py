@@ -22,15 +22,28 @@ Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from roughvib._cache import cached_values, code_fingerprint
-from roughvib.scene import Friction
+from roughvib.scene import Friction, SceneError
 
 __all__ = [
+    "LAWS",
+    "LAW_COULOMB",
+    "LAW_FELDMANN",
+    "LAW_TABLE",
+    "FrictionLaw",
     "calibrate_force_amplitude",
+    "coulomb_kinetic",
+    "kinetic_coefficient",
+    "law_table",
+    "load_friction_table",
+    "pchip_slopes",
+    "table_kinetic",
     "calibrated_force_amplitude",
     "feldmann_mu",
     "feldmann_mu_law",
@@ -41,6 +54,311 @@ __all__ = [
     "rms_over_periods",
     "simulate_tangential",
 ]
+
+
+# --------------------------------------------------------------------------------------------
+# the friction-law component: ids, registry, kinetic curves
+# --------------------------------------------------------------------------------------------
+
+#: ids of the friction laws as the kernels see them (``off[OFF_LAW]``, roughvib.model.layout)
+LAW_FELDMANN = 0
+LAW_COULOMB = 1
+LAW_TABLE = 2
+
+#: positions in the packed table of the ``table`` law (:func:`law_table`): the row count, then
+#: the velocities, the coefficients and the PCHIP slopes, ``TAB_HEAD + 3 n`` floats in all
+TAB_N = 0
+TAB_HEAD = 1
+
+
+@dataclass(frozen=True)
+class FrictionLaw:
+    """What a friction law declares (docs/architecture.md, "A friction law").
+
+    Attributes
+    ----------
+    name : str
+        The value of ``friction.law`` that selects it.
+    law_id : int
+        Its id in the kernels (``LAW_*``).
+    set_valued : bool
+        True: stick is a regime with the velocity held at zero and the friction force an
+        algebraic state, break-away at ``mu_stick F_N`` and the kinetic curve of
+        :func:`kinetic_coefficient` in slip. False: a single-valued law of the velocity
+        (the Feldmann law with its branch and latch regimes).
+    calibration : {"feldmann", "set-valued"}
+        The tangential model in which T0 is calibrated to ``excitation.target_rms_velocity``.
+    solvers : tuple of str
+        The solver methods that integrate it.
+    """
+
+    name: str
+    law_id: int
+    set_valued: bool
+    calibration: str
+    solvers: tuple[str, ...]
+
+
+#: the friction laws by the name a scene uses (``friction.law``)
+LAWS = {
+    "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, False, "feldmann",
+                            ("ida", "adaptive-modal", "exact-modal", "newmark", "paper")),
+    # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
+    # mu_slip / mu_stick), so that its runs stay bit-identical
+    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, True, "feldmann", ("ida", "moreau")),
+    "table": FrictionLaw("table", LAW_TABLE, True, "set-valued", ("ida", "moreau")),
+}
+
+
+@njit(cache=True)
+def coulomb_kinetic(v, mu_slip, mu_stick, vs):
+    """Kinetic coefficient mu_k(v) = mu_slip + (mu_stick - mu_slip) exp(-v / vs), v >= 0.
+
+    Parameters
+    ----------
+    v : float
+        Sliding speed [m/s].
+    mu_slip, mu_stick : float
+        Coefficients [-].
+    vs : float
+        Stribeck velocity [m/s]; ``vs <= 0`` gives the constant mu_slip.
+
+    Returns
+    -------
+    mu_k : float
+        [-].
+    dmu_k_dv : float
+        [s/m].
+    """
+    if vs <= 0.0:
+        return mu_slip, 0.0
+    e = math.exp(-v / vs)
+    return mu_slip + (mu_stick - mu_slip) * e, -(mu_stick - mu_slip) * e / vs
+
+
+@njit(cache=True)
+def table_kinetic(v, tab):
+    """Kinetic coefficient of a tabulated curve: monotone cubic Hermite (PCHIP) interpolation.
+
+    Parameters
+    ----------
+    v : float
+        Sliding speed [m/s]. Below 0 (a Newton iterate) the first interval's tangent is
+        continued linearly; beyond the last row the last coefficient holds (slope 0).
+    tab : ndarray
+        Packed table of :func:`law_table`.
+
+    Returns
+    -------
+    mu_k : float
+        [-].
+    dmu_k_dv : float
+        [s/m].
+    """
+    n = int(tab[TAB_N])
+    iv = TAB_HEAD
+    im = TAB_HEAD + n
+    isl = TAB_HEAD + 2 * n
+    if v <= tab[iv]:
+        return tab[im] + tab[isl] * (v - tab[iv]), tab[isl]
+    if v >= tab[iv + n - 1]:
+        return tab[im + n - 1], 0.0
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if tab[iv + mid] <= v:
+            lo = mid
+        else:
+            hi = mid
+    h = tab[iv + hi] - tab[iv + lo]
+    s = (v - tab[iv + lo]) / h
+    y0 = tab[im + lo]
+    y1 = tab[im + hi]
+    d0 = tab[isl + lo]
+    d1 = tab[isl + hi]
+    s2 = s * s
+    s3 = s2 * s
+    h00 = 2.0 * s3 - 3.0 * s2 + 1.0
+    h10 = s3 - 2.0 * s2 + s
+    h01 = -2.0 * s3 + 3.0 * s2
+    h11 = s3 - s2
+    mu = h00 * y0 + h10 * h * d0 + h01 * y1 + h11 * h * d1
+    dmu = ((6.0 * s2 - 6.0 * s) * (y0 - y1) / h + (3.0 * s2 - 4.0 * s + 1.0) * d0
+           + (3.0 * s2 - 2.0 * s) * d1)
+    return mu, dmu
+
+
+@njit(cache=True)
+def kinetic_coefficient(law, v, mu_slip, mu_stick, vs, tab):
+    """Kinetic coefficient of a set-valued law at sliding speed ``v`` >= 0, and its slope.
+
+    Parameters
+    ----------
+    law : int
+        ``LAW_COULOMB`` or ``LAW_TABLE``.
+    v : float
+        Sliding speed [m/s] (the kernels pass ``b v`` with the slip direction b).
+    mu_slip, mu_stick, vs : float
+        Coulomb law: :func:`coulomb_kinetic`.
+    tab : ndarray
+        Table law: :func:`law_table` (ignored otherwise).
+
+    Returns
+    -------
+    mu_k : float
+        [-].
+    dmu_k_dv : float
+        [s/m].
+    """
+    if law == LAW_TABLE:
+        return table_kinetic(v, tab)
+    return coulomb_kinetic(v, mu_slip, mu_stick, vs)
+
+
+@njit(cache=True)
+def is_set_valued(law):
+    """Whether the law with id ``law`` has a stick regime with an algebraic friction force."""
+    return law == LAW_COULOMB or law == LAW_TABLE
+
+
+def pchip_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Slopes of the monotone piecewise cubic Hermite interpolant (Fritsch and Carlson 1980).
+
+    Interior nodes: 0 where the secant slopes change sign or one is 0, else their weighted
+    harmonic mean (Fritsch and Butland 1984), which keeps the interpolant monotone on every
+    interval where the data are, so it never overshoots the data. End nodes: the one-sided
+    three-point estimate, set to 0 if its sign differs from the first secant and limited to
+    three times it (the same shape-preserving rule).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Strictly increasing nodes, n >= 2.
+    y : ndarray, shape (n,)
+        Values.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        dy/dx at the nodes.
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    h = np.diff(x)
+    delta = np.diff(y) / h
+    n = x.size
+    slope = np.zeros(n)
+    if n == 2:
+        slope[:] = delta[0]
+        return slope
+    for k in range(1, n - 1):
+        a, b = delta[k - 1], delta[k]
+        if a * b > 0.0:
+            w1 = 2.0 * h[k] + h[k - 1]
+            w2 = h[k] + 2.0 * h[k - 1]
+            slope[k] = (w1 + w2) / (w1 / a + w2 / b)
+
+    def end(h0: float, h1: float, d0: float, d1: float) -> float:
+        e = ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1)
+        if e * d0 <= 0.0:
+            return 0.0
+        if d0 * d1 < 0.0 and abs(e) > abs(3.0 * d0):
+            return 3.0 * d0
+        return e
+
+    slope[0] = end(*h[:2], *delta[:2])
+    slope[-1] = end(*h[::-1][:2], *delta[::-1][:2])
+    return slope
+
+
+def load_friction_table(path: str | Path, mu_stick: float) -> tuple[np.ndarray, np.ndarray]:
+    """Read and check a kinetic friction curve: a CSV with columns ``velocity`` and ``mu``.
+
+    Parameters
+    ----------
+    path : path
+        The CSV file (header row, then one row per sample; other columns are ignored).
+    mu_stick : float
+        The static coefficient [-]; the curve at v = 0 must not exceed it.
+
+    Returns
+    -------
+    velocity : ndarray, shape (n,)
+        Sliding speeds [m/s], strictly increasing from 0.
+    mu : ndarray, shape (n,)
+        Kinetic coefficients [-].
+
+    Raises
+    ------
+    SceneError
+        One line naming the file and, for a bad value, the row (data rows count from 1; the
+        header is line 1 of the file): a missing file or column, fewer than two rows, a value
+        that is not a finite number, a negative or non-increasing velocity, a first velocity
+        other than 0, a negative coefficient, or a coefficient at v = 0 above mu_stick.
+    """
+    import csv
+
+    path = Path(path)
+    where = f"friction.table {str(path)!r}"
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as err:
+        raise SceneError(f"{where} must be a readable CSV file, got {err.strerror or err}"
+                         ) from None
+    rows = [r for r in rows if any(c.strip() for c in r)]
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    if "velocity" not in header or "mu" not in header:
+        raise SceneError(f"{where} must have the columns 'velocity' [m/s] and 'mu' [-] in its "
+                         f"header row, got {', '.join(header) or 'no header'}")
+    iv, im = header.index("velocity"), header.index("mu")
+    data = rows[1:]
+    if len(data) < 2:
+        raise SceneError(f"{where} must have at least 2 data rows, got {len(data)}")
+    v = np.empty(len(data))
+    mu = np.empty(len(data))
+    for i, r in enumerate(data):
+        at = f"{where} row {i + 1} (line {i + 2})"
+        for col, name, unit, arr in ((iv, "velocity", "m/s", v), (im, "mu", "", mu)):
+            cell = r[col].strip() if col < len(r) else ""
+            try:
+                val = float(cell)
+            except ValueError:
+                val = math.nan
+            if not math.isfinite(val):
+                in_unit = f" in {unit}" if unit else ""
+                raise SceneError(f"{at}: {name} must be a finite number{in_unit}, got {cell!r}")
+            arr[i] = val
+        if v[i] < 0.0:
+            raise SceneError(f"{at}: velocity must be >= 0 m/s, got {v[i]:g}")
+        if i == 0 and v[i] != 0.0:
+            raise SceneError(f"{at}: velocity must start at 0 m/s, got {v[i]:g}")
+        if i > 0 and not v[i] > v[i - 1]:
+            raise SceneError(f"{at}: velocity must increase from row to row, got {v[i]:g} m/s "
+                             f"after {v[i - 1]:g} m/s")
+        if mu[i] < 0.0:
+            raise SceneError(f"{at}: mu must be >= 0, got {mu[i]:g}")
+    if mu[0] > mu_stick:
+        raise SceneError(f"{where} row 1 (line 2): mu at velocity 0 must be <= friction.mu_stick "
+                         f"({mu_stick:g}), got {mu[0]:g}")
+    return v, mu
+
+
+def law_table(friction: Friction, base_dir: str | Path = ".") -> np.ndarray:
+    """The packed kinetic curve the kernels read for the ``table`` law (empty otherwise).
+
+    Layout (positions ``TAB_*``): ``[n, velocity (n), mu (n), slope (n)]`` with the
+    :func:`pchip_slopes` of the curve; the path is relative to the scene file's folder.
+
+    Returns
+    -------
+    ndarray, shape (1 + 3 n,) or (0,)
+    """
+    if friction.law != "table":
+        return np.zeros(0)
+    v, mu = load_friction_table(Path(base_dir) / friction.table, friction.mu_stick)
+    return np.concatenate([[float(v.size)], v, mu, pchip_slopes(v, mu)])
 
 
 # --------------------------------------------------------------------------------------------
@@ -204,6 +522,61 @@ def _tangential_kernel(t0_amp, mass, r2, normal_force, omega, mu_slip, mu_stick,
     return flips, max_iter
 
 
+@njit(cache=True)
+def _tangential_setvalued_kernel(t0_amp, mass, r2, normal_force, omega, law, mu_slip, mu_stick,
+                                 vs, tab, dt, n_steps, v_out, x_out):
+    """Backward-Euler (Moreau-Jean) steps of the set-valued law; exact stick (v = 0).
+
+    Per step: the free velocity without friction; stick if the friction impulse that holds
+    it at zero stays within ``dt mu_stick F_N``, else slip, ``|v1| = |v_free| - c mu_k(|v1|)``
+    with ``c = dt F_N / (m + dt r2)`` solved by Newton (safeguarded by bisection). Fills
+    ``v_out``, ``x_out`` (length n_steps + 1); returns the number of stick-to-slip switches.
+    """
+    v0 = 0.0
+    x0 = 0.0
+    v_out[0] = v0
+    x_out[0] = x0
+    c = dt * normal_force / (mass + dt * r2)
+    breaks = 0
+    stuck = True
+    for n in range(n_steps):
+        t1 = (n + 1) * dt
+        vfree = (v0 + dt * t0_amp * math.cos(omega * t1) / mass) / (1.0 + dt * r2 / mass)
+        a = abs(vfree)
+        if a <= c * mu_stick:
+            v1 = 0.0
+            stuck = True
+        else:
+            if stuck:
+                breaks += 1
+            stuck = False
+            lo = 0.0
+            hi = a
+            w = a
+            for _it in range(100):
+                mu, dmu = kinetic_coefficient(law, w, mu_slip, mu_stick, vs, tab)
+                g = w - a + c * mu
+                if g > 0.0:
+                    hi = w
+                else:
+                    lo = w
+                dw = g / (1.0 + c * dmu) if 1.0 + c * dmu > 0.0 else 0.5 * (hi - lo)
+                w_new = w - dw
+                if not (lo < w_new < hi):
+                    w_new = 0.5 * (lo + hi)
+                if abs(w_new - w) <= 1e-15 + 1e-13 * w_new:
+                    w = w_new
+                    break
+                w = w_new
+            v1 = math.copysign(w, vfree)
+        x1 = x0 + dt * v1
+        v_out[n + 1] = v1
+        x_out[n + 1] = x1
+        v0 = v1
+        x0 = x1
+    return breaks
+
+
 # --------------------------------------------------------------------------------------------
 # plain-Python reference
 # --------------------------------------------------------------------------------------------
@@ -242,8 +615,13 @@ def law_parameters(friction: Friction) -> tuple[float, float, float, float]:
 
 def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, omega: float,
                         friction: Friction, duration: float, dt: float = 1e-6,
+                        table: np.ndarray | None = None,
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tangential-only block under a constant normal force (docs/theory.md).
+
+    The model is the one the law declares for its calibration (``LAWS[law].calibration``):
+    the Feldmann law as described next; a ``set-valued`` law (the ``table`` law) by the
+    backward-Euler (Moreau-Jean) step with exact stick, first order in ``dt``.
 
     ``m v' = T0 cos(omega t) - mu(v + s v_h) F_N - r2 v``, ``x' = v``, from rest at t = 0 with
     the latch on the accelerating branch (``s = -1``, running maximum 0). The regularised law is
@@ -269,6 +647,8 @@ def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, 
         Simulated time [s].
     dt : float, optional
         Fixed step [s]; keep dt well below m / (mu_stick a2 F_N) (~1.3e-5 s for the defaults).
+    table : ndarray, optional
+        The packed kinetic curve of the ``table`` law (:func:`law_table`).
 
     Returns
     -------
@@ -285,9 +665,18 @@ def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, 
     v = np.empty(n + 1)
     x = np.empty(n + 1)
     mu_slip, mu_stick, a1, a2 = law_parameters(friction)
-    _tangential_kernel(float(T0), float(mass), float(r2), float(normal_force), float(omega),
-                       mu_slip, mu_stick, a1, a2, float(friction.hysteresis_velocity),
-                       float(friction.effective_latch_velocity), float(dt), n, v, x)
+    law = LAWS[friction.law]
+    if law.calibration == "set-valued":
+        tab = np.zeros(0) if table is None else np.asarray(table, dtype=float)
+        _tangential_setvalued_kernel(float(T0), float(mass), float(r2), float(normal_force),
+                                     float(omega), law.law_id, mu_slip, mu_stick,
+                                     float(friction.stribeck_velocity or 0.0), tab, float(dt),
+                                     n, v, x)
+    else:
+        _tangential_kernel(float(T0), float(mass), float(r2), float(normal_force),
+                           float(omega), mu_slip, mu_stick, a1, a2,
+                           float(friction.hysteresis_velocity),
+                           float(friction.effective_latch_velocity), float(dt), n, v, x)
     t = np.arange(n + 1) * dt
     return t, v, x
 
@@ -338,10 +727,11 @@ def rms_over_periods(t: np.ndarray, v: np.ndarray, period: float, transient: flo
     return float(math.sqrt(np.trapezoid(vv * vv, tt) / (tb - ta)))
 
 
-def _steady_rms(T0, mass, r2, normal_force, omega, friction, transient_periods, periods, dt):
+def _steady_rms(T0, mass, r2, normal_force, omega, friction, transient_periods, periods, dt,
+                table=None):
     period = 2.0 * math.pi / omega
     t, v, _ = simulate_tangential(T0, mass, r2, normal_force, omega, friction,
-                                  (transient_periods + periods) * period, dt)
+                                  (transient_periods + periods) * period, dt, table)
     return rms_over_periods(t, v, period, transient_periods * period)
 
 
@@ -353,7 +743,8 @@ class _Converged(Exception):
 
 def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_force: float,
                               omega: float, friction: Friction, *, transient_periods: int = 3,
-                              periods: int = 2, rtol: float = 1e-3, dt: float = 1e-6) -> float:
+                              periods: int = 2, rtol: float = 1e-3, dt: float = 1e-6,
+                              table: np.ndarray | None = None) -> float:
     """Force amplitude T0 whose steady-state rms velocity in the tangential model is the target.
 
     The rms over ``periods`` whole periods after ``transient_periods`` periods of
@@ -380,6 +771,8 @@ def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_
         Relative tolerance on the rms velocity.
     dt : float, optional
         Time step [s].
+    table : ndarray, optional
+        The packed kinetic curve of the ``table`` law (:func:`law_table`).
 
     Returns
     -------
@@ -390,10 +783,13 @@ def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_
         raise ValueError(f"target_rms must be > 0 m/s, got {target_rms}")
     # |mu| <= mu_slip + (mu_stick - mu_slip) e^(-a1 |X|) <= mu_stick for every X
     mu_max = max(float(friction.mu_stick), float(friction.mu_slip))
+    if table is not None and table.size:
+        n_tab = int(table[TAB_N])
+        mu_max = max(mu_max, float(np.max(table[TAB_HEAD + n_tab:TAB_HEAD + 2 * n_tab])))
 
     def g(T0: float) -> float:
         r = _steady_rms(T0, mass, r2, normal_force, omega, friction, transient_periods,
-                        periods, dt) / target_rms - 1.0
+                        periods, dt, table) / target_rms - 1.0
         if abs(r) <= rtol:
             raise _Converged(T0)
         return r
@@ -422,7 +818,8 @@ def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_
 
 
 def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal_force: float,
-                               omega: float, friction: Friction) -> tuple[float, str]:
+                               omega: float, friction: Friction,
+                               table: np.ndarray | None = None) -> tuple[float, str]:
     """:func:`calibrate_force_amplitude` at its default settings, through the on-disk cache.
 
     The calibration integrates the tangential model about ten times (about a second); its
@@ -432,7 +829,7 @@ def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal
 
     Parameters
     ----------
-    target_rms, mass, r2, normal_force, omega, friction
+    target_rms, mass, r2, normal_force, omega, friction, table
         As in :func:`calibrate_force_amplitude` [m/s, kg, N s/m, N, rad/s].
 
     Returns
@@ -449,10 +846,19 @@ def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal
               "mu_slip": mu_slip, "mu_stick": mu_stick, "a1": a1, "a2": a2,
               "hysteresis_velocity": float(friction.hysteresis_velocity),
               "effective_latch_velocity": float(friction.effective_latch_velocity)}
+    if LAWS[friction.law].calibration == "set-valued":
+        # keys only a set-valued calibration has: the Feldmann law's cache keys stay as they were
+        inputs["law"] = friction.law
+        inputs["stribeck_velocity"] = float(friction.stribeck_velocity or 0.0)
+        if table is not None and table.size:
+            import hashlib
+
+            inputs["table_sha256"] = hashlib.sha256(
+                np.ascontiguousarray(table, dtype=float).tobytes()).hexdigest()
 
     def compute() -> dict[str, float]:
         return {"T0": calibrate_force_amplitude(target_rms, mass, r2, normal_force, omega,
-                                                friction)}
+                                                friction, table=table)}
 
     values, status = cached_values("force-calibration", inputs, compute,
                                    code=code_fingerprint([__file__]))

@@ -107,6 +107,44 @@ I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 N_IST = 10
 
+#: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1`` (N_SLOTS, R, 2),
+#: ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and ``hslot`` (N_SLOTS,) the step of each
+#: slot (0: empty); numba passes a namedtuple of arrays at the cost of its fields
+Propagators = collections.namedtuple("Propagators", ["Phi", "G0", "G1", "G1c", "hslot"])
+#: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
+#: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
+Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
+#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 2 R + 5 K + 3),
+#: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
+Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
+
+# components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
+MODE_Q = 0
+MODE_DQ = 1
+# rows of the derivative vector d of derivatives(): z'', x'', then the N_ENERGY powers
+D_AZ = 0
+D_AX = 1
+D_POWER = 2
+N_D = D_POWER + 6  # == D_POWER + N_ENERGY (roughvib.model.layout)
+# rows of the state buffers Y (B_* all), D and U (the first six) of _advance
+B_NOW = 0     # the current state
+B_FULL = 1    # one full step
+B_HALF = 2    # the first half step
+B_END = 3     # the second half step
+B_TRIAL = 4   # a root-search trial
+B_BEST = 5    # the state at the root
+B_WTS = 6     # tolerance weights (Y only)
+N_YBUF = 7
+N_DBUF = 6
+# rows of the margin buffer G: step start, half step, step end, latest trial
+G_START = 0
+G_HALF = 1
+G_END = 2
+G_TRIAL = 3
+N_GBUF = 4
+T_NOW = 0      # the one entry of the time box ``tt``
+FIRST_ROW = 0  # the output row of t = 0
+
 
 @njit(cache=True)
 def step_maps(omega2, cdamp, h, Phi, G0, G1):
@@ -168,19 +206,21 @@ def step_maps(omega2, cdamp, h, Phi, G0, G1):
             # unit ramp u = t: particular solution q = t/w2 - c/w2^2, q' = 1/w2
             gr0 = (h - p01) / w2 - c * (1.0 - p00) / (w2 * w2)
             gr1 = (1.0 - p11) / w2 + c * p10 / (w2 * w2)
-        Phi[r, 0, 0] = p00
-        Phi[r, 0, 1] = p01
-        Phi[r, 1, 0] = p10
-        Phi[r, 1, 1] = p11
-        G1[r, 0] = gr0 / h
-        G1[r, 1] = gr1 / h
-        G0[r, 0] = gc0 - gr0 / h
-        G0[r, 1] = gc1 - gr1 / h
+        Phi[r, MODE_Q, MODE_Q] = p00
+        Phi[r, MODE_Q, MODE_DQ] = p01
+        Phi[r, MODE_DQ, MODE_Q] = p10
+        Phi[r, MODE_DQ, MODE_DQ] = p11
+        G1[r, MODE_Q] = gr0 / h
+        G1[r, MODE_DQ] = gr1 / h
+        G0[r, MODE_Q] = gc0 - gr0 / h
+        G0[r, MODE_DQ] = gc1 - gr1 / h
 
 
 @njit(cache=True)
-def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot):
-    """Propagators of step h into cache slot ``slot``, with G1 in contact coordinates."""
+def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
+    """Propagators of step h into cache slot ``slot`` of ``prop``, with G1 in contact
+    coordinates."""
+    Phi, G0, G1, G1c, hslot = prop
     step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
     R = omega2.size
     K = cres.shape[0]
@@ -188,7 +228,7 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot):
         for j in range(K):
             G1c[slot, k, j] = cres[k, j]
     for r in range(R):
-        gr = G1[slot, r, 0] / M
+        gr = G1[slot, r, MODE_Q] / M
         for k in range(K):
             a = phi[r, k] * gr
             for j in range(K):
@@ -217,47 +257,47 @@ def modal_force(F, u, phiT, M):
 def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
-    ``d[0]`` = z'' [m/s^2], ``d[1]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
+    ``d[D_AZ]`` = z'' [m/s^2], ``d[D_AX]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
     time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`.
     """
-    idq, ivz, ix, iF, R, K = off[1], off[3], off[4], off[6], off[8], off[9]
+    _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
     fsum = 0.0
     for k in range(K):
         fsum += y[iF + k]
     vz = y[ivz]
-    d[0] = fp[kn.FP_GRAV] - fp[kn.FP_R1] * vz / m - fsum / m
+    d[D_AZ] = fp[kn.FP_GRAV] - fp[kn.FP_R1] * vz / m - fsum / m
     x, vx = kn.tangential_kinematics(t, y, off, fp)
     if ix >= 0:
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
         mu, _ = feldmann_mu(vx + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
                             fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
         fric = mu * fsum
-        d[1] = (texc - fric - fp[kn.FP_R2] * vx) / m
-        d[2] = texc * vx
-        d[3] = fric * vx
-        d[4] = fp[kn.FP_R2] * vx * vx
+        d[D_AX] = (texc - fric - fp[kn.FP_R2] * vx) / m
+        d[D_POWER + kn.E_EXCITATION] = texc * vx
+        d[D_POWER + kn.E_FRICTION] = fric * vx
+        d[D_POWER + kn.E_TANGENTIAL_DAMPING] = fp[kn.FP_R2] * vx * vx
     else:
-        d[1] = 0.0
-        d[2] = 0.0
-        d[3] = 0.0
-        d[4] = 0.0
-    d[5] = fp[kn.FP_R1] * vz * vz
+        d[D_AX] = 0.0
+        d[D_POWER + kn.E_EXCITATION] = 0.0
+        d[D_POWER + kn.E_FRICTION] = 0.0
+        d[D_POWER + kn.E_TANGENTIAL_DAMPING] = 0.0
+    d[D_POWER + kn.E_VERTICAL_DAMPING] = fp[kn.FP_R1] * vz * vz
     p = 0.0
     for r in range(R):
         p += cdamp[r] * y[idq + r] * y[idq + r]
-    d[6] = M * p
+    d[D_POWER + kn.E_PLATE_DAMPING] = M * p
     rough = 0.0
     for k in range(K):
         _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
         rough += y[iF + k] * dh * vx
-    d[7] = rough
+    d[D_POWER + kn.E_ROUGHNESS] = rough
 
 
 @njit(cache=True)
-def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, off, fp, cdamp, phi,
-                  phiT, stiff, spos, prof, reg, ws, jac, ipiv, ist):
+def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp, phi, phiT,
+                  stiff, spos, prof, reg, scratch, ist):
     """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
 
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
@@ -270,11 +310,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     iteration removes. Returns False when Newton does not converge (the caller takes a smaller
     step).
 
-    ``ws`` is scratch of length >= 2 R + 5 K + 3; ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
-    (int64) of length >= K + 1.
+    ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
+    >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = (off[0], off[1], off[2], off[3], off[4], off[5],
-                                               off[6], off[7], off[8], off[9])
+    Phi, G0, G1, G1c, _hslot = prop
+    ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
     r1 = fp[kn.FP_R1]
@@ -291,11 +332,11 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     for k in range(K):
         wfree[k] = 0.0
     for r in range(R):
-        a = (Phi[slot, r, 0, 0] * y0[iq + r] + Phi[slot, r, 0, 1] * y0[idq + r]
-             + G0[slot, r, 0] * u0[r])
+        a = (Phi[slot, r, MODE_Q, MODE_Q] * y0[iq + r] + Phi[slot, r, MODE_Q, MODE_DQ] * y0[idq + r]
+             + G0[slot, r, MODE_Q] * u0[r])
         sq[r] = a
-        sdq[r] = (Phi[slot, r, 1, 0] * y0[iq + r] + Phi[slot, r, 1, 1] * y0[idq + r]
-                  + G0[slot, r, 1] * u0[r])
+        sdq[r] = (Phi[slot, r, MODE_DQ, MODE_Q] * y0[iq + r]
+                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * u0[r])
         for k in range(K):
             wfree[k] += phi[r, k] * a
     # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
@@ -303,7 +344,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
     vz0 = y0[ivz]
     cz = 1.0 + h * r1 / (2.0 * m)
     # trapezoidal rule for vz with z''(t1) = g - r1 vz1 / m - S1 / m
-    av = vz0 + 0.5 * h * d0[0] + 0.5 * h * fp[kn.FP_GRAV]
+    av = vz0 + 0.5 * h * d0[D_AZ] + 0.5 * h * fp[kn.FP_GRAV]
     zc = z0 + 0.5 * h * vz0 + 0.5 * h * av / cz
     beta = h * h / (4.0 * m * cz)
     force_driven = ix >= 0
@@ -321,7 +362,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
             F[k] = y0[iF + k]
             nc += 1
     nu = nc + (1 if force_driven else 0)
-    v1 = v0 + h * d0[1] if force_driven else 0.0
+    v1 = v0 + h * d0[D_AX] if force_driven else 0.0
     s_l = reg[kn.REG_S]
     b_l = reg[kn.REG_B]
     texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if force_driven else 0.0
@@ -353,12 +394,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         if force_driven:
             mu, dmu = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
                                   fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
-            rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[1]
+            rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[D_AX]
                         - 0.5 * (texc1 - mu * S1 - r2 * v1))
             for c in range(nc):
                 jac[nc, c] = 0.5 * mu
             jac[nc, nc] = m / h + 0.5 * (dmu * S1 + r2)
-            noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[1])
+            noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[D_AX])
                                              + 0.5 * (abs(texc1) + abs(mu * S1) + abs(r2 * v1))
                                              ) / abs(jac[nc, nc])
         if nu == 0:
@@ -392,8 +433,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         y1[iF + k] = F[k]
     modal_force(F, u1, phiT, M)
     for r in range(R):
-        y1[iq + r] = sq[r] + G1[slot, r, 0] * u1[r]
-        y1[idq + r] = sdq[r] + G1[slot, r, 1] * u1[r]
+        y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * u1[r]
+        y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * u1[r]
     vz1 = (av - 0.5 * h * S1 / m) / cz
     y1[ivz] = vz1
     y1[iz] = zc - beta * S1
@@ -401,8 +442,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, Phi, G0, G1, G1c, wts, of
         y1[ix] = x0 + 0.5 * h * (v0 + v1)
         y1[ivx] = v1
     derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
-    for i in range(6):
-        y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[2 + i] + d1[2 + i])
+    for i in range(kn.N_ENERGY):
+        y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[D_POWER + i] + d1[D_POWER + i])
     return True
 
 
@@ -454,21 +495,21 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
     kn.outputs(t, y, outs[k], args_off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
                prof, reg, rf, work)
     if track_latch:
-        v = y[args_off[5]]
+        v = y[args_off[kn.OFF_IVX]]
         if reg[kn.REG_S] < 0:
-            if v > rf[0]:
-                rf[0] = v
-        elif v < rf[0]:
-            rf[0] = v
+            if v > rf[kn.RF_VEXT]:
+                rf[kn.RF_VEXT] = v
+        elif v < rf[kn.RF_VEXT]:
+            rf[kn.RF_VEXT] = v
 
 
 @njit(cache=True)
-def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1, G1c, hslot,
-             atol, rtol, outs, off, fp, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-             prof, reg, rf, work, ws, jac, ipiv, track_latch, fresh, max_steps):
-    """Integrate from ``tt[0]`` until output index ``k_stop``, the end, or an event.
+def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp, omega2, cdamp,
+             phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, scratch, track_latch, fresh,
+             max_steps):
+    """Integrate from ``tt[T_NOW]`` until output index ``k_stop``, the end, or an event.
 
-    Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[0]``
+    Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[T_NOW]``
     are the state and time just past the root, ``fired[i] = 1`` for the roots that crossed)
     or a negative failure code: ``ADV_STALL`` after more than ``max_steps`` step attempts
     within one output interval. The state ``y`` must be consistent with the regime on entry.
@@ -479,23 +520,28 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
     if it had not returned: chunk returns, and the checkpoints written at them, leave the
     result bit-identical.
 
-    Buffers (rows are views): ``Y`` (7, n) states y, ya (one full step), ym, yb (the two
-    half steps), yt (root-search trial), ybest (state at the root), wts (tolerance weights);
-    ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`) and modal forces
-    (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at the step start,
-    half step, end, and of the latest trial.
+    Buffers (``buf``, ``Buffers``; rows are views): ``Y`` (7, n) states y, ya (one full
+    step), ym, yb (the two half steps), yt (root-search trial), ybest (state at the root), wts
+    (tolerance weights); ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`)
+    and modal forces (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at
+    the step start, half step, end, and of the latest trial; ``armed``, ``fired`` the roots.
+    ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch``.
     """
-    y, ya, ym, yb, yt, ybest, wts = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6]
-    d, da, dm, db, dt_, dbest = D[0], D[1], D[2], D[3], D[4], D[5]
-    u, ua, um, ub, ut, ubest = U[0], U[1], U[2], U[3], U[4], U[5]
-    g0, gm, gb, gt = G[0], G[1], G[2], G[3]
+    Y, D, U, G, armed, fired = buf
+    hslot = prop.hslot
+    work = scratch.work
+    y, ya, ym, yb, yt, ybest, wts = (Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_TRIAL],
+                                     Y[B_BEST], Y[B_WTS])
+    d, da, dm, db, dt_, dbest = D[B_NOW], D[B_FULL], D[B_HALF], D[B_END], D[B_TRIAL], D[B_BEST]
+    u, ua, um, ub, ut, ubest = U[B_NOW], U[B_FULL], U[B_HALF], U[B_END], U[B_TRIAL], U[B_BEST]
+    g0, gm, gb, gt = G[G_START], G[G_HALF], G[G_END], G[G_TRIAL]
     n = grid.size
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
-    t = tt[0]
+    t = tt[T_NOW]
     if fresh:
         derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
-        modal_force(y[off[6]:off[6] + off[9]], u, phiT, M)
+        modal_force(y[off[kn.OFF_IF]:off[kn.OFF_IF] + off[kn.OFF_K]], u, phiT, M)
     # outputs at grid points the event landed on (after the switch, as IDA does)
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
@@ -519,11 +565,11 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             return ADV_CHUNK
         lev = ist[I_LEV]
         if lev >= NLEV - 1:
-            tt[0] = t
+            tt[T_NOW] = t
             return ADV_MIN_STEP
         ist[I_IVL] += 1
         if ist[I_IVL] > max_steps:
-            tt[0] = t
+            tt[T_NOW] = t
             return ADV_STALL
         hl = h_max / 2.0 ** lev
         base = grid[k - 1]
@@ -541,25 +587,23 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             s_full = lev
             s_half = lev + 1
             if hslot[s_full] <= 0.0:
-                _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+                _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
             if hslot[s_half] <= 0.0:
-                _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                           hslot)
+                _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
             h = hslot[s_full]
         else:
             s_full = SLOT_FLY
             s_half = SLOT_FLY2
-            _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
-            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c, hslot)
+            _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, prop)
+            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
             ist[I_MAPS] += 2
         hh = 0.5 * h
         for i in range(nstate):
             wts[i] = rtol * abs(y[i]) + atol[i]
         # the full step (for the error estimate) and the two half steps (kept)
-        model = (Phi, G0, G1, G1c, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, ws,
-                 jac, ipiv, ist)
+        model = (prop, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, scratch, ist)
         ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
         ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
         ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
@@ -570,14 +614,14 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             ist[I_LEV] = lev + 1
             continue
         # plate.q and plate.dq come first in the layout (StateLayout): 2 R modal states
-        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[8])
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R])
         if err > 1.0:
             ist[I_REJECT] += 1
             fac = SAFETY * err ** (-1.0 / 3.0)
             drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
             ist[I_LEV] = lev + max(1, drop)
             if err >= 1e300:
-                tt[0] = t
+                tt[T_NOW] = t
                 return ADV_NONFINITE
             continue
         ist[I_STEPS] += 1
@@ -632,13 +676,12 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                     if not (lo + 1e-3 * w_ < th < hi - 1e-3 * w_):
                         th = 0.5 * (lo + hi)
                     hs = th * L
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                               hslot)
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_ROOT_EVALS] += 1
                     ist[I_STEP_EVALS] += 1
                     if not implicit_step(tb, hs, yb0, db0, ub0, yt, dt_, ut, SLOT_ROOT, *model):
-                        tt[0] = tb
+                        tt[T_NOW] = tb
                         return ADV_NEWTON
                     kn.events(tb + hs, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
                     g = gt[i]
@@ -659,13 +702,12 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                     for j in range(nstate):
                         ybest[j] = src[j]
                 else:
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, Phi, G0, G1, G1c,
-                               hslot)
+                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_STEP_EVALS] += 1
                     if not implicit_step(tb, hs, yb0, db0, ub0, ybest, dbest, ubest, SLOT_ROOT,
                                          *model):
-                        tt[0] = tb
+                        tt[T_NOW] = tb
                         return ADV_NEWTON
                 theta_best = hi
                 have_best = True
@@ -679,7 +721,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
                     fired[i] = 1
             for j in range(nstate):
                 y[j] = ybest[j]
-            tt[0] = te
+            tt[T_NOW] = te
             # an event exactly on the output time: the row is written after the switch
             return ADV_EVENT
         # accept. The energy integrals by Simpson's rule over the two half steps (the midpoint
@@ -701,7 +743,7 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
             if gb[i] > 0.0:
                 armed[i] = 1
         t = t_new
-        tt[0] = t
+        tt[T_NOW] = t
         if last:
             _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
                               spos, prof, reg, rf, work, track_latch)
@@ -723,8 +765,9 @@ def _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1
 def _check_scene(system: System) -> None:
     scene = system.scene
     if system.coulomb:
-        raise SceneError("solver.method = 'adaptive-modal' supports friction.law = 'feldmann' "
-                         "only (the set-valued law needs 'ida' or 'moreau'), got 'coulomb'")
+        raise SceneError(f"solver.method = 'adaptive-modal' supports friction.law = 'feldmann' "
+                         f"only (the set-valued laws need 'ida' or 'moreau'), got "
+                         f"{scene.friction.law!r}")
     if system.n_modes and np.any(system.cdamp**2 >= 4 * system.omega2):
         raise SceneError(f"solver.method = 'adaptive-modal' needs underdamped plate modes: "
                          f"plate.loss_factor must be < 2 (damping ratio loss_factor / 2 < 1), "
@@ -784,12 +827,12 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     G1 = np.zeros((N_SLOTS, R, 2))
     G1c = np.zeros((N_SLOTS, K, K))
     hslot = np.zeros(N_SLOTS)
-    Y = np.zeros((7, nst))
-    Y[0] = y
-    y = Y[0]  # the current state, updated in place by _advance
-    D = np.zeros((6, 8))
-    U = np.zeros((6, R))
-    G = np.zeros((4, n_ev))
+    Y = np.zeros((N_YBUF, nst))
+    Y[B_NOW] = y
+    y = Y[B_NOW]  # the current state, updated in place by _advance
+    D = np.zeros((N_DBUF, N_D))
+    U = np.zeros((N_DBUF, R))
+    G = np.zeros((N_GBUF, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
     ws = np.zeros(2 * R + 5 * K + 3)
@@ -798,6 +841,9 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
+    prop = Propagators(Phi, G0, G1, G1c, hslot)
+    buf = Buffers(Y, D, U, G, armed, fired)
+    scratch = Scratch(work, ws, jac, ipiv)
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
@@ -808,7 +854,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
 
     wall_before = cpu_before = 0.0
     if resume is None:
-        kn.outputs(0.0, y, outs[0], *args)
+        kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
         ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
         book = EventBook(system, regime, reg, rf)
@@ -818,10 +864,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         loop = resume.loop
         outs[:resume.k] = resume.outputs
         ist[:] = loop["ist"]
-        tt[0] = resume.t
-        D[0] = loop["d"]
-        U[0] = loop["u"]
-        G[0] = loop["g"]
+        tt[T_NOW] = resume.t
+        D[B_NOW] = loop["d"]
+        U[B_NOW] = loop["u"]
+        G[G_START] = loop["g"]
         armed[:] = loop["armed"]
         prev = dict(resume.stats)
         wall_before = float(prev.pop("wall_time", 0.0))
@@ -833,7 +879,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         fresh = False  # the loop continues exactly where the checkpointed run was
 
     status, message = "success", "reached the end of the output grid"
-    bar = progress_bar(system, progress, initial=float(tt[0]))
+    bar = progress_bar(system, progress, initial=float(tt[T_NOW]))
     chunk = max(1, n // 200)
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
@@ -844,11 +890,11 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         st["wall_time"] = wall_before + time.perf_counter() - wall0
         st["cpu_time"] = cpu_before + time.process_time() - cpu0
         write_checkpoint(checkpoint_dir, Checkpoint(
-            scene_toml=scene_toml, t=float(tt[0]), k=k, y=y.copy(), y_initial=y_initial,
+            scene_toml=scene_toml, t=float(tt[T_NOW]), k=k, y=y.copy(), y_initial=y_initial,
             outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
             regime=copy.deepcopy(regime), events=list(book.events), stats=st,
-            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[0].copy(),
-                  "u": U[0].copy(), "g": G[0].copy(), "armed": armed.copy()},
+            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[B_NOW].copy(),
+                  "u": U[B_NOW].copy(), "g": G[G_START].copy(), "armed": armed.copy()},
             force_amplitude=float(system.force_amplitude),
             base_dir=str(Path(scene.base_dir).resolve()),
             inputs=input_fingerprint(scene_toml, system.profile.stats)))
@@ -859,12 +905,11 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
                 k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
                              + cp_stride + 1)
-            code = _advance(tt, ist, k_stop, grid, h_max, Y, D, U, G, armed, fired, Phi, G0, G1,
-                            G1c, hslot, atol, scfg.rtol, outs, off, fpa, omega2, cdamp, phi,
-                            phiT, phi_obs, stiff, cres, spos, prof, reg, rf, work, ws, jac,
-                            ipiv, track_latch, fresh, budget)
+            code = _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, scfg.rtol, outs, off,
+                            fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg,
+                            rf, scratch, track_latch, fresh, budget)
             fresh = False
-            regime.v_ext = float(rf[0])
+            regime.v_ext = float(rf[kn.RF_VEXT])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
             bar.refresh()
             if code == ADV_DONE:
@@ -876,7 +921,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
                     if scene_toml:
                         write_cp()
                 continue
-            te = float(tt[0])
+            te = float(tt[T_NOW])
             if code == ADV_EVENT:
                 y_new, _ = book.apply(te, y, set(np.flatnonzero(fired).tolist()))
                 y[:] = y_new
@@ -917,5 +962,5 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     k_done = int(ist[I_K])
     return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
                        message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
-                       t_final=float(grid[k_done - 1]) if status == "success" else float(tt[0]),
+                       t_final=float(grid[k_done - 1]) if status == "success" else float(tt[T_NOW]),
                        extra={"rows_filled": k_done})

@@ -144,7 +144,7 @@ def code_identity() -> dict:
     from roughvib._version import __version__
 
     return {"roughvib": __version__,
-            "roughvib_sources": source_digest(Path(__file__).resolve().parents[1]),
+            "roughvib_sources": source_digest(Path(__file__).resolve().parent.parent),
             **library_versions()}
 
 
@@ -331,14 +331,16 @@ def _read_head(fh, path: Path) -> tuple[str, int]:
                          f"checkpoints into")
     line = fh.readline(200)
     parts = line.decode("ascii", errors="replace").split()
-    if len(parts) != 3 or not parts[0].isdigit() or not parts[2].isdigit() or \
-            len(parts[1]) != 64:
+    if len(parts) != 3:
+        parts = ["", "", ""]  # refused just below
+    version, digest, size = parts
+    if not version.isdigit() or not size.isdigit() or len(digest) != 64:
         raise SceneError(f"{path}: a damaged roughvib checkpoint (its second header line is "
                          f"not '<version> <sha256> <bytes>'); {again}")
-    if int(parts[0]) != CHECKPOINT_VERSION:
-        raise SceneError(f"{path}: checkpoint format version {parts[0]} cannot be resumed by "
+    if int(version) != CHECKPOINT_VERSION:
+        raise SceneError(f"{path}: checkpoint format version {version} cannot be resumed by "
                          f"this roughvib (format {CHECKPOINT_VERSION}); {again}")
-    return parts[1], int(parts[2])
+    return digest, int(size)
 
 
 def check_checkpoint_file(path: str | os.PathLike) -> None:

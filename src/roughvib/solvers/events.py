@@ -131,12 +131,12 @@ def initial_phase_events(system: System, t: float, y: np.ndarray, reg: np.ndarra
     if not system.tangential:
         return []
     K = system.n_contacts
-    out = np.empty(kn.N_OUT_FIXED + 2 * K)
+    out = np.empty(kn.n_output_columns(K))
     kn.outputs(t, y, out, *system.kernel_args(reg, rf))
-    fric = float(out[kn.OUT_NAMES.index("friction_force")])
+    fric = float(out[kn.OUT_FRICTION])
     return [EventRecord(t, "stick" if stick else "slip", -1, "", regime_text, float("nan"),
-                        float("nan"), float(out[kn.OUT_NAMES.index("block_tangential_velocity")]),
-                        float(out[kn.OUT_NAMES.index("normal_force")]), float("nan"), fric,
+                        float("nan"), float(out[kn.OUT_VX]),
+                        float(out[kn.OUT_NORMAL]), float("nan"), fric,
                         fric)]
 
 
@@ -188,12 +188,12 @@ class EventBook:
         ev_args = system.event_args(reg, rf)
         ye = np.array(ye, dtype=float)
         n_ev = K + 3
-        outbuf = np.empty(kn.N_OUT_FIXED + 2 * K)
+        outbuf = np.empty(kn.n_output_columns(K))
         before = regime.describe()
         evbuf = np.empty(n_ev)
         kn.events(te, ye, evbuf, *ev_args)
         kn.outputs(te, ye, outbuf, *args)
-        fric_before = float(outbuf[kn.OUT_NAMES.index("friction_force")])
+        fric_before = float(outbuf[kn.OUT_FRICTION])
         fr = system.scene.friction
         kinds = []
 
@@ -228,11 +228,11 @@ class EventBook:
         evafter = np.empty(n_ev)
         kn.events(te, y, evafter, *ev_args)
         kn.outputs(te, y, outbuf, *args)
-        fric_after = float(outbuf[kn.OUT_NAMES.index("friction_force")])
-        fsum = float(outbuf[kn.OUT_NAMES.index("normal_force")])
-        vx = float(outbuf[kn.OUT_NAMES.index("block_tangential_velocity")])
+        fric_after = float(outbuf[kn.OUT_FRICTION])
+        fsum = float(outbuf[kn.OUT_NORMAL])
+        vx = float(outbuf[kn.OUT_VX])
         for kind, c, idx in kinds:
-            cf = float(outbuf[kn.N_OUT_FIXED + c]) if c >= 0 else float("nan")
+            cf = float(outbuf[kn.out_force_column(c, K)]) if c >= 0 else float("nan")
             self.events.append(EventRecord(te, kind, c, before, after, float(evbuf[idx]),
                                            float(evafter[idx]), vx, fsum, cf, fric_before,
                                            fric_after))

@@ -19,6 +19,7 @@ located by sign changes between steps with linear interpolation and written to t
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 
@@ -29,7 +30,7 @@ from scipy.linalg import expm
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.physics.friction import feldmann_mu_law, latch_update
+from roughvib.physics.friction import feldmann_mu_law, kinetic_coefficient, latch_update
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.events import initial_phase_events
@@ -38,6 +39,28 @@ from roughvib.solvers.ida import EventRecord, RawSolution
 __all__ = ["modal_propagators", "solve_fixed_step"]
 
 EV_KINDS = ("lift_off", "touch_down", "stick", "slip", "latch_flip")
+
+# the tangential loop state ``tang``: x [m], vx [m/s], latch sign s, latch extremum [m/s],
+# stick phase (1.0 / 0.0); the paper scheme appends the static plate deflections (K)
+TG_X = 0
+TG_VX = 1
+TG_LATCH = 2
+TG_VEXT = 3
+TG_STICK = 4
+TG_WSTAT = 5
+N_TANG = 5
+# the vertical loop state ``zv``: z [m], vz [m/s], az [m/s^2]
+ZV_Z = 0
+ZV_VZ = 1
+ZV_AZ = 2
+N_ZV = 3
+# a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
+MODE_Q = 0
+MODE_DQ = 1
+# the augmented state [q, q', u, u'] of the exact first-order-hold step (modal_propagators)
+AUG_U = 2
+AUG_DU = 3
+FIRST_ROW = 0  # the output row of t = 0
 
 
 def modal_propagators(omega: np.ndarray, zeta: np.ndarray, h: float, scheme: str
@@ -68,15 +91,15 @@ def modal_propagators(omega: np.ndarray, zeta: np.ndarray, h: float, scheme: str
         w, c = float(omega[r]), 2.0 * float(zeta[r]) * float(omega[r])
         if scheme == "exact-modal":
             A = np.zeros((4, 4))
-            A[0, 1] = 1.0
-            A[1, 0] = -w * w
-            A[1, 1] = -c
-            A[1, 2] = 1.0          # u drives the acceleration
-            A[2, 3] = 1.0          # u' = (u_{n+1} - u_n) / h, constant over the step
+            A[MODE_Q, MODE_DQ] = 1.0
+            A[MODE_DQ, MODE_Q] = -w * w
+            A[MODE_DQ, MODE_DQ] = -c
+            A[MODE_DQ, AUG_U] = 1.0       # u drives the acceleration
+            A[AUG_U, AUG_DU] = 1.0   # u' = (u_{n+1} - u_n) / h, constant over the step
             E = expm(A * h)
-            Phi[r] = E[:2, :2]
-            G0[r] = E[:2, 2] - E[:2, 3] / h
-            G1[r] = E[:2, 3] / h
+            Phi[r] = E[:AUG_U, :AUG_U]
+            G0[r] = E[:AUG_U, AUG_U] - E[:AUG_U, AUG_DU] / h
+            G1[r] = E[:AUG_U, AUG_DU] / h
         elif scheme == "newmark":
             L = np.array([[1 + h * h * w * w / 4, h * h * c / 4], [h * w * w / 2, 1 + h * c / 2]])
             P = np.array([[1 - h * h * w * w / 4, h - h * h * c / 4],
@@ -112,7 +135,7 @@ def log_step_events(t0, h, comp_old, comp, v0, v1, tang, vth, exact_stick, log_l
         comp_old[k] = comp[k]
     if not tangential:
         return n_ev
-    was_stick = tang[4] > 0.5
+    was_stick = tang[TG_STICK] > 0.5
     now_stick = (v1 == 0.0) if exact_stick else abs(v1) < vth
     if was_stick != now_stick and n_ev < cap:
         a_ = abs(v0) - vth
@@ -122,10 +145,10 @@ def log_step_events(t0, h, comp_old, comp, v0, v1, tang, vth, exact_stick, log_l
         ev_kind[n_ev] = 2 if now_stick else 3
         ev_contact[n_ev] = -1
         n_ev += 1
-        tang[4] = 1.0 if now_stick else 0.0
-    s_new, vext_new, flipped = latch_update(tang[2], tang[3], v1, eps)
-    tang[2] = s_new
-    tang[3] = vext_new
+        tang[TG_STICK] = 1.0 if now_stick else 0.0
+    s_new, vext_new, flipped = latch_update(tang[TG_LATCH], tang[TG_VEXT], v1, eps)
+    tang[TG_LATCH] = s_new
+    tang[TG_VEXT] = vext_new
     if flipped and log_latch and n_ev < cap:
         ev_t[n_ev] = t0 + h
         ev_kind[n_ev] = 4
@@ -175,15 +198,26 @@ def _solve_contacts(active, stiff, beta, G1c, rhs, F, comp, K):
     return False
 
 
+#: the state the fixed-step loop advances in place: modal q, q' (R,), ``zv`` (ZV_*), contact
+#: forces ``Fv`` (K,), the active contact set ``active`` (K,) int64, ``tang`` (TG_*) and the
+#: running energy integrals ``energy`` (E_*)
+LoopState = collections.namedtuple("LoopState",
+                                   ["q", "dq", "zv", "Fv", "active", "tang", "energy"])
+#: the event log of a fixed-step loop: times, kinds (EV_KINDS) and contacts, preallocated
+EventArrays = collections.namedtuple("EventArrays", ["t", "kind", "contact"])
+
+
 @njit(cache=True)
 def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
-         prof, fp, tangential, moreau, q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
-         ev_contact):
-    """The fixed-step loop. Mutates the state arrays; returns (n_events, status code, step).
+         prof, fp, law, tangential, moreau, state, out, evs):
+    """The fixed-step loop. Mutates ``state`` (``LoopState``), ``out`` and ``evs``
+    (``EventArrays``); returns (n_events, status code, step).
 
     ``zv`` = [z, vz, az]; ``tang`` = [x, vx, latch s, v_ext, stick phase]; ``energy`` the six
     running integrals; status 0 ok, 1 Newton failure (tangential), 2 active set failure.
     """
+    q, dq, zv, Fv, active, tang, energy = state
+    ev_t, ev_kind, ev_contact = evs
     R = Phi.shape[0]
     K = stiff.size
     M = fp[kn.FP_MMODAL]
@@ -191,7 +225,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     # G1 in contact coordinates: G1c_kj = sum_r phi_rk phi_rj G1_r[0] / M + C_res
     G1c = cres.copy()
     for r in range(R):
-        gr = G1[r, 0] / M
+        gr = G1[r, MODE_Q] / M
         for k in range(K):
             for j in range(K):
                 G1c[k, j] += phi[r, k] * phi[r, j] * gr
@@ -215,8 +249,8 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     S0 = 0.0
     for k in range(K):
         S0 += Fv[k]
-    x0 = tang[0]
-    v0 = tang[1]
+    x0 = tang[TG_X]
+    v0 = tang[TG_VX]
     # initial compressions for event detection
     for k in range(K):
         w = 0.0
@@ -225,7 +259,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         for j in range(K):
             w += cres[k, j] * Fv[j]
         hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x0)
-        comp_old[k] = zv[0] - w + hh
+        comp_old[k] = zv[ZV_Z] - w + hh
         dhk[k] = dh
     n_ev = 0
     # powers at step n
@@ -235,11 +269,11 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
     if tangential and moreau:
         p_exc = fp[kn.FP_T0] * v0
     elif tangential:
-        mu0, _ = feldmann_mu_law(v0 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+        mu0, _ = feldmann_mu_law(v0 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
         p_exc = fp[kn.FP_T0] * v0
         p_fric = mu0 * S0 * v0
     p_r2 = r2 * v0 * v0
-    p_r1 = r1 * zv[1] * zv[1]
+    p_r1 = r1 * zv[ZV_VZ] * zv[ZV_VZ]
     p_pl = 0.0
     for r in range(R):
         p_pl += M * cdamp[r] * dq[r] * dq[r]
@@ -264,7 +298,8 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
                 lo, hi = 0.0, abs(vfree)
                 for _it in range(200):
                     mid = 0.5 * (lo + hi)
-                    muk, _ = kn.coulomb_kinetic(mid, mu_sl, mu_st, fp[kn.FP_VSTRIB])
+                    muk, _ = kinetic_coefficient(law, mid, mu_sl, mu_st, fp[kn.FP_VSTRIB],
+                                                 fp[kn.N_FP:])
                     if mid - (abs(vfree) - h * muk * S0 / (m + h * r2)) > 0.0:
                         hi = mid
                     else:
@@ -275,7 +310,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             lam = (m + h * r2) * (vfree - v1) / h
             x1 = x0 + h * v1
         elif tangential:
-            s_l = tang[2]
+            s_l = tang[TG_LATCH]
             t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
             t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
             mu0, _ = feldmann_mu_law(v0 + s_l * vh, mu_sl, mu_st, a1, a2)
@@ -300,12 +335,14 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         for k in range(K):
             wfree[k] = 0.0
         for r in range(R):
-            sq[r] = Phi[r, 0, 0] * q[r] + Phi[r, 0, 1] * dq[r] + G0[r, 0] * u[r]
-            sdq[r] = Phi[r, 1, 0] * q[r] + Phi[r, 1, 1] * dq[r] + G0[r, 1] * u[r]
+            sq[r] = (Phi[r, MODE_Q, MODE_Q] * q[r] + Phi[r, MODE_Q, MODE_DQ] * dq[r]
+                     + G0[r, MODE_Q] * u[r])
+            sdq[r] = (Phi[r, MODE_DQ, MODE_Q] * q[r] + Phi[r, MODE_DQ, MODE_DQ] * dq[r]
+                      + G0[r, MODE_DQ] * u[r])
             for k in range(K):
                 wfree[k] += phi[r, k] * sq[r]
         # ---- block (average-acceleration Newmark), affine in the total force S1 ----------
-        z0, vz0, az0 = zv[0], zv[1], zv[2]
+        z0, vz0, az0 = zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ]
         mp = m + r1 * h / 2
         Q = m * g - r1 * (vz0 + h * az0 / 2)
         zc = z0 + h * vz0 + h * h / 4 * (az0 + Q / mp)
@@ -325,8 +362,8 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             for k in range(K):
                 acc += phi[r, k] * Fn[k]
             u_new[r] = acc / M
-            q[r] = sq[r] + G1[r, 0] * u_new[r]
-            dq[r] = sdq[r] + G1[r, 1] * u_new[r]
+            q[r] = sq[r] + G1[r, MODE_Q] * u_new[r]
+            dq[r] = sdq[r] + G1[r, MODE_DQ] * u_new[r]
             u[r] = u_new[r]
         az1 = (Q - S1) / mp
         vz1 = vz0 + h / 2 * (az0 + az1)
@@ -346,7 +383,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
             q_fric = lam * v1
         elif tangential:
-            mu1, _ = feldmann_mu_law(v1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+            mu1, _ = feldmann_mu_law(v1 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
             fric1 = mu1 * S1
             q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
             q_fric = mu1 * S1 * v1
@@ -358,20 +395,20 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         q_ro = 0.0
         for k in range(K):
             q_ro += Fn[k] * dhk[k] * v1
-        energy[0] += 0.5 * h * (p_exc + q_exc)
-        energy[1] += 0.5 * h * (p_fric + q_fric)
-        energy[2] += 0.5 * h * (p_r2 + q_r2) if tangential else 0.0
-        energy[3] += 0.5 * h * (p_r1 + q_r1)
-        energy[4] += 0.5 * h * (p_pl + q_pl)
-        energy[5] += 0.5 * h * (p_ro + q_ro)
+        energy[kn.E_EXCITATION] += 0.5 * h * (p_exc + q_exc)
+        energy[kn.E_FRICTION] += 0.5 * h * (p_fric + q_fric)
+        energy[kn.E_TANGENTIAL_DAMPING] += 0.5 * h * (p_r2 + q_r2) if tangential else 0.0
+        energy[kn.E_VERTICAL_DAMPING] += 0.5 * h * (p_r1 + q_r1)
+        energy[kn.E_PLATE_DAMPING] += 0.5 * h * (p_pl + q_pl)
+        energy[kn.E_ROUGHNESS] += 0.5 * h * (p_ro + q_ro)
         p_exc, p_fric, p_r2, p_r1, p_pl, p_ro = q_exc, q_fric, q_r2, q_r1, q_pl, q_ro
         # ---- advance ---------------------------------------------------------------------
-        zv[0], zv[1], zv[2] = z1, vz1, az1
+        zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ] = z1, vz1, az1
         for k in range(K):
             Fv[k] = Fn[k]
         x0, v0, S0 = x1, v1, S1
-        tang[0] = x1
-        tang[1] = v1
+        tang[TG_X] = x1
+        tang[TG_VX] = v1
         if (n + 1) % out_every == 0:
             row += 1
             acc = 0.0
@@ -380,18 +417,18 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
                 for k in range(K):
                     f += phi[r, k] * Fn[k]
                 acc += phi_obs[r] * (f / M - cdamp[r] * dq[r] - omega2[r] * q[r])
-            out[row, 0] = z1
-            out[row, 1] = vz1
-            out[row, 2] = az1
-            out[row, 3] = acc
-            out[row, 4] = x1
-            out[row, 5] = v1
-            out[row, 6] = fric1 if tangential else np.nan
-            out[row, 7] = S1
-            out[row, 8] = mu1 if tangential else np.nan
+            out[row, kn.OUT_Z] = z1
+            out[row, kn.OUT_VZ] = vz1
+            out[row, kn.OUT_AZ] = az1
+            out[row, kn.OUT_PLATE_ACC] = acc
+            out[row, kn.OUT_X] = x1
+            out[row, kn.OUT_VX] = v1
+            out[row, kn.OUT_FRICTION] = fric1 if tangential else np.nan
+            out[row, kn.OUT_NORMAL] = S1
+            out[row, kn.OUT_MU] = mu1 if tangential else np.nan
             for k in range(K):
-                out[row, kn.N_OUT_FIXED + k] = Fn[k]
-                out[row, kn.N_OUT_FIXED + K + k] = -hk[k]
+                out[row, kn.out_force_column(k, K)] = Fn[k]
+                out[row, kn.out_roughness_column(k, K)] = -hk[k]
     return n_ev, 0, n_steps
 
 
@@ -432,10 +469,12 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     moreau = method == "moreau"
     if system.coulomb and not moreau:
         raise SceneError(f"solver.method = {method!r} supports friction.law = 'feldmann' "
-                         f"only (the set-valued law needs 'ida' or 'moreau'), got 'coulomb'")
+                         f"only (the set-valued law needs 'ida' or 'moreau'), got "
+                         f"{scene.friction.law!r}")
     if moreau and not system.coulomb and system.tangential:
-        raise SceneError("solver.method = 'moreau' needs friction.law = 'coulomb' (Moreau-Jean "
-                         "time-stepping of set-valued friction), got 'feldmann'")
+        raise SceneError(f"solver.method = 'moreau' needs friction.law = 'coulomb' or 'table' "
+                         f"(Moreau-Jean time-stepping of set-valued friction), got "
+                         f"{scene.friction.law!r}")
     h, out_every, n_out, n_steps = step_grid(scene)
     K = system.n_contacts
     lay = system.layout
@@ -451,16 +490,20 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     q = y[lay.slice("plate.q")].copy()
     dq = y[lay.slice("plate.dq")].copy()
     Fv = y[lay.slice("contact.force")].copy()
-    zv = np.array([y[lay.index("block.z")], y[lay.index("block.vz")], 0.0])
-    zv[2] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
+    zv = np.zeros(N_ZV)
+    zv[ZV_Z] = y[lay.index("block.z")]
+    zv[ZV_VZ] = y[lay.index("block.vz")]
+    zv[ZV_AZ] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
     # initial phase as IDA's: stick at rest; with the Coulomb law only if the block cannot move
     start_stick = initial_regime(closed, system.fp, lay.tangential, True).stick \
         if system.coulomb else True
-    tang = np.array([0.0, 0.0, float(regime.latch), 0.0, 1.0 if start_stick else 0.0])
-    energy = np.zeros(6)
-    out = np.full((n_out, kn.N_OUT_FIXED + 2 * K), np.nan)
+    tang = np.zeros(N_TANG)
+    tang[TG_LATCH] = float(regime.latch)
+    tang[TG_STICK] = 1.0 if start_stick else 0.0
+    energy = np.zeros(kn.N_ENERGY)
+    out = np.full((n_out, kn.n_output_columns(K)), np.nan)
     args = system.kernel_args(reg, rf)
-    kn.outputs(0.0, y, out[0], *args)
+    kn.outputs(0.0, y, out[FIRST_ROW], *args)
     cap = 2_000_000
     ev_t = np.empty(cap)
     ev_kind = np.empty(cap, dtype=np.int8)
@@ -470,9 +513,10 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     cpu0 = time.process_time()
     n_ev, code, n_done = _run(h, n_steps, out_every, Phi, G0, G1, system.phi, system.phi_obs,
                               system.omega2, system.cdamp, system.stiff, system.cres,
-                              system.contact_s, system.prof, system.fp, lay.tangential, moreau,
-                              q, dq, zv, Fv, active, tang, energy, out, ev_t, ev_kind,
-                              ev_contact)
+                              system.contact_s, system.prof, system.fp,
+                              int(system.off[kn.OFF_LAW]), lay.tangential, moreau,
+                              LoopState(q, dq, zv, Fv, active, tang, energy), out,
+                              EventArrays(ev_t, ev_kind, ev_contact))
     wall = time.perf_counter() - wall0
     status, message = "success", "reached the end of the output grid"
     if code == 1:
@@ -488,11 +532,11 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     yf = np.zeros(lay.size)
     yf[lay.slice("plate.q")] = q
     yf[lay.slice("plate.dq")] = dq
-    yf[lay.index("block.z")] = zv[0]
-    yf[lay.index("block.vz")] = zv[1]
+    yf[lay.index("block.z")] = zv[ZV_Z]
+    yf[lay.index("block.vz")] = zv[ZV_VZ]
     if lay.tangential:
-        yf[lay.index("block.x")] = tang[0]
-        yf[lay.index("block.vx")] = tang[1]
+        yf[lay.index("block.x")] = tang[TG_X]
+        yf[lay.index("block.vx")] = tang[TG_VX]
     yf[lay.slice("contact.force")] = Fv
     if lay.has("friction.force"):
         yf[lay.index("friction.force")] = 0.0

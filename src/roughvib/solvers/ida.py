@@ -68,6 +68,8 @@ __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 # physical reversal takes a good part of the model's fastest period, that of a mode at
 # plate.max_frequency (2e-5 s at 50 kHz), far beyond 1e-12 s, so such a refire is ignored once.
 REFIRE_DT = 1e-12  # s
+JAC_COUNT = 0  # the one entry of the Jacobian counter box
+FIRST_ROW = 0  # the output row of t = 0
 # IDA restarts at order 1; its default first step (~1e-3 of the distance to the next output
 # time, 1e-8 s here) takes ~10 step doublings and as many Jacobian factorizations to grow back.
 # Starting at 1e-2 of the last step cut that by a third at unchanged accuracy on the paper
@@ -92,7 +94,7 @@ class RawSolution:
     """What a solver hands to :class:`roughvib.results.Result` (one contract for all)."""
 
     time: np.ndarray                 # (n,) [s]
-    outputs: np.ndarray              # (n, N_OUT_FIXED + 2K)
+    outputs: np.ndarray              # (n, kernels.n_output_columns(K))
     events: list[EventRecord]
     stats: dict
     status: str
@@ -440,11 +442,11 @@ def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
     -------
     grid : ndarray, shape (n,)
         0, output.step, ..., output.duration [s].
-    outs : ndarray, shape (n, N_OUT_FIXED + 2 K)
+    outs : ndarray, shape (n, kernels.n_output_columns(K))
     """
     out_cfg = system.scene.output
     n = int(round(out_cfg.duration / out_cfg.step)) + 1
-    return np.arange(n) * out_cfg.step, np.full((n, kn.N_OUT_FIXED + 2 * system.n_contacts),
+    return np.arange(n) * out_cfg.step, np.full((n, kn.n_output_columns(system.n_contacts)),
                                                   np.nan)
 
 
@@ -530,8 +532,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
     jac_count = [0]  # Jacobians within the current step() call
 
     def jacfn(t, yy, yyp, res, cj, jj):
-        jac_count[0] += 1
-        if jac_count[0] > jac_budget:  # aborts this IDASolve call (stall guard)
+        jac_count[JAC_COUNT] += 1
+        if jac_count[JAC_COUNT] > jac_budget:  # aborts this IDASolve call (stall guard)
             raise _JacobianBudget
         jacobian_values(t, yy, yyp, cj, vals, off, fpa, omega2, cdamp, phi, phi_obs, stiff,
                         cres, spos, prof, reg, rf, work)
@@ -594,7 +596,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
     cpu0 = time.process_time()
 
     if resume is None:
-        kn.outputs(0.0, y, outs[0], *args)
+        kn.outputs(0.0, y, outs[FIRST_ROW], *args)
     bar = progress_bar(system, progress, initial=t_start)
     bar_next = k_start
     bar_stride = max(1, n // 200)
@@ -638,7 +640,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
     r = None
     try:
         while k < n:
-            jac_count[0] = 0
+            jac_count[JAC_COUNT] = 0
             try:
                 r = solver.step(grid[k], "normal", None)
             except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
@@ -694,11 +696,11 @@ def solve_ida(system: System, *, progress: bool | None = None,
             if vx_i >= 0 and not system.coulomb:
                 v = yk[vx_i]
                 if regime.latch < 0:
-                    if v > rf[0]:
-                        rf[0] = v
+                    if v > rf[kn.RF_VEXT]:
+                        rf[kn.RF_VEXT] = v
                         regime.v_ext = v
-                elif v < rf[0]:
-                    rf[0] = v
+                elif v < rf[kn.RF_VEXT]:
+                    rf[kn.RF_VEXT] = v
                     regime.v_ext = v
             if k >= bar_next:
                 bar.n = float(grid[k])

@@ -36,11 +36,35 @@ from roughvib.physics.friction import feldmann_mu_law
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.events import initial_phase_events
-from roughvib.solvers.fixed_step import event_records, log_step_events, step_grid
+from roughvib.solvers.fixed_step import (
+    FIRST_ROW,
+    N_TANG,
+    TG_LATCH,
+    TG_STICK,
+    TG_VX,
+    TG_WSTAT,
+    TG_X,
+    ZV_VZ,
+    ZV_Z,
+    event_records,
+    log_step_events,
+    step_grid,
+)
 from roughvib.solvers.ida import RawSolution
 
 __all__ = ["impulse_responses", "solve_paper_scheme"]
 
+
+# the Newton step of _run_paper: unknowns (columns) and equations (rows)
+U_Z = 0
+U_VZ = 1
+U_X = 2
+U_VX = 3
+EQ_MOM_Z = 0  # vertical momentum
+EQ_KIN_Z = 1  # z' = vz
+EQ_MOM_X = 2  # tangential momentum
+EQ_KIN_X = 3  # x' = vx
+N_NEWTON = 4
 
 @njit(cache=True)
 def impulse_responses(phi, phi_obs, omega, zeta, M, h, n):
@@ -91,7 +115,7 @@ def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, 
     comp_old = np.empty(K)
     n_ev = 0
     for k in range(K):
-        hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + tang[0])
+        hh, _, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + tang[TG_X])
         comp_old[k] = Fv[k] / stiff[k] if Fv[k] > 0 else -1e-30
     # the run starts from static equilibrium: the convolution carries the force *deviations*
     # from the static forces, and the static plate deflection (tang[5:]) is added to it
@@ -105,13 +129,13 @@ def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, 
             for mm in range(1, n + 2):
                 for j in range(K):
                     acc += G[mm, i, j] * Fhist[n + 1 - mm, j]
-            w[i] = acc + tang[5 + i]  # + static plate deflection at contact i
+            w[i] = acc + tang[TG_WSTAT + i]  # + static plate deflection at contact i
         # Newton-Raphson on (z1, vz1, x1, vx1), Heaviside inside the iteration
-        z0, vz0, x0, vx0 = zv[0], zv[1], tang[0], tang[1]
+        z0, vz0, x0, vx0 = zv[ZV_Z], zv[ZV_VZ], tang[TG_X], tang[TG_VX]
         if not tangential:  # prescribed motion: x1 is known
             x0, _ = kn.prescribed_motion(t1, fp)
         z1, vz1, x1, vx1 = z0, vz0, x0, vx0
-        s_l = tang[2]
+        s_l = tang[TG_LATCH]
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
         ok = False
         for _it in range(60):
@@ -127,34 +151,34 @@ def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, 
                     S += stiff[k] * d[k]
                     dSdz += stiff[k]
                     dSdx += stiff[k] * dd
-            A = np.zeros((4, 4))
-            b = np.zeros(4)
-            b[0] = m * (vz1 - vz0) / h - (m * g - r1 * vz1 - S)
-            A[0, 1] = m / h + r1
-            A[0, 0] = dSdz
-            A[0, 2] = dSdx
-            b[1] = z1 - z0 - h * vz1
-            A[1, 0] = 1.0
-            A[1, 1] = -h
+            A = np.zeros((N_NEWTON, N_NEWTON))
+            b = np.zeros(N_NEWTON)
+            b[EQ_MOM_Z] = m * (vz1 - vz0) / h - (m * g - r1 * vz1 - S)
+            A[EQ_MOM_Z, U_VZ] = m / h + r1
+            A[EQ_MOM_Z, U_Z] = dSdz
+            A[EQ_MOM_Z, U_X] = dSdx
+            b[EQ_KIN_Z] = z1 - z0 - h * vz1
+            A[EQ_KIN_Z, U_Z] = 1.0
+            A[EQ_KIN_Z, U_VZ] = -h
             if tangential:
                 mu, dmu = feldmann_mu_law(vx1 + s_l * vh, mu_sl, mu_st, a1, a2)
-                b[2] = m * (vx1 - vx0) / h - (texc - mu * S - r2 * vx1)
-                A[2, 3] = m / h + dmu * S + r2
-                A[2, 0] = mu * dSdz
-                A[2, 2] = mu * dSdx
-                b[3] = x1 - x0 - h * vx1
-                A[3, 2] = 1.0
-                A[3, 3] = -h
+                b[EQ_MOM_X] = m * (vx1 - vx0) / h - (texc - mu * S - r2 * vx1)
+                A[EQ_MOM_X, U_VX] = m / h + dmu * S + r2
+                A[EQ_MOM_X, U_Z] = mu * dSdz
+                A[EQ_MOM_X, U_X] = mu * dSdx
+                b[EQ_KIN_X] = x1 - x0 - h * vx1
+                A[EQ_KIN_X, U_X] = 1.0
+                A[EQ_KIN_X, U_VX] = -h
             else:
-                A[2, 2] = 1.0
-                A[3, 3] = 1.0
+                A[EQ_MOM_X, U_X] = 1.0
+                A[EQ_KIN_X, U_VX] = 1.0
             du = np.linalg.solve(A, b)
-            z1 -= du[0]
-            vz1 -= du[1]
+            z1 -= du[U_Z]
+            vz1 -= du[U_VZ]
             if tangential:
-                x1 -= du[2]
-                vx1 -= du[3]
-            if abs(du[0]) < 1e-16 + 1e-12 * abs(z1) and abs(du[3]) < 1e-15 + 1e-12 * abs(vx1):
+                x1 -= du[U_X]
+                vx1 -= du[U_VX]
+            if abs(du[U_Z]) < 1e-16 + 1e-12 * abs(z1) and abs(du[U_VX]) < 1e-15 + 1e-12 * abs(vx1):
                 ok = True
                 break
         if not ok:
@@ -173,29 +197,29 @@ def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, 
                                ev_t, ev_kind, ev_contact, n_ev, tangential)
         mu1 = 0.0
         if tangential:
-            mu1, _ = feldmann_mu_law(vx1 + tang[2] * vh, mu_sl, mu_st, a1, a2)
+            mu1, _ = feldmann_mu_law(vx1 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
         az1 = (vz1 - vz0) / h
-        zv[0], zv[1] = z1, vz1
-        tang[0], tang[1] = x1, vx1
+        zv[ZV_Z], zv[ZV_VZ] = z1, vz1
+        tang[TG_X], tang[TG_VX] = x1, vx1
         if (n + 1) % out_every == 0:
             row += 1
-            out[row, 0] = z1
-            out[row, 1] = vz1
-            out[row, 2] = az1
+            out[row, kn.OUT_Z] = z1
+            out[row, kn.OUT_VZ] = vz1
+            out[row, kn.OUT_AZ] = az1
             # the force history convolved with the acceleration kernel (see impulse_responses)
             ao = 0.0
             for mm in range(0, n + 2):
                 for j in range(K):
                     ao += Ga[mm, j] * Fhist[n + 1 - mm, j]
-            out[row, 3] = ao
-            out[row, 4] = x1
-            out[row, 5] = vx1
-            out[row, 6] = mu1 * S if tangential else np.nan
-            out[row, 7] = S
-            out[row, 8] = mu1 if tangential else np.nan
+            out[row, kn.OUT_PLATE_ACC] = ao
+            out[row, kn.OUT_X] = x1
+            out[row, kn.OUT_VX] = vx1
+            out[row, kn.OUT_FRICTION] = mu1 * S if tangential else np.nan
+            out[row, kn.OUT_NORMAL] = S
+            out[row, kn.OUT_MU] = mu1 if tangential else np.nan
             for k in range(K):
-                out[row, kn.N_OUT_FIXED + k] = Fv[k]
-                out[row, kn.N_OUT_FIXED + K + k] = -hk[k]
+                out[row, kn.out_force_column(k, K)] = Fv[k]
+                out[row, kn.out_roughness_column(k, K)] = -hk[k]
     return n_ev, 0, n_steps
 
 
@@ -203,8 +227,8 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     """Integrate with the paper's scheme (see the module docstring)."""
     scene = system.scene
     if system.coulomb:
-        raise SceneError("solver.method = 'paper' supports friction.law = 'feldmann' only, "
-                         "got 'coulomb'")
+        raise SceneError(f"solver.method = 'paper' supports friction.law = 'feldmann' only, "
+                         f"got {scene.friction.law!r}")
     if system.n_modes == 0:
         if scene.plate.kind == "rigid":
             raise SceneError("solver.method = 'paper' needs a structure with modes (the plate "
@@ -231,11 +255,15 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     y, _ = system.consistent(0.0, y0, reg, rf)
     Fv = y[lay.slice("contact.force")].copy()
     wstat = system.static_compliance_matrix() @ Fv  # static plate deflection at the contacts
-    zv = np.array([y[lay.index("block.z")], 0.0])
-    tang = np.concatenate([[0.0, 0.0, float(regime.latch), 0.0, 1.0], wstat])
+    zv = np.zeros(ZV_VZ + 1)
+    zv[ZV_Z] = y[lay.index("block.z")]
+    tang = np.zeros(N_TANG + K)
+    tang[TG_LATCH] = float(regime.latch)
+    tang[TG_STICK] = 1.0
+    tang[TG_WSTAT:] = wstat
     Fhist = np.zeros((n_steps + 2, K))
-    out = np.full((n_out, kn.N_OUT_FIXED + 2 * K), np.nan)
-    kn.outputs(0.0, y, out[0], *system.kernel_args(reg, rf))
+    out = np.full((n_out, kn.n_output_columns(K)), np.nan)
+    kn.outputs(0.0, y, out[FIRST_ROW], *system.kernel_args(reg, rf))
     cap = 2_000_000
     ev_t = np.empty(cap)
     ev_kind = np.empty(cap, dtype=np.int8)

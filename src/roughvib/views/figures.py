@@ -519,8 +519,8 @@ def save_figure(fig: Figure, path, *, dpi: int = 100) -> None:
 
 def _whole(fn: Callable, **kw) -> Callable[[Result], Figure]:
     def draw(result: Result) -> Figure:
-        out = fn(result, **kw)
-        ax = out[0] if isinstance(out, list | tuple | np.ndarray) else out
+        drawn = fn(result, **kw)
+        ax = drawn[0] if isinstance(drawn, list | tuple | np.ndarray) else drawn
         return ax.figure
 
     draw.__doc__ = fn.__doc__

@@ -136,11 +136,10 @@ def profile_eval(c, s0, dx, s):
 @njit(cache=True)
 def profile_eval_many(c, s0, dx, s):
     """Vectorised :func:`profile_eval`: returns (z, dz, d2z) arrays of the shape of ``s``."""
-    out = np.empty((3, s.size))
     flat = s.ravel()
+    z = np.empty(flat.size)
+    dz = np.empty(flat.size)
+    d2z = np.empty(flat.size)
     for i in range(flat.size):
-        a, b, d = profile_eval(c, s0, dx, flat[i])
-        out[0, i] = a
-        out[1, i] = b
-        out[2, i] = d
-    return out[0].reshape(s.shape), out[1].reshape(s.shape), out[2].reshape(s.shape)
+        z[i], dz[i], d2z[i] = profile_eval(c, s0, dx, flat[i])
+    return z.reshape(s.shape), dz.reshape(s.shape), d2z.reshape(s.shape)
