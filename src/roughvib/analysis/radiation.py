@@ -76,6 +76,16 @@ _CHUNK = 48
 _SIGMA_PER_BAND = 6
 
 
+
+# rows and columns of a mode's first-order-hold step matrix [Phi | Gamma_0 | Gamma_1], (2, 4):
+# rows the state (q, dq), columns Phi's two, then the weights of the inputs u_k and u_k+1
+ROW_Q, ROW_DQ = 0, 1
+COL_PHI_Q, COL_PHI_DQ, COL_GAMMA0, COL_GAMMA1 = 0, 1, 2, 3
+# the input and its slope in the augmented state (q, dq, u, u') of _foh_expm
+AUG_U, AUG_DU = 2, 3
+#: the row of the initial state in the sampled modal histories (T, R)
+FIRST_SAMPLE = 0
+
 def check_radiating_plate(plate: Plate) -> None:
     """Refuse, in one line, a plate whose radiation is not defined here.
 
@@ -111,7 +121,7 @@ def _foh_matrices(modes: PlateModes, dt: float) -> np.ndarray:
     disc = np.sqrt((z * z - 1.0).astype(complex)) * w
     lp, lm = -z * w + disc, -z * w - disc
     h = dt
-    out = np.empty((len(modes), 2, 4))
+    mats = np.empty((len(modes), 2, 4))
     ok = np.abs(lp - lm) > 1e-6 * w
     with np.errstate(invalid="ignore", divide="ignore"):
         ep, em = np.exp(lp * h), np.exp(lm * h)
@@ -122,17 +132,17 @@ def _foh_matrices(modes: PlateModes, dt: float) -> np.ndarray:
         def apply_b(fp, fm):  # f(A) B = [f(lm) - f(lp), lm f(lm) - lp f(lp)] / (lm - lp)
             return ((fm - fp) / d).real, ((lm * fm - lp * fp) / d).real
 
-        out[:, 0, 0] = ((lm * ep - lp * em) / d).real
-        out[:, 0, 1] = ((em - ep) / d).real
-        out[:, 1, 0] = ((lp * lm * (ep - em)) / d).real
-        out[:, 1, 1] = ((lm * em - lp * ep) / d).real
+        mats[:, ROW_Q, COL_PHI_Q] = ((lm * ep - lp * em) / d).real
+        mats[:, ROW_Q, COL_PHI_DQ] = ((em - ep) / d).real
+        mats[:, ROW_DQ, COL_PHI_Q] = ((lp * lm * (ep - em)) / d).real
+        mats[:, ROW_DQ, COL_PHI_DQ] = ((lm * em - lp * ep) / d).real
         j0q, j0v = apply_b(j0p, j0m)
         j1q, j1v = apply_b(j1p, j1m)
-    out[:, 0, 2], out[:, 1, 2] = j1q / h, j1v / h
-    out[:, 0, 3], out[:, 1, 3] = j0q - j1q / h, j0v - j1v / h
+    mats[:, ROW_Q, COL_GAMMA0], mats[:, ROW_DQ, COL_GAMMA0] = j1q / h, j1v / h
+    mats[:, ROW_Q, COL_GAMMA1], mats[:, ROW_DQ, COL_GAMMA1] = j0q - j1q / h, j0v - j1v / h
     for r in np.flatnonzero(~ok):  # critically damped: no distinct eigenvalues
-        out[r] = _foh_expm(w[r], z[r], h)
-    return out
+        mats[r] = _foh_expm(w[r], z[r], h)
+    return mats
 
 
 def _foh_expm(w: float, z: float, h: float) -> np.ndarray:
@@ -141,17 +151,19 @@ def _foh_expm(w: float, z: float, h: float) -> np.ndarray:
     from scipy.linalg import expm
 
     aug = np.zeros((4, 4))
-    aug[0, 1] = 1.0
-    aug[1, 0] = -w * w
-    aug[1, 1] = -2.0 * z * w
-    aug[1, 2] = 1.0   # input u enters the acceleration
-    aug[2, 3] = 1.0   # u' = (u_1 - u_0) / h, constant within the step
+    aug[ROW_Q, ROW_DQ] = 1.0
+    aug[ROW_DQ, ROW_Q] = -w * w
+    aug[ROW_DQ, ROW_DQ] = -2.0 * z * w
+    aug[ROW_DQ, AUG_U] = 1.0   # input u enters the acceleration
+    aug[AUG_U, AUG_DU] = 1.0   # u' = (u_1 - u_0) / h, constant within the step
     E = expm(aug * h)
-    out = np.empty((2, 4))
-    out[:, :2] = E[:2, :2]
-    out[:, 2] = E[:2, 2] - E[:2, 3] / h
-    out[:, 3] = E[:2, 3] / h
-    return out
+    # the augmented state is (q, dq, u, u'): its first two rows and columns are Phi, the input
+    # columns give the first-order hold's Gamma_0 (weight of u_k) and Gamma_1 (of u_k+1)
+    mat = np.empty((2, 4))
+    mat[:, COL_PHI_Q:COL_PHI_DQ + 1] = E[ROW_Q:ROW_DQ + 1, COL_PHI_Q:COL_PHI_DQ + 1]
+    mat[:, COL_GAMMA0] = E[ROW_Q:ROW_DQ + 1, AUG_U] - E[ROW_Q:ROW_DQ + 1, AUG_DU] / h
+    mat[:, COL_GAMMA1] = E[ROW_Q:ROW_DQ + 1, AUG_DU] / h
+    return mat
 
 
 @njit(cache=True)
@@ -161,10 +173,12 @@ def _propagate(u, mats, q0, dq0, q, dq):  # pragma: no cover - compiled; tested 
     for r in range(R):
         a = q0[r]
         b = dq0[r]
-        q[0, r] = a
-        dq[0, r] = b
-        p00, p01, p10, p11 = mats[r, 0, 0], mats[r, 0, 1], mats[r, 1, 0], mats[r, 1, 1]
-        g00, g01, g10, g11 = mats[r, 0, 2], mats[r, 0, 3], mats[r, 1, 2], mats[r, 1, 3]
+        q[FIRST_SAMPLE, r] = a
+        dq[FIRST_SAMPLE, r] = b
+        p00, p01 = mats[r, ROW_Q, COL_PHI_Q], mats[r, ROW_Q, COL_PHI_DQ]
+        p10, p11 = mats[r, ROW_DQ, COL_PHI_Q], mats[r, ROW_DQ, COL_PHI_DQ]
+        g00, g01 = mats[r, ROW_Q, COL_GAMMA0], mats[r, ROW_Q, COL_GAMMA1]
+        g10, g11 = mats[r, ROW_DQ, COL_GAMMA0], mats[r, ROW_DQ, COL_GAMMA1]
         for t in range(T - 1):
             na = p00 * a + p01 * b + g00 * u[t, r] + g01 * u[t + 1, r]
             nb = p10 * a + p11 * b + g10 * u[t, r] + g11 * u[t + 1, r]
@@ -213,7 +227,8 @@ def modal_response(force: ArrayLike, contact_xy: ArrayLike, dt: float, modes: Pl
     if F.ndim != 2 or xy.shape != (F.shape[1], 2):
         raise ValueError(f"force must be (T, K) and contact_xy (K, 2), got {F.shape} and "
                          f"{xy.shape}")
-    phi = mode_shapes(modes, xy[:, 0], xy[:, 1])  # (R, K)
+    x, y = xy.T
+    phi = mode_shapes(modes, x, y)  # (R, K)
     u = np.ascontiguousarray(F @ phi.T) / modes.modal_mass
     if q0 is None:
         q0 = u[0] / modes.omega**2

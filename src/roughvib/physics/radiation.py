@@ -265,7 +265,10 @@ def modal_pressure(n: ArrayLike, m: ArrayLike, length: float, width: float,
     m = np.atleast_1d(np.asarray(m, dtype=np.int64))
     pts = np.atleast_2d(np.asarray(points, dtype=float))
     f = np.atleast_1d(np.asarray(freqs, dtype=float))
-    if pts.shape[1] != 3 or np.any(pts[:, 2] <= 0):
+    if pts.shape[1] != 3:
+        raise ValueError("points must have shape (M, 3) with z > 0 m")
+    _, _, height = pts.T
+    if np.any(height <= 0):
         raise ValueError("points must have shape (M, 3) with z > 0 m")
     if spacing is None:
         spacing = min(sound_speed / f.max() / 10.0,

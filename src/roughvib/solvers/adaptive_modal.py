@@ -729,9 +729,10 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
         # quiet run the steps are capped by the output grid, so that quadrature error did not
         # shrink with the tolerance (energy audit 1.1e-8 at any rtol on paper without
         # roughness); Simpson's is fourth order (docs/robustness.md, energy audit)
-        iE = off[7]
-        for i in range(6):
-            yb[iE + i] = y[iE + i] + h / 6.0 * (d[2 + i] + 4.0 * dm[2 + i] + db[2 + i])
+        iE = off[kn.OFF_IE]
+        for i in range(kn.N_ENERGY):
+            yb[iE + i] = y[iE + i] + h / 6.0 * (d[D_POWER + i] + 4.0 * dm[D_POWER + i]
+                                                 + db[D_POWER + i])
         for j in range(nstate):
             y[j] = yb[j]
         for j in range(d.size):

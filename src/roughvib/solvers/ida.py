@@ -155,8 +155,10 @@ def layout_problem(cy_solver) -> str | None:
         return f"sksundae._cy_ida.IDA has {size} bytes, not {_CY_IDA_BASICSIZE}"
     pyx = Path(_cy_ida.__file__).with_name("_cy_ida.pyx")
     try:
-        body = pyx.read_text().split("cdef class IDA:", 1)[1]
-    except (OSError, IndexError):
+        _, found, body = pyx.read_text().partition("cdef class IDA:")
+    except OSError:
+        found = ""
+    if not found:
         return f"{pyx.name} (the source that fixes the layout) is not installed"
     first = next((ln.split("#")[0].split() for ln in body.splitlines()
                   if ln.strip().startswith("cdef ")), [])

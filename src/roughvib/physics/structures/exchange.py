@@ -243,10 +243,11 @@ def write_modes(path: str | Path, modes: ModeSet) -> Path:
         path.unlink()  # pyuff appends to an existing file
     uff = pyuff.UFF(str(path))
     num = np.arange(1, modes.nodes.shape[0] + 1)
+    node_x, node_y = modes.nodes.T
     sets = [pyuff.prepare_2411(node_nums=num, def_cs=np.ones(num.size, dtype=int),
                                disp_cs=np.ones(num.size, dtype=int),
-                               color=np.ones(num.size, dtype=int), x=modes.nodes[:, 0],
-                               y=modes.nodes[:, 1], z=np.zeros(num.size), return_full_dict=True)]
+                               color=np.ones(num.size, dtype=int), x=node_x, y=node_y,
+                               z=np.zeros(num.size), return_full_dict=True)]
     zeta = (modes.damping_ratio if modes.damping_ratio is not None
             else np.zeros(len(modes)))
     for r in range(len(modes)):

@@ -60,7 +60,7 @@ class ImportedModes(Structure):
         self.name = (f"imported modes from {source}: {int(keep.sum())} of {len(modes)} modes to "
                      f"{plate.max_frequency:g} Hz at {modes.nodes.shape[0]} nodes")
         span = np.ptp(modes.nodes, axis=0)
-        self._spacing = math.sqrt(float(span[0] * span[1]) / modes.nodes.shape[0]) \
+        self._spacing = math.sqrt(float(np.prod(span)) / modes.nodes.shape[0]) \
             if span.min() > 0 else float(span.max()) / modes.nodes.shape[0]
 
     @classmethod
@@ -84,9 +84,12 @@ class ImportedModes(Structure):
             hull = ConvexHull(self._nodes)
             self._hull = hull.equations
         tol = 1e-9 * max(1.0, float(np.abs(self._nodes).max()))
-        out = np.flatnonzero((pts @ self._hull[:, :2].T + self._hull[:, 2]).max(axis=1) > tol)
-        if out.size:
-            x, y = pts[out[0]]
+        # each facet of the hull is a row (n_x, n_y, c): inside means n . p + c <= 0
+        nx, ny, offsets = self._hull.T
+        normals = np.column_stack([nx, ny])
+        outside = np.flatnonzero((pts @ normals.T + offsets).max(axis=1) > tol)
+        if outside.size:
+            x, y = pts[outside[0]]
             raise SceneError(f"plate.modes_file {self.source}: point ({x:.6g}, {y:.6g}) m lies "
                              f"outside the convex hull of the file's nodes; the block, its "
                              f"contact area and plate.observation_position must lie on the "
@@ -108,7 +111,8 @@ class ImportedModes(Structure):
         for p in range(len(pts)):
             h = max(float(dist[p].max()), 1e-300)
             u = (self._nodes[idx[p]] - pts[p]) / h
-            V = np.column_stack([u[:, 0] ** i * u[:, 1] ** j for i, j in _POWERS])
+            ux, uy = u.T
+            V = np.column_stack([ux ** i * uy ** j for i, j in _POWERS])
             w = (1.0 - (dist[p] / (1.01 * h)) ** 2) ** 2
             coef, *_ = np.linalg.lstsq(V * w[:, None], (values[:, idx[p]] * w).T, rcond=1e-10)
             val[:, p] = coef[0]           # the (0, 0) power
@@ -121,10 +125,12 @@ class ImportedModes(Structure):
         return self._fit(pts, self._set.shapes[which])
 
     def shapes(self, points: ArrayLike) -> np.ndarray:
-        return self._at(points, self._keep)[0]
+        shapes, _ = self._at(points, self._keep)
+        return shapes
 
     def slopes(self, points: ArrayLike) -> np.ndarray:
-        return self._at(points, self._keep)[1]
+        _, slopes = self._at(points, self._keep)
+        return slopes
 
     def max_shape(self) -> np.ndarray:
         return np.abs(self._set.shapes[self._keep]).max(axis=1)

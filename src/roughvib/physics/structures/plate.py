@@ -61,14 +61,13 @@ class SimplySupportedPlate(Structure):
                 self.modes.m * (math.pi / self.plate.width))
 
     def shapes(self, points: ArrayLike) -> np.ndarray:
-        pts = as_points(points)
-        return mode_shapes(self.modes, pts[:, 0], pts[:, 1]) * self._scale
+        x, y = as_points(points).T
+        return mode_shapes(self.modes, x, y) * self._scale
 
     def slopes(self, points: ArrayLike) -> np.ndarray:
-        pts = as_points(points)
+        x, y = as_points(points).T
         a, b = self._k()
-        return (a[:, None] * np.cos(np.outer(a, pts[:, 0])) * np.sin(np.outer(b, pts[:, 1]))
-                * self._scale)
+        return (a[:, None] * np.cos(np.outer(a, x)) * np.sin(np.outer(b, y)) * self._scale)
 
     def residual_compliance(self, points: ArrayLike) -> np.ndarray:
         """Exact: the static Green's function minus the kept modes (physics/plate.py)."""
