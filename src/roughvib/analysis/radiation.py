@@ -289,6 +289,21 @@ class RadiationBands:
         return float(np.nansum(self.sound_power))
 
 
+
+def _window_spectrum(window: slice, samples: int, dt: float, who: str
+                     ) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """Start and stop of the analysis window in a record of ``samples``, its Hann taper
+    (normalised to unit mean square) and the frequencies of its FFT bins [Hz]; ``who`` begins
+    the refusal of a window shorter than 8 samples."""
+    stop = window.stop if window.stop is not None else samples
+    start = window.start or 0
+    n = stop - start
+    if n < 8:
+        raise ValueError(f"{who} an analysis window of >= 8 samples, got {n}")
+    taper = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
+    taper /= math.sqrt(np.mean(taper**2))
+    return start, stop, taper, np.fft.rfftfreq(n, dt)
+
 def radiation_bands(force: ArrayLike, contact_xy: ArrayLike, dt: float, plate: Plate,
                     window: slice, *, q0: ArrayLike | None = None,
                     dq0: ArrayLike | None = None, sides: int = 1,
@@ -345,15 +360,9 @@ def radiation_bands(force: ArrayLike, contact_xy: ArrayLike, dt: float, plate: P
     q0 = None if q0 is None else np.asarray(q0, dtype=float)
     dq0 = None if dq0 is None else np.asarray(dq0, dtype=float)
     F = np.asarray(force, dtype=float)
-    stop = window.stop if window.stop is not None else F.shape[0]
+    start, stop, taper, f = _window_spectrum(window, F.shape[0], dt, "radiation needs")
     F = F[:stop]
-    start = window.start or 0
     n = stop - start
-    if n < 8:
-        raise ValueError(f"radiation needs an analysis window of >= 8 samples, got {n}")
-    taper = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
-    taper /= math.sqrt(np.mean(taper**2))
-    f = np.fft.rfftfreq(n, dt)
     band_of = np.searchsorted(hi, f, side="right")  # bin j in band i when lo_i <= f_j < hi_i
     in_band = (f >= lo[0]) & (f < hi[-1])
     nbins = np.bincount(band_of[in_band], minlength=fc.size)
@@ -516,14 +525,8 @@ def microphone_bands(force: ArrayLike, contact_xy: ArrayLike, dt: float, plate: 
     use = modes.frequency <= mode_factor * hi[-1]
     sub = _subset(modes, use)
     F = np.asarray(force, dtype=float)
-    stop = window.stop if window.stop is not None else F.shape[0]
-    start = window.start or 0
+    start, stop, taper, f = _window_spectrum(window, F.shape[0], dt, "microphones need")
     n = stop - start
-    if n < 8:
-        raise ValueError(f"microphones need an analysis window of >= 8 samples, got {n}")
-    taper = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
-    taper /= math.sqrt(np.mean(taper**2))
-    f = np.fft.rfftfreq(n, dt)
     in_band = (f >= lo[0]) & (f < hi[-1])
     fb = f[in_band]
     idx = np.searchsorted(hi, fb, side="right")
