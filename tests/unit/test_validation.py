@@ -142,6 +142,11 @@ def test_white_noise_floor_marks_the_swamped_bands(run, tmp_path):
     assert t["at_noise_floor"][under].all() and not t["at_noise_floor"][over].any()
     # swamped bands read the floor (within the scatter of a 0.14 s noise record)
     np.testing.assert_allclose(t["measured_db"][under], t["noise_db"][under], atol=1.5)
+    # the largest difference reported (summary, report) is that of the bands above the floor
+    clear = ~t["at_noise_floor"].astype(bool)
+    largest = v.to_summary()["max_abs_difference_db"]
+    assert largest == pytest.approx(t["difference_db"][clear].abs().max())
+    assert largest < t["difference_db"][under].abs().min()
     # a measured noise record instead of the rms: the same bands are marked
     noise = add_noise_floor(np.zeros_like(x), 100000, sigma, seed=2)
     nrec = read_record(_wav(tmp_path / "noise.wav", noise, 100000, 10.0), scale=10.0)

@@ -165,12 +165,17 @@ class Validation:
     notes: list = field(default_factory=list)
     info: dict = field(default_factory=dict)
 
+    def _clear(self) -> np.ndarray:
+        """Which compared bands lie above the noise floor (all of them without a floor)."""
+        t = self.table
+        return (~t["at_noise_floor"].fillna(False).to_numpy(dtype=bool) if self.noise
+                else np.ones(len(t), dtype=bool))
+
     def summary_line(self) -> str:
         """One line: the overall difference, the bands compared and what was left out."""
         t = self.table
         worst = ""
-        clear = (~t["at_noise_floor"].fillna(False).to_numpy(dtype=bool) if self.noise
-                 else np.ones(len(t), dtype=bool))
+        clear = self._clear()
         if clear.any():
             d = np.where(clear, np.abs(t["difference_db"].to_numpy()), -1.0)
             i = int(np.argmax(d))
@@ -199,8 +204,10 @@ class Validation:
             "overall_measured_db": self.overall_measured_db,
             "overall_difference_db": self.overall_difference_db,
             "bands_compared": int(len(self.table)),
-            "max_abs_difference_db": (float(np.max(np.abs(self.table["difference_db"])))
-                                      if len(self.table) else None),
+            # over the bands above the noise floor, as the summary line's largest difference
+            "max_abs_difference_db": (
+                float(np.max(np.abs(self.table["difference_db"].to_numpy()[self._clear()])))
+                if self._clear().any() else None),
             "bands_at_noise_floor": (int(self.table["at_noise_floor"].sum())
                                      if self.noise else None),
             "left_out": [{"band_hz": f, "reason": why} for f, why in self.left_out],

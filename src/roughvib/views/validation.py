@@ -272,7 +272,7 @@ def validation_section(run_dir: str | os.PathLike) -> str | None:
                                             f"{esc(s.get('summary', ''))}"))
     head = ["validation", "record", "signal", "overall difference [dB]",
             "measured [dB re 1e-6 m/s²]", "simulated [dB re 1e-6 m/s²]", "bands",
-            "largest |band difference| [dB]", "bands at noise floor"]
+            "largest |band difference| above the noise floor [dB]", "bands at noise floor"]
     note = ("<p class='note'>difference = measured − simulated, over the bands both cover "
             "(roughvib validate; bands.csv in validation/&lt;name&gt;/ has every band).</p>")
     return table(head, rows) + note + "".join(figs)
