@@ -202,7 +202,9 @@ def _wait_for(path, proc, timeout=240.0):
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
                                            (signal.SIGINT, 130, "interrupted")])
 def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, sig, code, word):
-    sets = ["--set", "output.duration=0.12", "--set", "plate.max_frequency=5000",
+    # long enough (1 s simulated) that the signal, sent once the first checkpoint (0.01 s)
+    # exists, lands in the integration: at 0.12 s the rest of the run could end first
+    sets = ["--set", "output.duration=1.0", "--set", "plate.max_frequency=5000",
             "--set", "output.checkpoint_interval=0.01", "--no-progress", "--quiet"]
     killed = tmp_path / "killed"
     proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
@@ -283,16 +285,20 @@ def test_adaptive_modal_run_killed_at_a_random_time_resumes_identically(tmp_path
 
 def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):
     out = tmp_path / "run"
-    proc = subprocess.Popen(_cli("--out", str(out), "--set", "output.duration=1.0",
+    proc = subprocess.Popen(_cli("--out", str(out), "--set", "output.duration=20.0",
                                  "--set", "plate.max_frequency=5000", "--quiet"),
                             stderr=subprocess.PIPE, text=True)
-    # stderr is a pipe, so the progress comes as whole lines (one per tenth of the run): the
-    # first one says the integration runs, and the interrupt lands there, however slow the
-    # machine (a fixed sleep could land in the imports, before any handler is installed)
+    # stderr is a pipe, so the progress comes as whole lines (at a tenth of the run, at most
+    # one every 5 s): the first one says the integration runs, and the interrupt lands there,
+    # however slow the machine (a fixed sleep could land in the imports, before any handler
+    # is installed). The run is long (20 s simulated, ~20 s of work) so that the first line
+    # comes before its end: a run shorter than the 5 s gap shows only its 100 % line, and the
+    # interrupt could then land after the files were written
     first, deadline = "", time.monotonic() + 240
     while " s sim (" not in first:
         assert proc.poll() is None and time.monotonic() < deadline, first
         first = proc.stderr.readline()
+    assert "(100 %)" not in first, f"the run ended before the test could interrupt it: {first}"
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
