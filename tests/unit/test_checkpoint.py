@@ -191,6 +191,16 @@ def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 
 
+def _sigint_as_on_a_terminal():
+    """In the child before exec: SIGINT at its default, as for a command run in the foreground.
+
+    A process started in the background by a non-interactive shell (``pytest ... &``, some CI
+    runners) inherits SIGINT ignored, and Python then leaves it ignored (the Unix convention
+    for background jobs, which roughvib keeps); the tests of Ctrl-C must not depend on how the
+    test run itself was started."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _wait_for(path, proc, timeout=240.0):
     t0 = time.monotonic()
     while not path.exists():
@@ -208,7 +218,8 @@ def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, s
             "--set", "output.checkpoint_interval=0.01", "--no-progress", "--quiet"]
     killed = tmp_path / "killed"
     proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                            preexec_fn=_sigint_as_on_a_terminal)
     _wait_for(killed / CHECKPOINT_NAME, proc)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
@@ -287,7 +298,8 @@ def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):
     out = tmp_path / "run"
     proc = subprocess.Popen(_cli("--out", str(out), "--set", "output.duration=20.0",
                                  "--set", "plate.max_frequency=5000", "--quiet"),
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_sigint_as_on_a_terminal)
     # stderr is a pipe, so the progress comes as whole lines (at a tenth of the run, at most
     # one every 5 s): the first one says the integration runs, and the interrupt lands there,
     # however slow the machine (a fixed sleep could land in the imports, before any handler
