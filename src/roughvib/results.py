@@ -577,6 +577,19 @@ def _check_shape(summary: dict, path: Path) -> None:
                                 f"({', '.join(n for n in RUN_FILES if n != 'summary.json')})")
 
 
+def _read_run_text(path: Path, what: str) -> str:
+    """The text of a run directory's file, or one line naming it (unreadable, not UTF-8).
+
+    ``what`` names the file's kind in the message ("summary", "scene")."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise RunDirectoryError(f"{path} cannot be read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise RunDirectoryError(f"{path} is not UTF-8 text (not a {what} roughvib wrote)"
+                                ) from None
+
+
 def read_summary(directory: str | os.PathLike) -> dict:
     """Read and check ``summary.json`` of a run directory.
 
@@ -607,13 +620,9 @@ def read_summary(directory: str | os.PathLike) -> dict:
     path = d / "summary.json"
     if not path.is_file():
         raise FileNotFoundError(f"{d} is not a roughvib result directory (no summary.json)")
+    text = _read_run_text(path, "summary")
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise RunDirectoryError(f"{path} cannot be read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise RunDirectoryError(f"{path} is not UTF-8 text (not a summary roughvib wrote)"
-                                ) from None
+        summary = json.loads(text)
     except json.JSONDecodeError as exc:
         raise RunDirectoryError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno} "
                                 f"column {exc.colno})") from None
@@ -704,14 +713,9 @@ def _read_scene_toml(d: Path) -> str:
     path = d / "scene.toml"
     if not path.exists():
         return ""
+    text = _read_run_text(path, "scene")
     try:
-        text = path.read_text(encoding="utf-8")
         tomllib.loads(text)
-    except OSError as exc:
-        raise RunDirectoryError(f"{path} cannot be read: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise RunDirectoryError(f"{path} is not UTF-8 text (not a scene roughvib wrote)"
-                                ) from None
     except tomllib.TOMLDecodeError as exc:
         raise RunDirectoryError(f"{path} is not valid TOML ({_short(exc)})") from None
     return text
