@@ -109,39 +109,28 @@ def _foh_matrices(modes: PlateModes, dt: float) -> np.ndarray:
     """Exact one-step propagation of each mode under a force linear within the step.
 
     Returns ``(R, 2, 4)``: [Phi | Gamma_0 | Gamma_1] with x_(k+1) = Phi x_k + Gamma_0 u_k +
-    Gamma_1 u_(k+1), x = (q, dq), u the modal force per modal mass [m/s^2].
-
-    With A = [[0, 1], [-omega^2, -2 zeta omega]], B = (0, 1), J0 = int_0^h e^(As) ds and
-    J1 = int_0^h s e^(As) ds: Phi = e^(Ah), Gamma_0 = J1 B / h, Gamma_1 = J0 B - J1 B / h.
-    Evaluated through the eigenvalues lambda = -zeta omega +- i omega sqrt(1 - zeta^2) of A
-    (distinct unless zeta = 1, where the matrix exponential is used).
+    Gamma_1 u_(k+1), x = (q, dq), u the modal force per modal mass [m/s^2]: the step maps of
+    the adaptive exact-modal solver (:func:`roughvib.solvers.adaptive_modal.step_maps`, tested
+    against scipy's expm), and the matrix exponential for a critically damped mode (zeta = 1,
+    ``plate.loss_factor`` = 2), which those maps do not take.
     """
+    from roughvib.solvers.adaptive_modal import step_maps
+
     w = modes.omega
     z = modes.damping_ratio
-    disc = np.sqrt((z * z - 1.0).astype(complex)) * w
-    lp, lm = -z * w + disc, -z * w - disc
-    h = dt
-    mats = np.empty((len(modes), 2, 4))
-    ok = np.abs(lp - lm) > 1e-6 * w
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ep, em = np.exp(lp * h), np.exp(lm * h)
-        d = lm - lp
-        j0p, j0m = (ep - 1.0) / lp, (em - 1.0) / lm
-        j1p, j1m = h * ep / lp - (ep - 1.0) / lp**2, h * em / lm - (em - 1.0) / lm**2
-
-        def apply_b(fp, fm):  # f(A) B = [f(lm) - f(lp), lm f(lm) - lp f(lp)] / (lm - lp)
-            return ((fm - fp) / d).real, ((lm * fm - lp * fp) / d).real
-
-        mats[:, ROW_Q, COL_PHI_Q] = ((lm * ep - lp * em) / d).real
-        mats[:, ROW_Q, COL_PHI_DQ] = ((em - ep) / d).real
-        mats[:, ROW_DQ, COL_PHI_Q] = ((lp * lm * (ep - em)) / d).real
-        mats[:, ROW_DQ, COL_PHI_DQ] = ((lm * em - lp * ep) / d).real
-        j0q, j0v = apply_b(j0p, j0m)
-        j1q, j1v = apply_b(j1p, j1m)
-    mats[:, ROW_Q, COL_GAMMA0], mats[:, ROW_DQ, COL_GAMMA0] = j1q / h, j1v / h
-    mats[:, ROW_Q, COL_GAMMA1], mats[:, ROW_DQ, COL_GAMMA1] = j0q - j1q / h, j0v - j1v / h
-    for r in np.flatnonzero(~ok):  # critically damped: no distinct eigenvalues
-        mats[r] = _foh_expm(w[r], z[r], h)
+    R = len(modes)
+    under = np.sqrt(np.clip(1.0 - z * z, 0.0, None)) > 5e-7  # distinct complex eigenvalues
+    mats = np.empty((R, 2, 4))
+    idx = np.flatnonzero(under)
+    if idx.size:
+        P, g0, g1 = np.empty((idx.size, 2, 2)), np.empty((idx.size, 2)), np.empty((idx.size, 2))
+        step_maps(np.ascontiguousarray(w[idx] ** 2),
+                  np.ascontiguousarray(2.0 * z[idx] * w[idx]), float(dt), P, g0, g1)
+        mats[idx, :, COL_PHI_Q:COL_PHI_DQ + 1] = P
+        mats[idx, :, COL_GAMMA0] = g0
+        mats[idx, :, COL_GAMMA1] = g1
+    for r in np.flatnonzero(~under):  # critically damped: no distinct eigenvalues
+        mats[r] = _foh_expm(w[r], z[r], dt)
     return mats
 
 
