@@ -544,6 +544,8 @@ _SUMMARY_SHAPE: dict[str, str] = {
     "calibration.target_rms_velocity": "num?", "calibration.achieved_rms_velocity": "num?",
     "model.modes": "int", "model.contacts": "int", "model.states": "int",
     "model.contact_stiffness_total": "num?", "model.contact": "dict?", "model.profile": "dict",
+    "model.residual_compliance": "dict?", "model.residual_compliance.source": "str?",
+    "model.residual_compliance.largest": "num?",
     "events_by_kind.*": "int", "metrics.*": "num?", "energy_audit.*": "num?",
     "warnings.[]": "str", "last_events.[]": "dict", "partial_result.t_end": "num?",
     "accuracy.verdict": "str?", "accuracy.failures": "list",

@@ -170,6 +170,16 @@ def _provenance(scene: Scene, scene_toml: str) -> dict:
     return attrs
 
 
+def _residual_summary(system: System) -> dict:
+    """The summary's ``model.residual_compliance``: where it came from (one line, with its
+    truncation error for imported modes) and its largest value at the contacts [m/N]."""
+    plate = system.scene.plate
+    if not plate.residual_compliance:
+        return {"source": "off (plate.residual_compliance = false)", "largest": 0.0}
+    return {"source": system.structure.residual,
+            "largest": float(np.max(np.diag(system.cres))) if system.cres.size else 0.0}
+
+
 def _metrics(system: System, ds: RunData) -> dict:
     scene = system.scene
     t = ds["time"]
@@ -330,6 +340,7 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
         "force_amplitude": system.force_amplitude,
         "calibration": system.calibration,
         "model": {"modes": system.n_modes, "structure": system.structure.name,
+                  "residual_compliance": _residual_summary(system),
                   "contact_patch": system.scene.contact.patch,
                   "contacts": system.n_contacts,
                   "states": system.layout.size,

@@ -413,6 +413,10 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     contact_xy = np.column_stack([x0 + (spos - profile.s_centre), np.full(K, y0)])
 
     structure = build_structure(plt, scene.base_dir)
+    for note in structure.notes:  # e.g. imported modes that give no residual compliance
+        notes.append(note)
+        if warn:
+            warnings.warn(note, ModelValidityWarning, stacklevel=user_stacklevel())
     obs = np.array([plt.observation_position])
     if scene.contact.patch == "area":
         # every contact force spread evenly over the block's nominal contact area, which stays

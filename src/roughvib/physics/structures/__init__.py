@@ -16,11 +16,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from roughvib.physics.structures.base import Structure
-from roughvib.physics.structures.imported import ImportedModes
+from roughvib.physics.structures.imported import EXPORT_FACTOR, ImportedModes
 from roughvib.physics.structures.plate import RigidBase, SimplySupportedPlate
 from roughvib.scene import Plate
 
-__all__ = ["STRUCTURES", "Structure", "build_structure", "default_grid", "export_modes"]
+__all__ = ["EXPORT_FACTOR", "STRUCTURES", "Structure", "build_structure", "default_grid",
+           "export_modes"]
 
 #: ``plate.kind`` -> builder ``(plate, base_dir) -> Structure``
 STRUCTURES: dict[str, Callable[[Plate, Path], Structure]] = {
@@ -73,11 +74,17 @@ def export_modes(plate: Plate, base_dir: str | Path = ".", *,
         The scene file's folder (for ``plate.modes_file``).
     grid : (int, int), optional
         Nodes along x and y, uniform over [0, plate.length] x [0, plate.width], edges
-        included. Default: :func:`default_grid` for the built-in plate, the file's own nodes
-        for imported modes.
+        included. Default: :func:`default_grid` of the scene's plate (ten nodes per shortest
+        bending wavelength of the *simulated* modes, to ``plate.max_frequency``: the modes
+        above it only enter the residual compliance, where the interpolation error of the
+        coarser sampling is negligible) for the built-in plate, the file's own nodes for
+        imported modes.
     max_frequency : float, optional
-        Export the modes up to this frequency [Hz] instead of ``plate.max_frequency`` (modes
-        above the scene's cut then feed the imported structure's residual compliance).
+        Export the modes up to this frequency [Hz]. Default: :data:`EXPORT_FACTOR` (2) times
+        ``plate.max_frequency``. The modes above the scene's cut are not simulated by a scene
+        that imports the file with the same cut; they give its residual compliance
+        (docs/structures.md). ``plate.max_frequency`` itself exports the simulated modes
+        only.
 
     Returns
     -------
@@ -97,8 +104,9 @@ def export_modes(plate: Plate, base_dir: str | Path = ".", *,
 
     if plate.kind == "rigid":
         raise SceneError("plate.kind = 'rigid' has no modes to export, got 'rigid'")
-    if max_frequency is not None:
-        plate = dataclasses.replace(plate, max_frequency=float(max_frequency))
+    scene_plate = plate
+    fmax = EXPORT_FACTOR * plate.max_frequency if max_frequency is None else max_frequency
+    plate = dataclasses.replace(plate, max_frequency=float(fmax))
     structure = build_structure(plate, base_dir)
     if structure.n_modes == 0:
         raise SceneError(f"plate.max_frequency leaves no mode to export, got "
@@ -106,7 +114,7 @@ def export_modes(plate: Plate, base_dir: str | Path = ".", *,
     if grid is None and isinstance(structure, ImportedModes):
         nodes = structure.nodes
     else:
-        nx, ny = grid if grid is not None else default_grid(plate)
+        nx, ny = grid if grid is not None else default_grid(scene_plate)
         if min(nx, ny) < 2:
             raise SceneError(f"--grid must have at least 2 nodes along x and y, got {nx} {ny}")
         X, Y = np.meshgrid(np.linspace(0.0, plate.length, int(nx)),

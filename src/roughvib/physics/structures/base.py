@@ -78,10 +78,19 @@ class Structure(ABC):
         Whether the structure defines a radiating surface (a plate in a baffle: sound power
         from the surface velocity). No output of roughvib uses it yet; a structure without a
         surface (a rigid base, modes known only at points) says ``False``.
+    residual : str
+        One line on the residual compliance it gives and its truncation error, for the run
+        summary (``summary["model"]["residual_compliance"]``); ``"none"`` when it gives none.
+    notes : tuple of str
+        One-line validity notes (a residual compliance that is missing although
+        ``plate.residual_compliance`` asks for one); assembly issues them as
+        :class:`~roughvib.scene.ModelValidityWarning` and keeps them in the summary.
     """
 
     name: str = ""
     radiation: bool = False
+    residual: str = "none"
+    notes: tuple[str, ...] = ()
     omega: np.ndarray
     damping_ratio: np.ndarray
 

@@ -21,7 +21,15 @@ from roughvib.physics.structures.base import Structure, as_points
 from roughvib.physics.structures.exchange import ModeSet, read_modes
 from roughvib.scene import Plate, SceneError
 
-__all__ = ["ImportedModes", "NEIGHBOURS"]
+__all__ = ["EXPORT_FACTOR", "ImportedModes", "NEIGHBOURS"]
+
+#: ``roughvib modes export`` (:func:`~roughvib.physics.structures.export_modes`) writes the
+#: modes up to this many times ``plate.max_frequency``: those above the cut are not simulated
+#: by the scene that imports the file but give its residual compliance. For a thin plate the
+#: sum over the modes to N times the cut holds 1 - 1/N of the exact residual (the modal density
+#: is constant, the terms fall as 1/omega^2); 2 halves the event-time error of the paper run
+#: that no residual leaves (1.07e-6 s to 5.5e-7 s, docs/structures.md) for twice the file.
+EXPORT_FACTOR = 2.0
 
 #: nodes in each local fit (a full cubic in x, y has 10 coefficients)
 NEIGHBOURS = 20
@@ -59,6 +67,7 @@ class ImportedModes(Structure):
         self._hull = None
         self.name = (f"imported modes from {source}: {int(keep.sum())} of {len(modes)} modes to "
                      f"{plate.max_frequency:g} Hz at {modes.nodes.shape[0]} nodes")
+        self.residual, self.notes = self._describe_residual(plate)
         span = np.ptp(modes.nodes, axis=0)
         self._spacing = math.sqrt(float(np.prod(span)) / modes.nodes.shape[0]) \
             if span.min() > 0 else float(span.max()) / modes.nodes.shape[0]
@@ -140,6 +149,25 @@ class ImportedModes(Structure):
         return int(np.clip(2 * math.ceil(max(size) / self._spacing) + 2, 8, 48))
 
     # ---- residual compliance from the file's modes above max_frequency ------------------
+    def _describe_residual(self, plate: Plate) -> tuple[str, tuple[str, ...]]:
+        """The summary's line on the residual compliance and the validity notes."""
+        cut = plate.max_frequency
+        extra = self._set.frequency[~self._keep]
+        if extra.size == 0:
+            note = (f"plate.modes_file {self.source} holds no modes above plate.max_frequency "
+                    f"= {cut:g} Hz, so the imported structure has no residual compliance (the "
+                    f"static compliance of the modes left out); write modes beyond the cut "
+                    f"into the file ('roughvib modes export' writes them to "
+                    f"{EXPORT_FACTOR:g} x plate.max_frequency)")
+            return (f"none: the file holds no modes above plate.max_frequency = {cut:g} Hz",
+                    (note,) if plate.residual_compliance else ())
+        ratio = cut / float(extra[-1])
+        return (f"the file's {extra.size} modes from {extra[0]:.6g} to {extra[-1]:.6g} Hz "
+                f"(above plate.max_frequency = {cut:g} Hz), sum of phi_r(a) phi_r(b) / "
+                f"omega_r^2; the modes above {extra[-1]:.6g} Hz are missing from it: about "
+                f"f_cut/f_last = {ratio:.2g} of the full residual for a thin plate, "
+                f"(f_cut/f_last)^1.5 = {ratio ** 1.5:.2g} for a beam"), ()
+
     def _extra(self) -> np.ndarray:
         return ~self._keep
 
