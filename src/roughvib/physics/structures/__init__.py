@@ -80,7 +80,7 @@ def export_modes(plate: Plate, base_dir: str | Path = ".", *,
         coarser sampling is negligible) for the built-in plate, the file's own nodes for
         imported modes.
     max_frequency : float, optional
-        Export the modes up to this frequency [Hz]. Default: :data:`EXPORT_FACTOR` (2) times
+        Export the modes up to this frequency [Hz]. Default: ``EXPORT_FACTOR`` (2) times
         ``plate.max_frequency``. The modes above the scene's cut are not simulated by a scene
         that imports the file with the same cut; they give its residual compliance
         (docs/structures.md). ``plate.max_frequency`` itself exports the simulated modes
