@@ -182,7 +182,7 @@ def test_scene_and_solvers_refuse_what_they_cannot_do(tmp_path, monkeypatch):
                                                 "friction.table": "missing.csv"}).friction)
     sc = _table_scene(tmp_path, [0.0, 1.0], [0.3, 0.3], **{
         "excitation.force_amplitude": 1.0, "output.duration": 0.15})
-    for method in ("adaptive-modal", "exact-modal", "paper"):
+    for method in ("exact-modal", "paper"):
         with pytest.raises(SceneError, match=r"supports friction.law = 'feldmann' only.*got "
                                              r"'table'$") as info:
             simulate(sc.with_overrides({"solver.method": method, "solver.step": 1e-5}))
