@@ -303,7 +303,7 @@ def friction_force(t, y, vx, fsum, off, fp, reg):
 
 
 @njit(cache=True)
-def holds_stick(off, reg):
+def _holds_stick(off, reg):
     """Whether the block is held in the stick regime of a set-valued law (v = 0, no unknown)."""
     return kn.set_valued(off) and reg[kn.REG_B] == 0
 
@@ -407,7 +407,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     beta = h * h / (4.0 * m * cz)
     force_driven = ix >= 0
     # the stick of a set-valued law holds the block: no tangential unknown
-    sliding = force_driven and not holds_stick(off, reg)
+    sliding = force_driven and not _holds_stick(off, reg)
     x0 = 0.0
     v0 = 0.0
     if force_driven:
