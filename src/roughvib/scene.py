@@ -877,12 +877,12 @@ class Solver:
     Attributes
     ----------
     method : {"auto", "ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau"}
-        ``auto`` (default): ``adaptive-modal`` where it can run (the Feldmann law or prescribed
-        motion, underdamped plate modes), otherwise ``ida`` (e.g. ``friction.law =
-        "coulomb"``); :meth:`Scene.resolved_solver` makes the choice.
+        ``auto`` (default): ``adaptive-modal`` where it can run (underdamped plate modes),
+        otherwise ``ida`` (``plate.loss_factor >= 2``); :meth:`Scene.resolved_solver` makes
+        the choice.
         ``ida``: event-driven adaptive DAE solver (SUNDIALS IDA). ``adaptive-modal``: exact
         per-mode propagation with error-controlled dyadic steps (step doubling, IDA's
-        tolerances) and located events (Feldmann law or prescribed motion). Fixed-step
+        tolerances) and located events (every friction law, or prescribed motion). Fixed-step
         baselines (step ``solver.step``): ``exact-modal`` exact per-mode propagation with
         piecewise-linear force and an implicit contact/block step; ``newmark``
         average-acceleration Newmark on the modal model; ``paper`` the paper's scheme:
@@ -1199,14 +1199,13 @@ class Scene:
         given explicitly (:meth:`Solver.resolved`).
 
         ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
-        docs/accuracy.md) unless the scene needs what only ``ida`` offers: the set-valued
-        Coulomb law or overdamped plate modes (``plate.loss_factor >= 2``).
+        docs/accuracy.md; every friction law) unless the scene needs what only ``ida``
+        offers: overdamped plate modes (``plate.loss_factor >= 2``).
         """
         s = self.solver
         if s.method != "auto":
             return s.resolved()
-        needs_ida = (self.friction.law in SET_VALUED_LAWS
-                     or (self.plate.kind == "modal" and self.plate.loss_factor >= 2.0))
+        needs_ida = self.plate.kind == "modal" and self.plate.loss_factor >= 2.0
         return s.resolved("ida" if needs_ida else "adaptive-modal")
 
     @property

@@ -85,6 +85,7 @@ def _phases(result):
     return [(k, t) for k, t in zip(ev["kind"], ev["time"], strict=True) if k in ("stick", "slip")]
 
 
+@pytest.mark.parametrize("method", ["auto", "ida"])
 @pytest.mark.parametrize("T0,mu_st,mu_sl,r2", [
     (0.95, 0.40, 0.30, 0.5),   # mu ratio 4/3, break-away 9 % below the force peak
     (1.30, 0.40, 0.30, 0.5),   # larger force: short stick phases
@@ -92,15 +93,16 @@ def _phases(result):
     (1.10, 0.50, 0.25, 0.5),   # mu ratio 2, force 1.5 % above the break-away bound
     (0.80, 0.40, 0.30, 0.5),   # below the bound: stick from t = 0, for ever
 ])
-def test_stick_slip_times_match_closed_form_at_default_settings(T0, mu_st, mu_sl, r2):
-    """IDA at its default settings (tolerances, no switching hysteresis, no dwell, chatter
-    guard armed): every phase start, the initial one at t = 0 included, within 1e-6 s of the
-    closed form, and no guard acts."""
+def test_stick_slip_times_match_closed_form_at_default_settings(T0, mu_st, mu_sl, r2, method):
+    """The default solver (``auto``: adaptive-modal) and IDA at their default settings
+    (tolerances, no switching hysteresis, no dwell, chatter guard armed): every phase start,
+    the initial one at t = 0 included, within 1e-6 s of the closed form, and no guard acts."""
     t_end = 2.0 / 7.0
     r = simulate(_scene(**{"excitation.force_amplitude": T0, "friction.mu_stick": mu_st,
                            "friction.mu_slip": mu_sl, "block.tangential_damping": r2,
-                           "output.duration": t_end}))
+                           "output.duration": t_end, "solver.method": method}))
     assert r.ok, r.summary["message"]
+    assert r.summary["solver"]["method"] == ("adaptive-modal" if method == "auto" else method)
     ref = _closed_form_phases(T0, mu_st, mu_sl, r2, t_end)
     got = _phases(r)
     assert [k for k, _ in got] == [k for k, _ in ref], (got, ref)

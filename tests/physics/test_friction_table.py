@@ -53,15 +53,17 @@ def test_every_registered_law_is_a_scene_choice():
 ])
 def test_flat_table_is_the_coulomb_law(tmp_path, monkeypatch, T0, mu_st, mu_sl, r2):
     """A flat curve mu(v) = mu_slip: every stick and slip start within 1e-6 s of the closed
-    form of the Coulomb law (the limit of the accuracy contract), stick exactly at v = 0."""
+    form of the Coulomb law (the limit of the accuracy contract), stick exactly at v = 0, with
+    IDA (adaptive-modal, the default: tests/physics/test_adaptive_modal_setvalued.py)."""
     monkeypatch.chdir(tmp_path)
     t_end = 2.0 / 7.0
     sc = _table_scene(tmp_path, [0.0, 1.0], [mu_sl, mu_sl], **{
         "excitation.force_amplitude": T0, "friction.mu_stick": mu_st,
-        "friction.mu_slip": mu_sl, "block.tangential_damping": r2, "output.duration": t_end})
+        "friction.mu_slip": mu_sl, "block.tangential_damping": r2, "output.duration": t_end,
+        "solver.method": "ida"})
     r = simulate(sc)
     assert r.ok, r.summary["message"]
-    assert r.summary["solver"]["method"] == "ida"  # auto: the set-valued law needs IDA
+    assert r.summary["solver"]["method"] == "ida"
     ref = _closed_form_phases(T0, mu_st, mu_sl, r2, t_end)
     got = _phases(r)
     assert [k for k, _ in got] == [k for k, _ in ref]
@@ -182,7 +184,7 @@ def test_scene_and_solvers_refuse_what_they_cannot_do(tmp_path, monkeypatch):
                                                 "friction.table": "missing.csv"}).friction)
     sc = _table_scene(tmp_path, [0.0, 1.0], [0.3, 0.3], **{
         "excitation.force_amplitude": 1.0, "output.duration": 0.15})
-    for method in ("adaptive-modal", "exact-modal", "paper"):
+    for method in ("exact-modal", "paper"):
         with pytest.raises(SceneError, match=r"supports friction.law = 'feldmann' only.*got "
                                              r"'table'$") as info:
             simulate(sc.with_overrides({"solver.method": method, "solver.step": 1e-5}))

@@ -113,11 +113,81 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
                                    atol=1e-9 * np.max(np.abs(ref)))
 
 
-def test_coulomb_law_is_refused_with_a_one_line_error():
+def test_a_law_that_does_not_name_the_solver_is_refused_in_one_line(monkeypatch):
+    """Every built-in law runs with adaptive-modal; a law whose registry entry does not name it
+    (here the Coulomb law with adaptive-modal struck out) is refused before anything runs."""
+    from dataclasses import replace
+
+    from roughvib.physics.friction import LAWS
+
+    assert all("adaptive-modal" in law.solvers for law in LAWS.values())
+    monkeypatch.setitem(LAWS, "coulomb", replace(LAWS["coulomb"], solvers=("ida", "moreau")))
     over = {"solver.method": "adaptive-modal", "friction.law": "coulomb",
             "output.duration": 1e-3, "output.progress": False}
-    with pytest.raises(SceneError, match="friction.law"):
+    with pytest.raises(SceneError, match=r"^solver.method = 'adaptive-modal' supports "
+                                         r"friction.law = 'feldmann' or 'table' only "
+                                         r"\(friction.law = 'coulomb' needs one of 'ida', "
+                                         r"'moreau'\), got 'coulomb'$") as info:
         simulate(roughvib.load_scene("paper-handset", over))
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("law,branch", [("feldmann", 1), ("feldmann", -1), ("coulomb", 0),
+                                        ("coulomb", 1), ("coulomb", -1), ("table", 0),
+                                        ("table", 1), ("table", -1)])
+def test_derivatives_match_the_residual_for_every_law_and_regime(tmp_path, monkeypatch, law,
+                                                                 branch):
+    """``derivatives`` (block accelerations, energy powers) against the DAE residual of
+    ``kernels.residual`` at a consistent state of every law and regime (stick: branch 0 of a
+    set-valued law, where the friction force holds the block and does no work)."""
+    from dataclasses import replace
+
+    from roughvib.model import kernels as kn
+    from roughvib.model.system import assemble
+    from roughvib.solvers.adaptive_modal import D_AX, D_AZ, D_POWER, N_D, derivatives
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "curve.csv").write_text("velocity,mu\n0,0.38\n0.002,0.34\n0.01,0.30\n"
+                                        "0.1,0.32\n")
+    over = {**SMALL_SCENE, "friction.law": law, "contact.velocity_factor": False,
+            "output.progress": False}
+    if law == "table":
+        over["friction.table"] = "curve.csv"
+    if law == "coulomb":
+        over["friction.stribeck_velocity"] = 3e-3
+    scene = replace(roughvib.load_scene("paper", over), base_dir=str(tmp_path))
+    system = assemble(scene)
+    lay = system.layout
+    rng = np.random.default_rng(7)
+    y, closed = system.static_equilibrium()
+    reg, rf = system.new_regime_arrays()
+    reg[kn.REG_B] = branch
+    reg[kn.REG_S] = -1
+    reg[kn.REG_CLOSED:] = closed
+    y[lay.slice("plate.dq")] = 1e-4 * rng.standard_normal(system.n_modes)
+    y[lay.index("block.vz")] = 2e-4
+    y[lay.index("block.x")] = 3e-4
+    y[lay.index("block.vx")] = 0.004 * branch + (0.0007 if law == "feldmann" else 0.0)
+    t = 0.0123
+    y, yp = system.consistent(t, y, reg, rf)
+    off, fp, _omega2, cdamp, _phi, _phi_obs, _stiff, _cres, spos, prof, _r, _f, _w = \
+        system.kernel_args(reg, rf)
+    d = np.zeros(N_D)
+    derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
+    assert d[D_AZ] == pytest.approx(yp[lay.index("block.vz")], rel=1e-14)
+    assert d[D_AX] == pytest.approx(yp[lay.index("block.vx")], rel=1e-13, abs=1e-15)
+    e = lay.slice("energy.excitation_work").start
+    np.testing.assert_allclose(d[D_POWER:D_POWER + kn.N_ENERGY], yp[e:e + kn.N_ENERGY],
+                               rtol=1e-13, atol=1e-300)
+    if branch == 0:  # stick: held, no acceleration, no work of the drive or the friction
+        assert d[D_AX] == 0.0
+        assert d[D_POWER + kn.E_FRICTION] == 0.0 and d[D_POWER + kn.E_EXCITATION] == 0.0
+    elif law != "feldmann":  # slip: the kinetic curve in the direction of sliding
+        fsum = float(np.sum(y[lay.slice("contact.force")]))
+        mu_k, _ = kn.kinetic(0.004, off, fp)
+        texc = fp[kn.FP_T0] * np.cos(fp[kn.FP_OMEGA] * t)
+        expect = (texc - branch * mu_k * fsum - fp[kn.FP_R2] * 0.004 * branch) / fp[kn.FP_MASS]
+        assert d[D_AX] == pytest.approx(expect, rel=1e-12)
 
 
 

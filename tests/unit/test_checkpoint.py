@@ -268,6 +268,27 @@ def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_pa
     assert a.summary["solver"]["steps"] == c.summary["solver"]["steps"]
 
 
+def test_adaptive_modal_resumes_a_coulomb_stick_phase_identically(tmp_path):
+    """The set-valued law's regime (stick, the friction force that holds the block) is part of
+    the checkpoint: resumed in the middle of a stick phase, the run is bit-identical to one
+    without checkpoints."""
+    scene = roughvib.load_scene("paper", {**FAST, "solver.method": "adaptive-modal",
+                                          "friction.law": "coulomb", "output.duration": 0.05,
+                                          "output.checkpoint_interval": 0.02})
+    a = simulate(scene, checkpoint_dir=tmp_path)
+    assert a.ok and a.summary["solver"]["checkpoints"] == 2
+    cp = read_checkpoint(tmp_path)
+    assert cp.regime.stick and cp.regime.branch == 0  # resumed while the block sticks
+    b = resume(tmp_path)
+    assert b.summary["solver"]["resumes"] == 1
+    _assert_identical(a, b)
+    c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
+    for v in a.dataset.data_vars:
+        np.testing.assert_array_equal(a.dataset[v].values, c.dataset[v].values, err_msg=v)
+    pd.testing.assert_frame_equal(a.events, c.events)
+    assert list(a.events["kind"]) == ["slip", "stick"]
+
+
 def test_adaptive_modal_run_killed_at_a_random_time_resumes_identically(tmp_path):
     """SIGKILL (no handler runs, a checkpoint may be half-written) at a random time after the
     first checkpoint: the resumed run equals an uninterrupted one bit for bit."""

@@ -105,8 +105,10 @@ LAWS = {
                             ("ida", "adaptive-modal", "exact-modal", "newmark", "paper")),
     # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
     # mu_slip / mu_stick), so that its runs stay bit-identical
-    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, True, "feldmann", ("ida", "moreau")),
-    "table": FrictionLaw("table", LAW_TABLE, True, "set-valued", ("ida", "moreau")),
+    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, True, "feldmann",
+                           ("ida", "adaptive-modal", "moreau")),
+    "table": FrictionLaw("table", LAW_TABLE, True, "set-valued",
+                         ("ida", "adaptive-modal", "moreau")),
 }
 
 

@@ -33,8 +33,15 @@ Propagators: for omega h > 1 the closed form of the damped oscillator; below, a 
 (20 terms) of the same matrix exponential, because the closed form's ``1 - cos`` terms lose
 all digits for omega h -> 0 (both branches are tested against scipy's expm).
 
-Limits: the Feldmann law or prescribed motion (the set-valued Coulomb law needs ``ida`` or
-``moreau``); underdamped modes (plate loss factor < 2).
+Friction: every law of :data:`roughvib.physics.friction.LAWS` (or prescribed motion). The
+Feldmann law is a smooth function of the velocity in each branch. A set-valued law
+(``coulomb``, ``table``) slides with its kinetic curve and its exact slope in the Newton row
+of the velocity; in its stick regime the block is held (v = 0, x fixed, no tangential unknown)
+and the friction force is the algebraic ``friction.force`` that holds it. Break-away, velocity
+zero and the guards' timers are the roots of :func:`roughvib.model.kernels.events`, switched by
+the same :class:`~roughvib.solvers.events.EventBook` as IDA's.
+
+Limits: underdamped modes (plate loss factor < 2).
 """
 
 from __future__ import annotations
@@ -52,7 +59,7 @@ from numba import njit
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.model.system import System
-from roughvib.physics.friction import feldmann_mu
+from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers.checkpoint import (
@@ -254,11 +261,61 @@ def modal_force(F, u, phiT, M):
 
 
 @njit(cache=True)
+def friction_force(t, y, vx, fsum, off, fp, reg):
+    """Friction force on the block [N] and its slopes, for the scene's law and regime.
+
+    The force is the one of :func:`.kernels.residual`: the Feldmann law ``mu(v + s v_h) F_N``
+    of the branch and latch; a set-valued law in slip b ``b mu_k(b v) F_N`` (the law's kinetic
+    curve, :func:`.kernels.kinetic`), in stick ``T_exc - r2 v``, whatever holds the block
+    (:func:`.kernels.coulomb_friction`).
+
+    Parameters
+    ----------
+    t : float
+        Time [s].
+    y : ndarray, shape (n_states,)
+        State; only the stick force of a set-valued law reads it (its ``block.vx``).
+    vx, fsum : float
+        Tangential velocity [m/s] and normal force (sum of the contact forces) [N] at which
+        the kinetic force is evaluated.
+    off, fp, reg : ndarray
+        The kernels' header, scalars and regime.
+
+    Returns
+    -------
+    fric : float
+        [N].
+    dfric_dv : float
+        d fric / d vx at fixed normal force [N s/m] (0 in stick: vx is no unknown there).
+    dfric_dfn : float
+        d fric / d fsum [-]: the signed friction coefficient (0 in stick).
+    """
+    if kn.set_valued(off):
+        b = reg[kn.REG_B]
+        if b == 0:
+            return kn.coulomb_friction(t, y, off, fp, reg), 0.0, 0.0
+        muk, dmuk = kn.kinetic(b * vx, off, fp)
+        # d/dv of b mu_k(b v): b^2 mu_k' = mu_k'
+        return b * muk * fsum, dmuk * fsum, b * muk
+    mu, dmu = feldmann_mu(vx + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
+                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    return mu * fsum, dmu * fsum, mu
+
+
+@njit(cache=True)
+def _holds_stick(off, reg):
+    """Whether the block is held in the stick regime of a set-valued law (v = 0, no unknown)."""
+    return kn.set_valued(off) and reg[kn.REG_B] == 0
+
+
+@njit(cache=True)
 def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
     ``d[D_AZ]`` = z'' [m/s^2], ``d[D_AX]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
-    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`.
+    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`, with
+    the friction force of :func:`friction_force` for every law: in the stick regime of a
+    set-valued law it balances the drive (x'' = 0) and, at v = 0, does no work.
     """
     _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
@@ -271,9 +328,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     x, vx = kn.tangential_kinematics(t, y, off, fp)
     if ix >= 0:
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
-        mu, _ = feldmann_mu(vx + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
-                            fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
-        fric = mu * fsum
+        fric, _, _ = friction_force(t, y, vx, fsum, off, fp, reg)
         d[D_AX] = (texc - fric - fp[kn.FP_R2] * vx) / m
         d[D_POWER + kn.E_EXCITATION] = texc * vx
         d[D_POWER + kn.E_FRICTION] = fric * vx
@@ -302,13 +357,16 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
 
     ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
 
-    Unknowns: the forces of the closed contacts and, for a force-driven block, the tangential
-    velocity at t0 + h; Newton until every update is below ``NEWTON_TOL`` tolerance weights
-    ``wts`` or, for tolerances near round-off, below ``NEWTON_ULPS`` times the round-off of its
-    equation (unit round-off times the sum of the magnitudes of the equation's terms, divided
-    by the diagonal of the Newton matrix): an update at that level is noise, which no further
-    iteration removes. Returns False when Newton does not converge (the caller takes a smaller
-    step).
+    Unknowns: the forces of the closed contacts and, for a force-driven block that slides, the
+    tangential velocity at t0 + h, with the friction force of :func:`friction_force` (the
+    law's kinetic curve and its exact slope). In the stick regime of a set-valued law the
+    block stays where it is (v = 0, x fixed: no tangential unknown) and the friction force
+    ``friction.force`` is what holds it, ``T_exc - r2 v``. Newton until every update is below
+    ``NEWTON_TOL`` tolerance weights ``wts`` or, for tolerances near round-off, below
+    ``NEWTON_ULPS`` times the round-off of its equation (unit round-off times the sum of the
+    magnitudes of the equation's terms, divided by the diagonal of the Newton matrix): an
+    update at that level is noise, which no further iteration removes. Returns False when
+    Newton does not converge (the caller takes a smaller step).
 
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
     >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
@@ -348,6 +406,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     zc = z0 + 0.5 * h * vz0 + 0.5 * h * av / cz
     beta = h * h / (4.0 * m * cz)
     force_driven = ix >= 0
+    # the stick of a set-valued law holds the block: no tangential unknown
+    sliding = force_driven and not _holds_stick(off, reg)
     x0 = 0.0
     v0 = 0.0
     if force_driven:
@@ -361,20 +421,19 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             idx[nc] = k
             F[k] = y0[iF + k]
             nc += 1
-    nu = nc + (1 if force_driven else 0)
-    v1 = v0 + h * d0[D_AX] if force_driven else 0.0
-    s_l = reg[kn.REG_S]
-    b_l = reg[kn.REG_B]
-    texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if force_driven else 0.0
+    nu = nc + (1 if sliding else 0)
+    v1 = v0 + h * d0[D_AX] if sliding else 0.0
+    texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if sliding else 0.0
     ok = False
-    mu = 0.0
     for _it in range(25):
         ist[I_NEWTON] += 1
         S1 = 0.0
         for a in range(nc):
             S1 += F[int(idx[a])]
-        if force_driven:
+        if sliding:
             x1 = x0 + 0.5 * h * (v0 + v1)
+        elif force_driven:  # held in stick
+            x1 = x0
         else:
             x1, v1 = kn.prescribed_motion(t1, fp)
         for a in range(nc):
@@ -389,18 +448,17 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
             noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
                                             + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
-            if force_driven:
+            if sliding:
                 jac[a, nc] = -dh * 0.5 * h
-        if force_driven:
-            mu, dmu = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
-                                  fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        if sliding:
+            fric, dfric_dv, dfric_dfn = friction_force(t1, y0, v1, S1, off, fp, reg)
             rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[D_AX]
-                        - 0.5 * (texc1 - mu * S1 - r2 * v1))
+                        - 0.5 * (texc1 - fric - r2 * v1))
             for c in range(nc):
-                jac[nc, c] = 0.5 * mu
-            jac[nc, nc] = m / h + 0.5 * (dmu * S1 + r2)
+                jac[nc, c] = 0.5 * dfric_dfn
+            jac[nc, nc] = m / h + 0.5 * (dfric_dv + r2)
             noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[D_AX])
-                                             + 0.5 * (abs(texc1) + abs(mu * S1) + abs(r2 * v1))
+                                             + 0.5 * (abs(texc1) + abs(fric) + abs(r2 * v1))
                                              ) / abs(jac[nc, nc])
         if nu == 0:
             ok = True
@@ -415,7 +473,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             e = abs(rhs[a]) / max(wts[iF + k], noise[a] / NEWTON_TOL)
             if e > worst:
                 worst = e
-        if force_driven:
+        if sliding:
             v1 += rhs[nc]
             e = abs(rhs[nc]) / max(wts[ivx], noise[nc] / NEWTON_TOL)
             if e > worst:
@@ -438,9 +496,15 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     vz1 = (av - 0.5 * h * S1 / m) / cz
     y1[ivz] = vz1
     y1[iz] = zc - beta * S1
-    if force_driven:
+    if sliding:
         y1[ix] = x0 + 0.5 * h * (v0 + v1)
         y1[ivx] = v1
+    elif force_driven:  # held in stick
+        y1[ix] = x0
+        y1[ivx] = 0.0
+    if kn.set_valued(off) and force_driven:
+        # the algebraic friction force of the new state (kernels.residual's row of it)
+        y1[off[kn.OFF_IL]] = kn.coulomb_friction(t1, y1, off, fp, reg)
     derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
     for i in range(kn.N_ENERGY):
         y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[D_POWER + i] + d1[D_POWER + i])
@@ -765,10 +829,13 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
 
 def _check_scene(system: System) -> None:
     scene = system.scene
-    if system.coulomb:
-        raise SceneError(f"solver.method = 'adaptive-modal' supports friction.law = 'feldmann' "
-                         f"only (the set-valued laws need 'ida' or 'moreau'), got "
-                         f"{scene.friction.law!r}")
+    law = scene.friction.law
+    if system.tangential and "adaptive-modal" not in LAWS[law].solvers:
+        takes = [name for name, fl in LAWS.items() if "adaptive-modal" in fl.solvers]
+        raise SceneError(f"solver.method = 'adaptive-modal' supports friction.law = "
+                         f"{' or '.join(repr(x) for x in takes)} only (friction.law = {law!r} "
+                         f"needs one of {', '.join(repr(x) for x in LAWS[law].solvers)}), got "
+                         f"{law!r}")
     if system.n_modes and np.any(system.cdamp**2 >= 4 * system.omega2):
         raise SceneError(f"solver.method = 'adaptive-modal' needs underdamped plate modes: "
                          f"plate.loss_factor must be < 2 (damping ratio loss_factor / 2 < 1), "

@@ -469,8 +469,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     moreau = method == "moreau"
     if system.coulomb and not moreau:
         raise SceneError(f"solver.method = {method!r} supports friction.law = 'feldmann' "
-                         f"only (the set-valued law needs 'ida' or 'moreau'), got "
-                         f"{scene.friction.law!r}")
+                         f"only (the set-valued law needs 'adaptive-modal', 'ida' or "
+                         f"'moreau'), got {scene.friction.law!r}")
     if moreau and not system.coulomb and system.tangential:
         raise SceneError(f"solver.method = 'moreau' needs friction.law = 'coulomb' or 'table' "
                          f"(Moreau-Jean time-stepping of set-valued friction), got "
