@@ -600,6 +600,30 @@ def _embedded_err(h, hp, y0, y1, d0, d1, dp, u0, u1, up, G2, phi, stiff, atol, r
 
 
 @njit(cache=True)
+def _correct_energy(y1, d0, d1, dprev, h, hp, off):
+    """The energy integrals of one step to third order: the step's trapezoidal sums (in ``y1``)
+    less h^3 / 12 times the powers' second divided difference over the previous point, a
+    time ``hp`` before the step start (``dprev``)."""
+    iE = off[kn.OFF_IE]
+    c = 2.0 / (h + hp) * h * h * h / 12.0
+    for i in range(kn.N_ENERGY):
+        p0 = d0[D_POWER + i]
+        y1[iE + i] -= c * ((d1[D_POWER + i] - p0) / h - (p0 - dprev[D_POWER + i]) / hp)
+
+
+@njit(cache=True)
+def _newton_weights(y, wts, atol, rtol, off):
+    """The tolerance weights ``rtol |y| + atol`` of the states :func:`implicit_step` solves
+    for (the contact forces and the block's tangential velocity); the others are not read."""
+    iF = off[kn.OFF_IF]
+    for k in range(off[kn.OFF_K]):
+        wts[iF + k] = rtol * abs(y[iF + k]) + atol[iF + k]
+    ivx = off[kn.OFF_IVX]
+    if ivx >= 0:
+        wts[ivx] = rtol * abs(y[ivx]) + atol[ivx]
+
+
+@njit(cache=True)
 def _is_multiple(rel, h):
     """Whether ``rel`` is (to 1e-7 of h) a whole multiple of h."""
     f = rel / h
@@ -726,8 +750,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
         hh = 0.5 * h
-        for i in range(nstate):
-            wts[i] = rtol * abs(y[i]) + atol[i]
+        _newton_weights(y, wts, atol, rtol, off)
         model = (prop, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, scratch, ist)
         if embedded:
             # one step, kept; its error from the history
@@ -761,6 +784,8 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             continue
         ist[I_STEPS] += 1
         t_new = base + target if not last else grid[k]
+        if embedded:
+            _correct_energy(yb, d, db, dprev, h, hp, off)
         # events: margins at the end (and at the half step of a step-doubling pair)
         t_mid = t + hh
         if not embedded:
@@ -788,8 +813,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 tb = t_mid
                 yb0, db0, ub0, gb0, ge = ym, dm, um, gm, gb
                 L = h - hh
-            for i in range(nstate):
-                wts[i] = rtol * abs(yb0[i]) + atol[i]
+            _newton_weights(yb0, wts, atol, rtol, off)
             theta_best = 1.0
             have_best = False
             for i in range(n_ev):
@@ -850,6 +874,8 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                                          *model):
                         tt[T_NOW] = tb
                         return ADV_NEWTON
+                    if embedded:
+                        _correct_energy(ybest, db0, dbest, dprev, hs, hp, off)
                 theta_best = hi
                 have_best = True
                 kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg,
@@ -866,18 +892,13 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             # an event exactly on the output time: the row is written after the switch
             return ADV_EVENT
         # accept. The energy integrals to fourth (step doubling: Simpson's rule over the two
-        # half steps) or third order (one step: the trapezoidal sum less h^3 / 12 times the
-        # powers' second divided difference over the previous point): the steps' own
-        # trapezoidal sums are second order in h, and on a quiet run the steps are capped by
-        # the output grid, so that quadrature error did not shrink with the tolerance (energy
-        # audit 1.1e-8 at any rtol on paper without roughness; docs/robustness.md)
+        # half steps) or third order (one step: _correct_energy, applied above so that an
+        # event's state has it too): the steps' own trapezoidal sums are second order in h,
+        # and on a quiet run the steps are capped by the output grid, so that quadrature error
+        # did not shrink with the tolerance (energy audit 1.1e-8 at any rtol on paper without
+        # roughness; docs/robustness.md)
         iE = off[kn.OFF_IE]
-        if embedded:
-            c2 = 2.0 / (h + hp) * h * h * h / 12.0
-            for i in range(kn.N_ENERGY):
-                p0 = d[D_POWER + i]
-                yb[iE + i] -= c2 * ((db[D_POWER + i] - p0) / h - (p0 - dprev[D_POWER + i]) / hp)
-        else:
+        if not embedded:
             for i in range(kn.N_ENERGY):
                 yb[iE + i] = y[iE + i] + h / 6.0 * (d[D_POWER + i] + 4.0 * dm[D_POWER + i]
                                                      + db[D_POWER + i])
