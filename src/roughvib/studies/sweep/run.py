@@ -459,9 +459,12 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                 note(f"dask dashboard: {client.dashboard_link}")
             bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
                                unit="case", disable=not progress, file=sys.stderr)
-            for c in todo:
+            rank = _longest_first(spec.base, todo)
+            # submitted in that order too: the first tasks reach idle workers at once
+            for c in sorted(todo, key=lambda c: -rank[c.name]):
                 fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
-                                    token, case_rows, pure=False, key=f"case-{c.name}-{token}")
+                                    token, case_rows, pure=False, key=f"case-{c.name}-{token}",
+                                    priority=rank[c.name])
                 futures[fut] = c
             failed_now = 0
             for fut in as_completed(list(futures)):
@@ -501,6 +504,38 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
     table = _write_tables(spec, out, errors)
     return SweepRun(out, table, skipped, len(todo), int((table["status"] != SUCCESS).sum()),
                     rows)
+
+
+#: the scene keys by which one case costs more than another of the same sweep, in order: the
+#: simulated time, then the speed of sliding (the default solver's steps grow with it: the
+#: roughness passes the contacts faster)
+_COST_KEYS = (("output", "duration"), ("excitation", "target_rms_velocity"),
+              ("excitation", "velocity"))
+
+
+def _longest_first(base: Scene, cases: list[Case]) -> dict[str, int]:
+    """Dask priorities that start the cases expected to take longest first.
+
+    The cases go to the workers in the order of their priority (equal priorities in the
+    order submitted), and a long case started last would run alone at the end: on 2 workers
+    the 12 cases of ``paper-velocity`` (solver CPU 1.9-5.4 s each) take 24.0 s of
+    solver time in the order of the grid and 22.5 s longest first (22.4 s is the even split).
+    The estimate only orders the cases, by the values of :data:`_COST_KEYS` (the case's own,
+    else the base scene's); it changes no result.
+    """
+    def key(case: Case) -> tuple[float, ...]:
+        out = []
+        for section, field in _COST_KEYS:
+            v = case.values.get(f"{section}.{field}", getattr(getattr(base, section), field,
+                                                               None))
+            try:
+                out.append(abs(float(v)) if v is not None else 0.0)
+            except (TypeError, ValueError):
+                out.append(0.0)
+        return tuple(out)
+
+    keys = sorted({key(c) for c in cases})
+    return {c.name: keys.index(key(c)) for c in cases}
 
 
 def _record_failure(cases_dir: Path, name: str, status: str, message: str) -> None:
