@@ -8,6 +8,7 @@ the solver statistics. The studies (compare, sweep) call :func:`simulate`; users
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -148,12 +149,12 @@ def _attr(value):
     return repr(value)
 
 
-def _provenance(scene: Scene, scene_toml: str) -> dict:
-    """What a reader of result.nc needs to know how the run was made (dataset attributes)."""
-    import dataclasses
+@functools.cache
+def _software() -> str:
+    """The versions of the libraries a run used, as installed when this process first asked
+    (read once per process: 5 metadata look-ups cost 10-30 ms, paid by every case of a sweep
+    worker; a package upgraded under a running worker is not the one it has loaded anyway)."""
     from importlib import metadata
-
-    from roughvib._version import __version__
 
     def version(dist: str) -> str:
         try:
@@ -161,9 +162,17 @@ def _provenance(scene: Scene, scene_toml: str) -> dict:
         except metadata.PackageNotFoundError:
             return "not installed"
 
-    attrs = {"roughvib_version": __version__,
-             "software": ", ".join(f"{d} {version(d)}" for d in
-                                   ("numpy", "scipy", "numba", "scikit-sundae", "xarray"))}
+    return ", ".join(f"{d} {version(d)}" for d in
+                     ("numpy", "scipy", "numba", "scikit-sundae", "xarray"))
+
+
+def _provenance(scene: Scene, scene_toml: str) -> dict:
+    """What a reader of result.nc needs to know how the run was made (dataset attributes)."""
+    import dataclasses
+
+    from roughvib._version import __version__
+
+    attrs = {"roughvib_version": __version__, "software": _software()}
     for f in dataclasses.fields(scene.solver):  # every field, also ones added later
         attrs[f"solver_{f.name}"] = _attr(getattr(scene.solver, f.name))
     attrs["scene_toml"] = scene_toml

@@ -14,7 +14,7 @@ from roughvib.cli import main
 from roughvib.physics.surface.contact import contact_stiffness
 from roughvib.scene import SceneError
 from roughvib.studies.sweep import run as sweep_run
-from roughvib.studies.sweep.ensemble import ensemble_tables, seed_sweep
+from roughvib.studies.sweep.ensemble import _run_row, ensemble_tables, seed_sweep
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -45,8 +45,13 @@ def ensemble(tmp_path_factory):
                                   env=dict(sweep_run.THREAD_ENV)) as cluster, \
             distributed.Client(cluster) as client:
         real = sweep_run.run_sweep
-        mp.setattr(sweep_run, "run_sweep",
-                   lambda spec, o, **kw: real(spec, o, **{**kw, "client": client}))
+        runs = []
+
+        def run_sweep(spec, o, **kw):
+            runs.append(real(spec, o, **{**kw, "client": client}))
+            return runs[-1]
+
+        mp.setattr(sweep_run, "run_sweep", run_sweep)
         args = ["run", "paper", "--seeds", "3", "--out", str(out), "--no-progress"]
         for k, v in FAST.items():
             args += ["--set", f"{k}={v}"]
@@ -57,11 +62,11 @@ def ensemble(tmp_path_factory):
         with contextlib.redirect_stdout(buf):
             code = main(args)
         mp.undo()
-    return out, code, buf.getvalue()
+    return out, code, buf.getvalue(), runs[0]
 
 
 def test_run_seeds_writes_one_case_per_seed_and_the_spread(ensemble):
-    out, code, printed = ensemble
+    out, code, printed, _ = ensemble
     assert code == 0
     table = pd.read_csv(out / "sweep.csv")
     assert sorted(table["roughness.seed"]) == [1, 2, 3]
@@ -82,7 +87,7 @@ def test_run_seeds_writes_one_case_per_seed_and_the_spread(ensemble):
 
 
 def test_ensemble_runs_record_contact_and_bands_are_the_mean_over_seeds(ensemble):
-    out, _, _ = ensemble
+    out, _, _, _ = ensemble
     from roughvib.analysis import figures_data as fd
 
     ens = ensemble_tables(out)
@@ -103,6 +108,23 @@ def test_ensemble_runs_record_contact_and_bands_are_the_mean_over_seeds(ensemble
         row = plate.loc[plate.index[np.argmin(np.abs(plate.index - centres[j]))]]
         assert row["mean"] == pytest.approx(x.mean(), rel=1e-5, abs=1e-4)
         assert row["std"] == pytest.approx(x.std(ddof=1), rel=1e-5, abs=1e-4)
+
+
+def test_ensemble_numbers_from_the_workers_are_those_read_back_from_the_cases(ensemble):
+    """``--seeds`` takes each case's numbers from the worker that ran it (the result in
+    memory), not by loading every case again: they must be exactly what the case files give."""
+    out, _, _, run = ensemble
+    assert sorted(run.rows) == sorted(pd.read_csv(out / "sweep.csv")["case"])
+    handed = ensemble_tables(out, rows=run.rows)
+    read = ensemble_tables(out)
+    for name in ("runs", "levels", "bands"):
+        pd.testing.assert_frame_equal(getattr(handed, name), getattr(read, name),
+                                      check_exact=True)
+    for case, (row, spectra) in run.rows.items():
+        (row2, spectra2) = _run_row(out / "cases" / case)
+        assert row == row2
+        for a, b in zip(spectra, spectra2, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_single_draw_note_only_for_random_surfaces():

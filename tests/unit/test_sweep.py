@@ -120,6 +120,28 @@ def test_grid_is_the_product_in_file_order_and_names_are_stable_and_safe(tmp_pat
     assert not set(names) & {c.name for c in other.cases()}
 
 
+def test_cases_expected_to_take_longest_get_the_highest_priority():
+    """Cases start longest first (simulated time, then sliding speed); the others keep the
+    order of the grid (equal priority)."""
+    spec = sw.load_sweep("paper-velocity")
+    cases = spec.cases()
+    rank = sw_run._longest_first(spec.base, cases)
+    by_v = {}
+    for c in cases:
+        by_v.setdefault(c.values["excitation.target_rms_velocity"], set()).add(rank[c.name])
+    assert all(len(r) == 1 for r in by_v.values())  # the seeds of one velocity: equal
+    order = sorted(by_v, key=lambda v: -next(iter(by_v[v])))
+    assert order == [0.1, 0.04, 0.02, 0.01]
+    # a longer case outranks a faster one; an ensemble (only seeds vary): all equal
+    mixed = sw.load_sweep({"name": "m", "base": "paper", "case": [
+        {"output.duration": 0.4, "excitation.target_rms_velocity": 0.01},
+        {"output.duration": 0.2, "excitation.target_rms_velocity": 0.1}]})
+    r = sw_run._longest_first(mixed.base, mixed.cases())
+    assert [r[c.name] for c in mixed.cases()] == [1, 0]
+    seeds = sw.load_sweep({"name": "e", "base": "paper", "grid": {"roughness.seed": [1, 2, 3]}})
+    assert set(sw_run._longest_first(seeds.base, seeds.cases()).values()) == {0}
+
+
 def test_grid_and_case_list_combine_and_case_keys_fill_from_the_base(tmp_path):
     spec = sw.load_sweep({"base": "paper", "grid": {"roughness.seed": [1, 2]},
                           "case": [{"block.mass": 0.543}, {"friction.mu_slip": 0.2}]})

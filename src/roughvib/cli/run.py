@@ -114,15 +114,18 @@ def _run_ensemble(args: argparse.Namespace) -> int:
     out = out_path(args.out) or Path("runs") / spec.name
     try:
         run = run_sweep(spec, out, workers=args.workers, progress=not args.no_progress,
-                        log=None if args.quiet else (lambda m: print(m, file=sys.stderr)))
+                        log=None if args.quiet else (lambda m: print(m, file=sys.stderr)),
+                        case_rows=True)
     except KeyboardInterrupt as exc:
         term = isinstance(exc, Terminated)
         print(f"roughvib: ensemble {'terminated' if term else 'interrupted'}; completed draws "
               f"are kept in {out}/cases, run the same command again to resume",
               file=sys.stderr)
         return EXIT_TERM if term else EXIT_INTERRUPT
-    report = sweep_report(run.directory)
-    ens = ensemble_tables(run.directory)
+    # the workers computed each new case's numbers from the result they held: only cases
+    # complete before this run are read back, and only once (the report and the lines below)
+    ens = ensemble_tables(run.directory, rows=run.rows)
+    report = sweep_report(run.directory, ensemble=ens)
     if not args.quiet:
         print(f"{spec.name}: {len(run.table) - run.failed} of {len(run.table)} draws succeeded "
               f"-> {run.directory}")

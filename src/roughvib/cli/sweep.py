@@ -8,6 +8,7 @@ from pathlib import Path
 
 from roughvib.cli.args import EXIT_INTERRUPT, EXIT_TERM, Terminated, out_path, parse_sets
 from roughvib.scene import SceneError
+from roughvib.studies.sweep.ensemble import ensemble_tables
 from roughvib.studies.sweep.report import sweep_report
 from roughvib.studies.sweep.run import run_sweep
 from roughvib.studies.sweep.spec import SUCCESS, builtin_sweeps, load_sweep
@@ -43,10 +44,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
               "workers)", file=sys.stderr)
         workers = None
     quiet_log = getattr(args, "no_progress", False)
+    # a report of a sweep over seeds has an ensemble section: its numbers come from the
+    # workers, which hold each result, instead of loading every case again at the end
+    report = getattr(args, "report", False)
+    rows = report and bool(spec.to_json()["seed_keys"])
     try:
         run = run_sweep(spec, out, scheduler=scheduler, workers=workers,
                         progress=not getattr(args, "no_progress", False),
-                        log=None if quiet_log else (lambda m: print(m, file=sys.stderr)))
+                        log=None if quiet_log else (lambda m: print(m, file=sys.stderr)),
+                        case_rows=rows)
     except KeyboardInterrupt as exc:
         term = isinstance(exc, Terminated)
         print(f"roughvib: sweep {'terminated' if term else 'interrupted'}; completed cases are "
@@ -57,8 +63,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
           f"succeeded, {run.failed} failed -> {run.directory}/sweep.csv, sweep.nc")
     for _, row in run.table[run.table["status"] != SUCCESS].iterrows():
         print(f"  {row['case']}: {row['status']}: {row['message']}")
-    if getattr(args, "report", False):
-        print(sweep_report(run.directory))
+    if report:
+        print(sweep_report(run.directory, ensemble=ensemble_tables(run.directory, rows=run.rows)
+                           if rows else None))
     return 0 if run.failed == 0 else 1
 
 

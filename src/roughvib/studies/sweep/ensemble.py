@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -32,7 +33,7 @@ from roughvib.studies.sweep.spec import CASES_DIR, SUCCESS, Sweep, load_sweep
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-__all__ = ["EnsembleTables", "ensemble_tables", "seed_sweep"]
+__all__ = ["EnsembleTables", "case_row", "ensemble_tables", "seed_sweep"]
 
 SEED_KEY = "roughness.seed"
 #: summary level columns: (name, column of sweep.csv)
@@ -125,12 +126,30 @@ def _spread(values) -> dict[str, float]:
             "min": float(v.min()), "max": float(v.max())}
 
 
-def _run_row(case_dir: Path) -> tuple[dict[str, Any], Any]:
-    """Per-run numbers of one case and its band spectra (centres, block, plate)."""
-    from roughvib.analysis import figures_data as fd
-    from roughvib.results import load_result
+def case_row(result) -> tuple[dict[str, Any], Any]:
+    """Per-run numbers of one successful run and its band spectra: what
+    :func:`ensemble_tables` takes from each case.
 
-    result = load_result(case_dir)
+    A sweep's worker computes it from the result it holds in memory (``run_sweep(...,
+    case_rows=True)``), so that the client need not load every case again; the result read
+    back from the case directory gives the same numbers (its files hold the same float64
+    values; tested).
+
+    Parameters
+    ----------
+    result : Result
+        A successful run.
+
+    Returns
+    -------
+    tuple
+        ``(row, (centres, block_db, plate_db))``: a dict of per-run numbers (rms velocity,
+        contacts, micro-contacts, total stiffness [N/m], spring-mass and transmissibility
+        resonance [Hz], lift-offs, loudest bands [Hz]) and the third-octave band centres [Hz]
+        with the block and plate band levels [dB re 1e-6 m/s^2], each of shape (B,).
+    """
+    from roughvib.analysis import figures_data as fd
+
     sp = fd.acceleration_spectra(result)
     cr = fd.contact_resonance(result, spectra=sp)
     s = result.summary
@@ -148,13 +167,25 @@ def _run_row(case_dir: Path) -> tuple[dict[str, Any], Any]:
     return row, (sp.centres, sp.band_db["block"], sp.band_db["plate"])
 
 
-def ensemble_tables(directory: str | os.PathLike) -> EnsembleTables | None:
+def _run_row(case_dir: Path) -> tuple[dict[str, Any], Any]:
+    """:func:`case_row` of a case directory (its result loaded and checked)."""
+    from roughvib.results import load_result
+
+    return case_row(load_result(case_dir))
+
+
+def ensemble_tables(directory: str | os.PathLike, *,
+                    rows: Mapping[str, Any] | None = None) -> EnsembleTables | None:
     """Mean and spread over the seeds of a sweep directory.
 
     Parameters
     ----------
     directory : path
         A sweep directory (``sweep.json``, ``sweep.csv``, ``cases/``).
+    rows : mapping, optional
+        :func:`case_row` of cases by case name, as the workers computed them
+        (:attr:`SweepRun.rows <roughvib.studies.sweep.run.SweepRun>`); the other successful
+        cases are read from their directories.
 
     Returns
     -------
@@ -175,10 +206,12 @@ def ensemble_tables(directory: str | os.PathLike) -> EnsembleTables | None:
         return None
     group_keys = [k for k in meta.get("varied_keys", [])
                   if k != seed_key and k in ok.columns and ok[k].astype(str).nunique() >= 2]
+    given = dict(rows or {})
     rows, band_rows = [], []
     for _, r in ok.iterrows():
         group = ", ".join(f"{k}={r[k]}" for k in group_keys) or "all"
-        extra, (fc, bb, bp) = _run_row(d / CASES_DIR / r["case"])
+        pre = given.get(r["case"])
+        extra, (fc, bb, bp) = pre if pre is not None else _run_row(d / CASES_DIR / r["case"])
         rows.append({"case": r["case"], "group": group, seed_key: r[seed_key],
                      "block_db": r[LEVELS[0][1]], "plate_db": r[LEVELS[1][1]], **extra})
         for which, lev in (("block", bb), ("plate", bp)):

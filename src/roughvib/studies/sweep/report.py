@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from roughvib.studies.sweep.ensemble import ensemble_blocks, ensemble_tables
+from roughvib.studies.sweep.ensemble import EnsembleTables, ensemble_blocks, ensemble_tables
 from roughvib.studies.sweep.spec import SUCCESS, _replace_file
 from roughvib.studies.sweep.tables import _fit, _joint_fit
 from roughvib.views.sweep_report import render_html, render_markdown, study_figure
@@ -85,7 +85,8 @@ def _g(v: Any, fmt: str = ".4g") -> str:
     return "" if math.isnan(f) else format(f, fmt)
 
 
-def sweep_report(directory: str | os.PathLike) -> Path:
+def sweep_report(directory: str | os.PathLike, *,
+                 ensemble: EnsembleTables | None = None) -> Path:
     """Plots and a short report of a finished (or partly finished) sweep.
 
     For a velocity sweep (``excitation.target_rms_velocity`` or ``excitation.velocity``
@@ -100,6 +101,9 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     ----------
     directory : path
         Sweep directory written by :func:`.run_sweep`.
+    ensemble : EnsembleTables, optional
+        The directory's :func:`.ensemble_tables`, if the caller has them already (they load
+        every case that the sweep's workers did not hand over); computed when not given.
 
     Returns
     -------
@@ -188,7 +192,7 @@ def sweep_report(directory: str | os.PathLike) -> Path:
     pd.DataFrame(fit_rows, columns=FIT_COLUMNS).to_csv(rep / "fits.csv", index=False,
                                                        float_format="%.6g")
 
-    if (ens := ensemble_tables(d)) is not None:
+    if (ens := ensemble if ensemble is not None else ensemble_tables(d)) is not None:
         blocks += ensemble_blocks(ens, rep)
 
     failed = table[table["status"] != SUCCESS]

@@ -17,6 +17,7 @@ import shutil
 import signal
 import socket
 import sys
+import threading
 import time
 import traceback
 import warnings
@@ -124,7 +125,7 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
-              token: str) -> dict[str, Any]:
+              token: str, row: bool = False) -> dict[str, Any]:
     """Run one case and publish its directory; the Dask task of a sweep.
 
     Parameters
@@ -139,12 +140,16 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
         Absolute path of ``DIR/cases``; must be visible to the worker.
     token : str
         Content of ``DIR/.sweep-token``: proves the worker sees the client's directory.
+    row : bool
+        Also return the ensemble's numbers of a successful case (``"row"``:
+        :func:`roughvib.studies.sweep.ensemble.case_row` of the result in memory), so that
+        the client need not load the case again.
 
     Returns
     -------
     dict
-        ``{"name", "status", "message", "wall_time"}``. Errors of the case itself are
-        recorded, not raised.
+        ``{"name", "status", "message", "wall_time"}`` (and ``"row"``). Errors of the case
+        itself are recorded, not raised.
     """
     for k, v in THREAD_ENV.items():
         os.environ.setdefault(k, v)  # effective if numba/BLAS are not imported yet
@@ -166,6 +171,7 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
         return done
     _remove_dead_tmp(root, name)
     tmp = _new_tmp(root, name)
+    extra: dict[str, Any] = {}
     try:
         try:
             from roughvib.simulation import simulate
@@ -192,7 +198,14 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
         swap_into_place(tmp, root / name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return {"name": name, "status": status, "message": message, "wall_time": wall}
+    if row and status == SUCCESS:  # after the case's wall_time: not part of the case
+        from roughvib.studies.sweep.ensemble import case_row
+
+        try:
+            extra["row"] = case_row(result)
+        except Exception:  # noqa: BLE001 - the client then reads this case from its files
+            pass
+    return {"name": name, "status": status, "message": message, "wall_time": wall, **extra}
 
 
 def _local_dask():
@@ -266,6 +279,9 @@ class SweepRun:
         Cases run now.
     failed : int
         Cases in the table whose status is not success.
+    rows : dict
+        With ``case_rows=True``: the ensemble's numbers of each successful case run now
+        (:func:`roughvib.studies.sweep.ensemble.case_row`), by case name.
     """
 
     directory: Path
@@ -273,6 +289,7 @@ class SweepRun:
     skipped: int
     ran: int
     failed: int
+    rows: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def _probe(address: str) -> None:
@@ -342,7 +359,7 @@ def _close_quietly(cluster) -> None:
 def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
               scheduler: str | None = None, workers: int | None = None, client: Any = None,
               overrides: dict[str, Any] | None = None, progress: bool = True,
-              log: Callable[[str], None] | None = None) -> SweepRun:
+              log: Callable[[str], None] | None = None, case_rows: bool = False) -> SweepRun:
     """Run (or resume) a sweep: each case one Dask task writing ``out/cases/<case>/``.
 
     Parameters
@@ -366,6 +383,10 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         A progress bar over the cases on stderr.
     log : callable, optional
         Receives one-line notes (dashboard address, skipped cases); default: ignored.
+    case_rows : bool
+        Each worker also computes the ensemble's numbers of its successful cases from the
+        result in memory (:attr:`SweepRun.rows`; for :func:`.ensemble_tables`, which otherwise
+        loads every case again in the client).
 
     Returns
     -------
@@ -396,14 +417,14 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
     lock = DirectoryLock(out / _LOCK_FILE, str(out), "sweep").acquire()
     try:
         return _run_locked(spec, out, cases_dir, scheduler=scheduler, workers=workers,
-                           client=client, progress=progress, note=note)
+                           client=client, progress=progress, note=note, case_rows=case_rows)
     finally:
         lock.release()
 
 
 def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | None,
                 workers: int | None, client: Any, progress: bool,
-                note: Callable[[str], None]) -> SweepRun:
+                note: Callable[[str], None], case_rows: bool = False) -> SweepRun:
     """The body of :func:`run_sweep`, holding the sweep directory's lock."""
     from roughvib._progress import progress_bar
 
@@ -423,7 +444,9 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
         note(f"{skipped} of {len(cases)} cases complete in {out}; running the other "
              f"{len(todo)}")
     errors: dict[str, tuple[str, str]] = {}
+    rows: dict[str, Any] = {}
     interrupted = False
+    closing = None  # the local cluster shutting down while the tables are written
     if todo:
         from dask.distributed import as_completed
 
@@ -438,9 +461,12 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                 note(f"dask dashboard: {client.dashboard_link}")
             bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
                                unit="case", disable=not progress, file=sys.stderr)
-            for c in todo:
+            rank = _longest_first(spec.base, todo)
+            # submitted in that order too: the first tasks reach idle workers at once
+            for c in sorted(todo, key=lambda c: -rank[c.name]):
                 fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
-                                    token, pure=False, key=f"case-{c.name}-{token}")
+                                    token, case_rows, pure=False, key=f"case-{c.name}-{token}",
+                                    priority=rank[c.name])
                 futures[fut] = c
             failed_now = 0
             for fut in as_completed(list(futures)):
@@ -448,7 +474,10 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                 # worker that holds it dies (the task would find its case complete anyway)
                 case = futures.pop(fut)
                 try:
-                    status = fut.result()["status"]
+                    done = fut.result()
+                    status = done["status"]
+                    if "row" in done:
+                        rows[case.name] = done["row"]
                 except Exception as exc:  # the task itself died (worker lost, no directory)
                     status = "worker_lost" if type(exc).__name__ == "KilledWorker" else "error"
                     errors[case.name] = (status, _one_line(exc))
@@ -468,14 +497,57 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                 bar.close()
             if own:
                 client.close()
-                if cluster is not None:
+                if cluster is not None and not interrupted:
+                    # every task has ended: the workers exit (0.4-0.7 s here) while this
+                    # process writes the tables from the published case directories
+                    closing = threading.Thread(target=_close_quietly, args=(cluster,),
+                                               name="roughvib-sweep-close")
+                    closing.start()
+                elif cluster is not None:
                     _close_quietly(cluster)
             if interrupted:
                 with contextlib.suppress(Exception):
                     _write_tables(spec, out, errors)
-    _remove_stale(cases_dir)  # every task has ended: what is left was a killed worker's
-    table = _write_tables(spec, out, errors)
-    return SweepRun(out, table, skipped, len(todo), int((table["status"] != SUCCESS).sum()))
+    try:
+        table = _write_tables(spec, out, errors)
+    finally:
+        if closing is not None:
+            closing.join()
+    _remove_stale(cases_dir)  # every worker has stopped: what is left was a killed worker's
+    return SweepRun(out, table, skipped, len(todo), int((table["status"] != SUCCESS).sum()),
+                    rows)
+
+
+#: the scene keys by which one case costs more than another of the same sweep, in order: the
+#: simulated time, then the speed of sliding (the default solver's steps grow with it: the
+#: roughness passes the contacts faster)
+_COST_KEYS = (("output", "duration"), ("excitation", "target_rms_velocity"),
+              ("excitation", "velocity"))
+
+
+def _longest_first(base: Scene, cases: list[Case]) -> dict[str, int]:
+    """Dask priorities that start the cases expected to take longest first.
+
+    The cases go to the workers in the order of their priority (equal priorities in the
+    order submitted), and a long case started last would run alone at the end: on 2 workers
+    the 12 cases of ``paper-velocity`` (solver CPU 1.9-5.4 s each) take 24.0 s of
+    solver time in the order of the grid and 22.5 s longest first (22.4 s is the even split).
+    The estimate only orders the cases, by the values of :data:`_COST_KEYS` (the case's own,
+    else the base scene's); it changes no result.
+    """
+    def key(case: Case) -> tuple[float, ...]:
+        out = []
+        for section, field in _COST_KEYS:
+            v = case.values.get(f"{section}.{field}", getattr(getattr(base, section), field,
+                                                               None))
+            try:
+                out.append(abs(float(v)) if v is not None else 0.0)
+            except (TypeError, ValueError):
+                out.append(0.0)
+        return tuple(out)
+
+    keys = sorted({key(c) for c in cases})
+    return {c.name: keys.index(key(c)) for c in cases}
 
 
 def _record_failure(cases_dir: Path, name: str, status: str, message: str) -> None:
