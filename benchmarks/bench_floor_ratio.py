@@ -1,0 +1,79 @@
+"""Benchmark: the default solver's time as a multiple of the fixed-step floor (issue 28).
+
+Run on demand, not by the tests:
+
+    python benchmarks/bench_floor_ratio.py                  # paper and paper-100mms
+    python benchmarks/bench_floor_ratio.py paper --repeat 3
+
+For each scene, in one process (so that both see the same machine load), the default run's
+solver (adaptive-modal at the ``reference`` preset, its plate tolerance set by the pilot solve
+as in ``roughvib run``) and the exact-modal fixed-step scheme at the 1e-5 s output step (the
+cheapest scheme that produces the same output grid: the floor) are timed warm, the best CPU
+time of ``--repeat`` solves each (numba compilation and loading excluded by a first call).
+Printed: solver CPU times, step counts and their ratio. Only the solve is timed: assembly,
+force calibration and the pilot are the same for both and are measured by
+``bench_fixed_cost.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import replace
+
+from roughvib import simulation
+from roughvib.model.system import assemble
+from roughvib.scene import load_scene
+
+#: the floor: the exact-modal fixed-step scheme at the output step [s]
+FLOOR_STEP = 1e-5
+
+
+def _best_cpu(system, repeat: int):
+    """Best process CPU time [s] of ``repeat`` solves after one untimed warm-up solve."""
+    raw = simulation._solve(system, progress=False)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.process_time()
+        raw = simulation._solve(system, progress=False)
+        best = min(best, time.process_time() - t0)
+    return best, raw
+
+
+def measure(name: str, repeat: int) -> dict:
+    """The default solver's and the floor's solve times on scene ``name``."""
+    scene = load_scene(name, {"output.progress": False})
+    scene = replace(scene, solver=scene.resolved_solver())
+    system, pilot = simulation._scale_atol_acceleration(assemble(scene))
+    floor_scene = replace(scene, solver=replace(scene.solver, method="exact-modal",
+                                                step=FLOOR_STEP))
+    floor = replace(system, scene=replace(floor_scene,
+                                          solver=floor_scene.resolved_solver()))
+    t_def, raw_def = _best_cpu(system, repeat)
+    t_floor, raw_floor = _best_cpu(floor, repeat)
+    return {"scene": name, "method": scene.solver.method,
+            "atol_acceleration": pilot.get("atol_acceleration"),
+            "default_cpu": t_def, "default_steps": raw_def.stats.get("steps"),
+            "default_propagations": raw_def.stats.get("step_evaluations"),
+            "floor_cpu": t_floor, "floor_steps": raw_floor.stats.get("steps"),
+            "ratio": t_def / t_floor, "status": (raw_def.status, raw_floor.status)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenes", nargs="*", default=["paper", "paper-100mms"])
+    ap.add_argument("--repeat", type=int, default=2, help="timed solves per solver (best)")
+    args = ap.parse_args()
+    print("| scene | default: steps | propagations | CPU [s] | floor: steps | CPU [s] | "
+          "ratio |")
+    print("|---|---|---|---|---|---|---|")
+    for name in args.scenes:
+        r = measure(name, args.repeat)
+        print(f"| `{name}` | {r['default_steps']:,} | {r['default_propagations']:,} | "
+              f"{r['default_cpu']:.3f} | {r['floor_steps']:,} | {r['floor_cpu']:.3f} | "
+              f"{r['ratio']:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
