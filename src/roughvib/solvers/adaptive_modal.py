@@ -242,6 +242,11 @@ def modal_force(F, u, phiT, M):
 
     ``phiT`` is the mode-shape matrix transposed, shape (K, R), C-contiguous: the sum runs as
     K contiguous axpys over the modes, which vectorise (a reduction over k does not).
+
+    This is the contact forces' part, the one the buffers ``U`` carry. With a friction moment
+    (``contact.friction_moment``) the modal force also holds ``mu(v) sum_k Psi_rk F_k / M``,
+    which depends on the regime and the velocity: :func:`implicit_step` adds it at both ends
+    of every step itself (:func:`_moment_force`), so ``U`` means the same with or without it.
     """
     R = u.size
     for r in range(R):
@@ -251,6 +256,16 @@ def modal_force(F, u, phiT, M):
         if f != 0.0:
             for r in range(R):
                 u[r] += phiT[k, r] * f
+
+
+@njit(cache=True)
+def _moment_force(r, F, off, fp, mu, M):
+    """The friction moment's modal force on mode r, mu sum_k Psi_rk F_k / M [m/s^2]."""
+    ip, R = off[kn.OFF_IPSI], off[kn.OFF_R]
+    acc = 0.0
+    for k in range(F.size):
+        acc += fp[ip + k * R + r] * F[k]
+    return mu * acc / M
 
 
 @njit(cache=True)
@@ -277,6 +292,8 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
         d[D_AX] = (texc - fric - fp[kn.FP_R2] * vx) / m
         d[D_POWER + kn.E_EXCITATION] = texc * vx
         d[D_POWER + kn.E_FRICTION] = fric * vx
+        if kn.moment_on(off):  # the moment's power goes into the plate, not into heat
+            d[D_POWER + kn.E_FRICTION] = fric * vx - mu * kn.moment_power(y, off, fp)
         d[D_POWER + kn.E_TANGENTIAL_DAMPING] = fp[kn.FP_R2] * vx * vx
     else:
         d[D_AX] = 0.0
@@ -328,17 +345,36 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
     idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
     noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
+    # friction moment (contact.friction_moment): the modal force holds mu(v) Psi^T F / M too;
+    # u0 is the contact part (modal_force), the moment's part at t0 is added here
+    moment = ix >= 0 and kn.moment_on(off)
+    mu0 = 0.0
+    if moment:
+        mu0, _ = feldmann_mu(y0[ivx] + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                             fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
     for r in range(R):
+        ur = u0[r] + _moment_force(r, y0[iF:iF + K], off, fp, mu0, M) if moment else u0[r]
         a = (Phi[slot, r, MODE_Q, MODE_Q] * y0[iq + r] + Phi[slot, r, MODE_Q, MODE_DQ] * y0[idq + r]
-             + G0[slot, r, MODE_Q] * u0[r])
+             + G0[slot, r, MODE_Q] * ur)
         sq[r] = a
         sdq[r] = (Phi[slot, r, MODE_DQ, MODE_Q] * y0[iq + r]
-                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * u0[r])
+                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * ur)
         for k in range(K):
             wfree[k] += phi[r, k] * a
+    # the moment's part at t1 moves the contacts by mu1 H F: H_kj = sum_r phi_rk G1_r Psi_rj / M
+    Hm = np.zeros((K, K)) if moment else np.zeros((0, 0))
+    wm = np.zeros(K) if moment else np.zeros(0)
+    if moment:
+        ip = off[kn.OFF_IPSI]
+        for r in range(R):
+            gr = G1[slot, r, MODE_Q] / M
+            for k in range(K):
+                a = phi[r, k] * gr
+                for j in range(K):
+                    Hm[k, j] += a * fp[ip + j * R + r]
     # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
     z0 = y0[iz]
     vz0 = y0[ivz]
@@ -377,6 +413,16 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             x1 = x0 + 0.5 * h * (v0 + v1)
         else:
             x1, v1 = kn.prescribed_motion(t1, fp)
+        mu1 = 0.0
+        dmu1 = 0.0
+        if moment:
+            mu1, dmu1 = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
+                                    fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+            for k in range(K):
+                acc = 0.0
+                for j in range(K):
+                    acc += Hm[k, j] * F[j]
+                wm[k] = acc
         for a in range(nc):
             k = int(idx[a])
             hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
@@ -385,12 +431,18 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
                 j = int(idx[c])
                 acc += G1c[slot, k, j] * F[j]
                 jac[a, c] = G1c[slot, k, j] + beta
+                if moment:
+                    jac[a, c] += mu1 * Hm[k, j]
             jac[a, a] += 1.0 / stiff[k]
+            if moment:
+                acc += mu1 * wm[k]
             rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
             noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
                                             + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
             if force_driven:
                 jac[a, nc] = -dh * 0.5 * h
+                if moment:
+                    jac[a, nc] += dmu1 * wm[k]
         if force_driven:
             mu, dmu = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
                                   fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
@@ -432,9 +484,14 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         S1 += F[k]
         y1[iF + k] = F[k]
     modal_force(F, u1, phiT, M)
+    mu1 = 0.0
+    if moment:
+        mu1, _ = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
+                             fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     for r in range(R):
-        y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * u1[r]
-        y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * u1[r]
+        ur = u1[r] + _moment_force(r, F, off, fp, mu1, M) if moment else u1[r]
+        y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * ur
+        y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * ur
     vz1 = (av - 0.5 * h * S1 / m) / cz
     y1[ivz] = vz1
     y1[iz] = zc - beta * S1
