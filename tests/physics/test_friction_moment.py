@@ -203,3 +203,18 @@ def test_prescribed_motion_and_bad_values_are_refused():
     with pytest.raises(SceneError, match=r"^contact.friction_moment must be true or false, "
                                          r"got 'yes'$"):
         _scene(**{"contact.friction_moment": "yes"})
+
+
+@pytest.mark.parametrize("method", ["newmark", "paper"])
+def test_fixed_step_solvers_refuse_a_system_with_the_moment(method):
+    """Called directly (not through a scene, which refuses the pair), the fixed-step loops and
+    the paper's scheme still refuse a system that carries the moment, in one line."""
+    from roughvib.solvers.fixed_step import solve_fixed_step
+    from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+    system = assemble(_scene("paper-handset", **{"contact.friction_moment": True}))
+    system.scene = _scene("paper-handset", **{"solver.method": method})
+    solve = solve_paper_scheme if method == "paper" else solve_fixed_step
+    with pytest.raises(SceneError, match=rf"^contact.friction_moment = true needs solver.method "
+                                         rf"'ida' or 'adaptive-modal', got '{method}'$"):
+        solve(system, progress=False)
