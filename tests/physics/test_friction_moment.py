@@ -88,8 +88,9 @@ def test_one_mode_static_response_to_the_friction_moment_is_the_closed_form():
         # res = yp + c dq + w^2 q - u: zero at the static deflection, -u at q = 0
         assert res[idq] == pytest.approx(expect, abs=1e-12 * abs(q_static) * w11**2)
     # the adaptive-modal solver's modal force of the moment: mu (hp/2) phi_x F / M
-    u = am._moment_force(0, np.array([F]), system.off, system.fp, mu, 1.0)
-    assert u == pytest.approx(0.5 * hp * phi_x * mu * F, rel=1e-12)
+    u = np.full(1, np.nan)
+    am._moment_force(np.array([F]), mu, 1.0, system.off, system.fp, u)
+    assert u[0] == pytest.approx(0.5 * hp * phi_x * mu * F, rel=1e-12)
     # a moment-free scene drives the mode by phi F alone
     plain = assemble(scene.with_overrides({"contact.friction_moment": False}))
     y[iq] = 0.0

@@ -259,13 +259,20 @@ def modal_force(F, u, phiT, M):
 
 
 @njit(cache=True)
-def _moment_force(r, F, off, fp, mu, M):
-    """The friction moment's modal force on mode r, mu sum_k Psi_rk F_k / M [m/s^2]."""
+def _moment_force(F, mu, M, off, fp, u):
+    """u_r = mu sum_k Psi_rk F_k / M: the friction moment's modal force [m/s^2], shape (R,).
+
+    ``Psi`` is packed contact-major in ``fp`` from ``off[OFF_IPSI]`` (K contiguous axpys).
+    """
     ip, R = off[kn.OFF_IPSI], off[kn.OFF_R]
-    acc = 0.0
+    for r in range(R):
+        u[r] = 0.0
     for k in range(F.size):
-        acc += fp[ip + k * R + r] * F[k]
-    return mu * acc / M
+        f = F[k] * mu / M
+        if f != 0.0:
+            base = ip + k * R
+            for r in range(R):
+                u[r] += fp[base + r] * f
 
 
 @njit(cache=True)
@@ -348,15 +355,16 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     # friction moment (contact.friction_moment): the modal force holds mu(v) Psi^T F / M too;
     # u0 is the contact part (modal_force), the moment's part at t0 is added here
     moment = ix >= 0 and kn.moment_on(off)
-    mu0 = 0.0
+    um = np.zeros(R if moment else 0)  # the moment's modal force at t0, later at t1
     if moment:
         mu0, _ = feldmann_mu(y0[ivx] + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
                              fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        _moment_force(y0[iF:iF + K], mu0, M, off, fp, um)
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
     for r in range(R):
-        ur = u0[r] + _moment_force(r, y0[iF:iF + K], off, fp, mu0, M) if moment else u0[r]
+        ur = u0[r] + um[r] if moment else u0[r]
         a = (Phi[slot, r, MODE_Q, MODE_Q] * y0[iq + r] + Phi[slot, r, MODE_Q, MODE_DQ] * y0[idq + r]
              + G0[slot, r, MODE_Q] * ur)
         sq[r] = a
@@ -369,12 +377,13 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     wm = np.zeros(K) if moment else np.zeros(0)
     if moment:
         ip = off[kn.OFF_IPSI]
-        for r in range(R):
-            gr = G1[slot, r, MODE_Q] / M
-            for k in range(K):
-                a = phi[r, k] * gr
-                for j in range(K):
-                    Hm[k, j] += a * fp[ip + j * R + r]
+        for k in range(K):
+            for j in range(K):
+                base = ip + j * R
+                acc = 0.0
+                for r in range(R):
+                    acc += phiT[k, r] * G1[slot, r, MODE_Q] * fp[base + r]
+                Hm[k, j] = acc / M
     # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
     z0 = y0[iz]
     vz0 = y0[ivz]
@@ -484,12 +493,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         S1 += F[k]
         y1[iF + k] = F[k]
     modal_force(F, u1, phiT, M)
-    mu1 = 0.0
     if moment:
         mu1, _ = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
                              fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        _moment_force(F, mu1, M, off, fp, um)
     for r in range(R):
-        ur = u1[r] + _moment_force(r, F, off, fp, mu1, M) if moment else u1[r]
+        ur = u1[r] + um[r] if moment else u1[r]
         y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * ur
         y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * ur
     vz1 = (av - 0.5 * h * S1 / m) / cz
