@@ -280,7 +280,9 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
     ``d[D_AZ]`` = z'' [m/s^2], ``d[D_AX]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
-    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`.
+    time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`
+    (with a friction moment the friction's power is ``mu sum_k F_k (v - u'_k)``: the rest goes
+    into the plate).
     """
     _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
