@@ -1175,9 +1175,15 @@ class Scene:
                 raise SceneError(f"contact.friction_moment = true needs excitation.kind = "
                                  f"'force' (a prescribed motion has no friction force), got "
                                  f"{self.excitation.kind!r}")
-            if self.resolved_solver().method not in FRICTION_MOMENT_METHODS:
+            method = self.resolved_solver().method
+            if method not in FRICTION_MOMENT_METHODS:
                 raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' "
                                  f"or 'adaptive-modal', got {self.solver.method!r}")
+            if method == "adaptive-modal" and self.friction.law in SET_VALUED_LAWS:
+                # adaptive-modal's moment takes the Feldmann coefficient mu(v) as T_k / F_k
+                raise SceneError(f"contact.friction_moment = true with friction.law = "
+                                 f"{self.friction.law!r} needs solver.method 'ida', got "
+                                 f"'adaptive-modal'")
         if self.output.radiation and self.plate.kind != "modal":
             raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
                              f"'modal'), got plate.kind = {self.plate.kind!r}")

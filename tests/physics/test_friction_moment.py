@@ -201,6 +201,11 @@ def test_prescribed_motion_and_bad_values_are_refused():
     with pytest.raises(SceneError, match="needs excitation.kind = 'force'"):
         _scene(**{"contact.friction_moment": True, "excitation.kind": "prescribed",
                   "excitation.velocity": 0.01, "excitation.force_amplitude": "none"})
+    with pytest.raises(SceneError, match=r"^contact.friction_moment = true with friction.law = "
+                                         r"'coulomb' needs solver.method 'ida', got "
+                                         r"'adaptive-modal'$"):
+        _scene(**{"contact.friction_moment": True, "friction.law": "coulomb",
+                  "solver.method": "adaptive-modal"})
     with pytest.raises(SceneError, match=r"^contact.friction_moment must be true or false, "
                                          r"got 'yes'$"):
         _scene(**{"contact.friction_moment": "yes"})
