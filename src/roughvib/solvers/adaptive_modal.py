@@ -246,7 +246,7 @@ def modal_force(F, u, phiT, M):
     This is the contact forces' part, the one the buffers ``U`` carry. With a friction moment
     (``contact.friction_moment``) the modal force also holds ``mu(v) sum_k Psi_rk F_k / M``,
     which depends on the regime and the velocity: :func:`implicit_step` adds it at both ends
-    of every step itself (:func:`_moment_force`), so ``U`` means the same with or without it.
+    of every step itself (``_moment_force``), so ``U`` means the same with or without it.
     """
     R = u.size
     for r in range(R):
