@@ -6,9 +6,11 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 
     off     int64 header, positions OFF_* (roughvib.model.layout, StateLayout.offsets): state
             offsets iq, idq, iz, ivz, ix, ivx, iF, iE, the sizes R, K, the friction-force
-            state iL and the friction-law id (roughvib.physics.friction.LAW_*)
+            state iL, the friction-law id (roughvib.physics.friction.LAW_*) and the start
+            of the friction moment's slopes in fp (-1: no moment)
     fp      float64 scalars, positions FP_* below; from N_FP on, the packed kinetic curve
-            of the table law (roughvib.physics.friction.law_table), empty otherwise
+            of the table law (roughvib.physics.friction.law_table), empty otherwise; then,
+            from off[OFF_IPSI], the friction moment's lever-scaled slopes (K x R)
     omega2  (R,) squared modal angular frequencies [rad^2/s^2]
     cdamp   (R,) 2 zeta_r omega_r [1/s]
     phi     (R, K) mode shapes at the contacts [-]
