@@ -497,6 +497,13 @@ class Contact:
         block; ``area``, every contact force is spread evenly over the block's nominal contact
         area (``block.length`` x ``block.width``, centred at ``plate.block_position``) and
         feels the area mean of the structure's displacement (docs/structures.md).
+    friction_moment : bool
+        Let the friction force act where it does, on the plate's top surface half a thickness
+        (``plate.thickness`` / 2) above its mid-plane: besides the contact forces, the modes
+        are then driven by the moment of the friction force through the x-slopes of their
+        shapes (the paper's extension (v), docs/structures.md). Default false (the paper's
+        model: friction acts on the block only). Needs a force-driven block and
+        ``solver.method`` "ida" or "adaptive-modal".
     """
 
     points: int | str = "auto"
@@ -510,9 +517,11 @@ class Contact:
     velocity_factor: bool = True
     selection: str = "separated"
     patch: str = "point"
+    friction_moment: bool = False
 
     def __post_init__(self) -> None:
         _set(self, "patch", _choice("contact.patch", self.patch, ("point", "area")))
+        _set(self, "friction_moment", _boolean("contact.friction_moment", self.friction_moment))
         if isinstance(self.points, str):
             _choice("contact.points", self.points, ("auto",))
         else:
@@ -872,6 +881,8 @@ ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
 _TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "atol_acceleration_relative", "step")
 #: the methods that write checkpoints (``output.checkpoint_interval``)
 CHECKPOINTED = ("ida", "adaptive-modal")
+#: the methods that integrate the friction force's moment on the plate (contact.friction_moment)
+FRICTION_MOMENT_METHODS = ("ida", "adaptive-modal")
 
 
 @dataclass(frozen=True)
@@ -1163,6 +1174,20 @@ class Scene:
                              f"'adaptive-modal' (or 'auto', which picks one of them: the "
                              f"event-driven solvers are checkpointed), got "
                              f"{self.solver.method!r}")
+        if self.contact.friction_moment:
+            if self.excitation.kind != "force":
+                raise SceneError(f"contact.friction_moment = true needs excitation.kind = "
+                                 f"'force' (a prescribed motion has no friction force), got "
+                                 f"{self.excitation.kind!r}")
+            method = self.resolved_solver().method
+            if method not in FRICTION_MOMENT_METHODS:
+                raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' "
+                                 f"or 'adaptive-modal', got {self.solver.method!r}")
+            if method == "adaptive-modal" and self.friction.law in SET_VALUED_LAWS:
+                # adaptive-modal's moment takes the Feldmann coefficient mu(v) as T_k / F_k
+                raise SceneError(f"contact.friction_moment = true with friction.law = "
+                                 f"{self.friction.law!r} needs solver.method 'ida', got "
+                                 f"'adaptive-modal'")
         if self.output.radiation and self.plate.kind != "modal":
             raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
                              f"'modal'), got plate.kind = {self.plate.kind!r}")

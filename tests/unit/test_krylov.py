@@ -20,6 +20,9 @@ CASES = [
     {"contact.points": 1, "roughness.kind": "sinusoid"},
     {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3},
     {"contact.points": 40},
+    {"contact.friction_moment": True},
+    {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3,
+     "contact.friction_moment": True},
 ]
 
 
@@ -46,6 +49,8 @@ def _states(system, trial, rng):
         y[lay.index("block.x")] = 1e-4 * trial
     if system.coulomb:
         y[lay.index("friction.force")] = 0.5
+    if system.n_modes:  # moving modes (the friction moment's power depends on them)
+        y[lay.slice("plate.dq")] += 1e-4 * rng.standard_normal(system.n_modes)
     for name in lay.names:  # energy integrals enter the Jacobian nowhere: any value
         if name.startswith("energy."):
             y[lay.index(name)] = rng.standard_normal()

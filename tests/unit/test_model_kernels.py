@@ -44,6 +44,10 @@ def _fd_jacobian(system, t, y, yp, cj, reg, rf):
      "excitation.force_amplitude": "none"},
     {"contact.points": 1, "roughness.kind": "sinusoid"},
     {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3},
+    {"contact.friction_moment": True},
+    {"contact.friction_moment": True, "contact.patch": "area"},
+    {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3,
+     "contact.friction_moment": True},
 ])
 def test_analytic_jacobian_matches_finite_differences(overrides):
     system = assemble(_small_scene(**overrides))
@@ -58,6 +62,7 @@ def test_analytic_jacobian_matches_finite_differences(overrides):
         reg[kn.REG_CLOSED:] = rng.integers(0, 2, system.n_contacts)
         rf[0] = 1e-3
         y = y0 * (1 + 0.01 * rng.standard_normal(n)) + 1e-9 * rng.standard_normal(n)
+        y[system.layout.slice("plate.dq")] += 1e-4 * rng.standard_normal(system.n_modes)
         if system.tangential:
             y[system.layout.index("block.vx")] = 2e-3 * (trial - 1) + 3e-5
             y[system.layout.index("block.x")] = 1e-4 * trial

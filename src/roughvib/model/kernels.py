@@ -6,9 +6,11 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
 
     off     int64 header, positions OFF_* (roughvib.model.layout, StateLayout.offsets): state
             offsets iq, idq, iz, ivz, ix, ivx, iF, iE, the sizes R, K, the friction-force
-            state iL and the friction-law id (roughvib.physics.friction.LAW_*)
+            state iL, the friction-law id (roughvib.physics.friction.LAW_*) and the start
+            of the friction moment's slopes in fp (-1: no moment)
     fp      float64 scalars, positions FP_* below; from N_FP on, the packed kinetic curve
-            of the table law (roughvib.physics.friction.law_table), empty otherwise
+            of the table law (roughvib.physics.friction.law_table), empty otherwise; then,
+            from off[OFF_IPSI], the friction moment's lever-scaled slopes (K x R)
     omega2  (R,) squared modal angular frequencies [rad^2/s^2]
     cdamp   (R,) 2 zeta_r omega_r [1/s]
     phi     (R, K) mode shapes at the contacts [-]
@@ -34,6 +36,17 @@ Set-valued laws (``coulomb``, ``table``: the kernels branch on the law id
 so that v' = 0 exactly (index 1); in slip b ``lambda = b mu_k(b v) F_N`` with the law's kinetic
 coefficient (:func:`roughvib.physics.friction.kinetic_coefficient`).
 
+Friction moment (``contact.friction_moment``, ``off[OFF_IPSI] >= 0``): the friction force
+T_k = c F_k that the block exerts on the plate at contact k (along +x, the block's x; c = mu
+for the Feldmann law, lambda / F_N for the set-valued laws) acts on the plate's top surface,
+hp/2 above the mid-plane. With w positive down (the direction of the contact force on the
+plate) Kirchhoff's in-plane displacement of the top surface is u = +(hp/2) dw/dx, so the
+generalised force on mode r is ``g_r = sum_k Psi_rk T_k`` with ``Psi = (hp/2) dphi/dx``
+(packed in ``fp`` from ``off[OFF_IPSI]``, contact-major); it adds to ``phi F`` in the modal
+rows. The friction law keeps the block's velocity as the slip velocity. The power
+``sum_k T_k u'_k`` it puts into the plate is taken from the friction's: the friction
+dissipation integrates ``sum_k T_k (v - u'_k)``, so the energy audit closes unchanged.
+
 Outputs are named (``OUTPUTS``, each with its unit); a kernel writes the column ``OUT_*`` of a
 fixed output, and :func:`out_force_column` / :func:`out_roughness_column` give the column of a
 per-contact output: no other code computes a column number.
@@ -58,6 +71,7 @@ from roughvib.model.layout import (
     OFF_IE,
     OFF_IF,
     OFF_IL,
+    OFF_IPSI,
     OFF_IQ,
     OFF_IVX,
     OFF_IVZ,
@@ -252,6 +266,75 @@ def coulomb_friction(t, y, off, fp, reg):
 
 
 @njit(cache=True)
+def moment_on(off):
+    """Whether the friction force's moment drives the plate (``contact.friction_moment``)."""
+    return off[OFF_IPSI] >= 0
+
+
+@njit(cache=True)
+def moment_arm(r, y, off, fp):
+    """P_r = sum_k Psi_rk F_k [N/sqrt(kg)]: mode r's moment per unit friction coefficient."""
+    ip, iF, R, K = off[OFF_IPSI], off[OFF_IF], off[OFF_R], off[OFF_K]
+    acc = 0.0
+    for k in range(K):
+        acc += fp[ip + k * R + r] * y[iF + k]
+    return acc
+
+
+@njit(cache=True)
+def surface_velocity(k, y, off, fp):
+    """u'_k = sum_r Psi_rk q'_r [m/s]: tangential velocity of the plate's top surface at
+    contact k (along the block's x)."""
+    ip, idq, R = off[OFF_IPSI], off[OFF_IDQ], off[OFF_R]
+    acc = 0.0
+    base = ip + k * R
+    for r in range(R):
+        acc += fp[base + r] * y[idq + r]
+    return acc
+
+
+@njit(cache=True)
+def moment_share(t, y, off, fp, reg):
+    """The friction force on the plate per unit contact force, T_k = c F_k, and c's derivatives.
+
+    Feldmann law: ``c = mu(v)`` (the law's coefficient in the current regime); set-valued
+    laws: ``c = lambda / F_N`` (``F_N = sum_k F_k``; 0 when it is not positive): the friction
+    force is shared among the contacts in proportion to their normal forces.
+
+    Returns
+    -------
+    c : float
+        [-].
+    dc_dv, dc_dlambda, dc_dF : float
+        Derivatives by the block's tangential velocity [s/m], by lambda [1/N] and by each
+        contact force F_j [1/N].
+    """
+    iF, K = off[OFF_IF], off[OFF_K]
+    fsum = 0.0
+    for k in range(K):
+        fsum += y[iF + k]
+    if set_valued(off):
+        if not fsum > 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+        lam = y[off[OFF_IL]]
+        return lam / fsum, 0.0, 1.0 / fsum, -lam / (fsum * fsum)
+    _, vx = tangential_kinematics(t, y, off, fp)
+    mu, dmu = feldmann_mu(vx + reg[REG_S] * fp[FP_VH], reg[REG_B], fp[FP_MU_SLIP],
+                          fp[FP_MU_STICK], fp[FP_A1], fp[FP_A2])
+    return mu, dmu, 0.0, 0.0
+
+
+@njit(cache=True)
+def moment_power(y, off, fp):
+    """W = sum_k F_k u'_k [N m/s]: the moment's power into the plate is ``c W`` [W]."""
+    iF, K = off[OFF_IF], off[OFF_K]
+    acc = 0.0
+    for k in range(K):
+        acc += y[iF + k] * surface_velocity(k, y, off, fp)
+    return acc
+
+
+@njit(cache=True)
 def _plate_at_contacts(y, off, phi, cres, w):
     """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k)."""
     iq, iF, R, K = off[OFF_IQ], off[OFF_IF], off[OFF_R], off[OFF_K]
@@ -298,6 +381,10 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     fsum = 0.0
     for k in range(K):
         fsum += y[iF + k]
+    moment = ix >= 0 and moment_on(off)
+    cm = 0.0
+    if moment:
+        cm, _, _, _ = moment_share(t, y, off, fp, reg)
     # plate modes
     pdiss = 0.0
     for r in range(R):
@@ -306,6 +393,8 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
         f = 0.0
         for k in range(K):
             f += phi[r, k] * y[iF + k]
+        if moment:
+            f += cm * moment_arm(r, y, off, fp)
         res[iq + r] = yp[iq + r] - dq
         res[idq + r] = yp[idq + r] + cdamp[r] * dq + omega2[r] * q - f / M
         pdiss += cdamp[r] * dq * dq
@@ -342,7 +431,8 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
     # energy audit integrals
     if ix >= 0:
         res[iE] = yp[iE] - texc * vx
-        res[iE + E_FRICTION] = yp[iE + E_FRICTION] - fric * vx
+        pm = cm * moment_power(y, off, fp) if moment else 0.0
+        res[iE + E_FRICTION] = yp[iE + E_FRICTION] - (fric * vx - pm)
         res[iE + E_TANGENTIAL_DAMPING] = yp[iE + E_TANGENTIAL_DAMPING] - fp[FP_R2] * vx * vx
     else:
         res[iE] = yp[iE]
@@ -429,6 +519,16 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if ix >= 0:
         add(iE + E_ROUGHNESS, ix)
         add(iE + E_ROUGHNESS, ivx)
+    if ix >= 0 and int(off[OFF_IPSI]) >= 0:
+        # friction moment: the modal rows depend on the friction (velocity or lambda), the
+        # friction power on the forces (set-valued) and on the modal velocities
+        for r in range(R):
+            add(idq + r, iL if sv else ivx)
+        if sv:
+            for k in range(K):
+                add(iE + E_FRICTION, iF + k)
+        for r in range(R):
+            add(iE + E_FRICTION, idq + r)
     return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
 
 
@@ -444,6 +544,16 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         fsum += y[iF + k]
     x, vx = tangential_kinematics(t, y, off, fp)
     compressions(t, y, off, fp, phi, cres, spos, prof, work)
+    moment = ix >= 0 and moment_on(off)
+    cm = 0.0
+    dcv = 0.0
+    dcl = 0.0
+    dcf = 0.0
+    wm = 0.0
+    ip = off[OFF_IPSI]
+    if moment:
+        cm, dcv, dcl, dcf = moment_share(t, y, off, fp, reg)
+        wm = moment_power(y, off, fp)
     p = 0
     for r in range(R):
         vals[p] = cj
@@ -451,9 +561,15 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         vals[p + 2] = omega2[r]
         vals[p + 3] = cj + cdamp[r]
         p += 4
-        for k in range(K):
-            vals[p] = -phi[r, k] / M
-            p += 1
+        if moment:
+            pr = moment_arm(r, y, off, fp)
+            for k in range(K):
+                vals[p] = -(phi[r, k] + cm * fp[ip + k * R + r] + dcf * pr) / M
+                p += 1
+        else:
+            for k in range(K):
+                vals[p] = -phi[r, k] / M
+                p += 1
     vals[p] = cj
     vals[p + 1] = -1.0
     vals[p + 2] = cj + fp[FP_R1] / m
@@ -526,13 +642,14 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     if ix >= 0:
         if sv:
             vals[p] = -y[iL]
-            vals[p + 1] = -vx
+            vals[p + 1] = -(vx - dcl * wm)
             p += 2
         else:
-            vals[p] = -(dmu * fsum * vx + mu * fsum)
+            vals[p] = -(dmu * fsum * vx + mu * fsum - dcv * wm)
             p += 1
-            for _k in range(K):
-                vals[p] = -mu * vx
+            for k in range(K):
+                uk = surface_velocity(k, y, off, fp) if moment else 0.0
+                vals[p] = -mu * (vx - uk)
                 p += 1
     vals[p] = cj
     p += 1
@@ -559,6 +676,18 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         vals[p] = -s2 * vx
         vals[p + 1] = -s1
         p += 2
+    if moment:
+        for r in range(R):
+            vals[p] = -moment_arm(r, y, off, fp) * (dcl if sv else dcv) / M
+            p += 1
+        # the friction power is lambda v - c W: its row (yp - power) gains + d(c W)
+        if sv:
+            for k in range(K):
+                vals[p] = cm * surface_velocity(k, y, off, fp) + dcf * wm
+                p += 1
+        for r in range(R):
+            vals[p] = cm * moment_arm(r, y, off, fp)
+            p += 1
     return p
 
 
@@ -638,11 +767,19 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
         fk[k] = y[iF + k] if reg[REG_CLOSED + k] == 1 else 0.0
         fsum += fk[k]
     vz = y[ivz]
+    moment = ix >= 0 and moment_on(off)
+    cm = 0.0
+    if moment:
+        cm, _, _, _ = moment_share(t, y, off, fp, reg)
+    ip = off[OFF_IPSI]
     acc = 0.0
     for r in range(R):
         f = 0.0
         for k in range(K):
             f += phi[r, k] * fk[k]
+        if moment:
+            for k in range(K):
+                f += cm * fp[ip + k * R + r] * fk[k]
         acc += phi_obs[r] * (f / M - cdamp[r] * y[idq + r] - omega2[r] * y[iq + r])
     x, vx = tangential_kinematics(t, y, off, fp)
     mu = np.nan

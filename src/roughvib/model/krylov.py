@@ -24,6 +24,14 @@ changes. Cost per call O(R K) (+ O(R K^2) when cj changed, + O(K^3)), no allocat
 :func:`roughvib.model.kernels.jacobian_values` (COO order of ``jacobian_pattern``), so the
 sparse-direct and the Krylov paths share one Jacobian; the unit tests check
 ``precond_solve(J v) == v`` in every regime.
+
+Friction moment (``contact.friction_moment``): the modal rows gain the moment's force
+``c sum_k Psi_rk F_k`` (:func:`roughvib.model.kernels.moment_share`), linear in the force
+corrections and, through c, in the tangential velocity (Feldmann) or lambda (set-valued
+laws), which the tangential pair's elimination already writes as affine in S = sum_k dF_k.
+So the elimination stays exact: the Schur matrix gains
+``sum_r phi_rk (c Psi_rj + P_r e1) / (M d_r)`` (``P_r = sum_k Psi_rk F_k``), rebuilt with
+every factorisation (O(R K^2)), and the right-hand side ``e0 sum_r phi_rk P_r / (M d_r)``.
 """
 
 from __future__ import annotations
@@ -212,6 +220,20 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
             ex = cj + (dmu * fsum + r2) / m
             vx0 = rv[ivx] / ex
             rho_x = -mu / (m * ex)
+    # friction moment: modal force c Psi^T dF + P (e0 + e1 S), P_r = sum_k Psi_rk F_k
+    moment = ix >= 0 and kn.moment_on(off)
+    cm = 0.0
+    e0 = 0.0
+    e1 = 0.0
+    ip = off[kn.OFF_IPSI]
+    if moment:
+        cm, dcv, dcl, dcf = kn.moment_share(t, y, off, fp, reg)
+        if kn.set_valued(off):  # zL = rv_L - alpha zvx - beta S, zvx = vx0 + rho_x S
+            e0 = dcl * (rv[iL] - alpha * vx0)
+            e1 = dcf - dcl * (alpha * rho_x + beta)
+        else:
+            e0 = dcv * vx0
+            e1 = dcv * rho_x
     if not _same_iterate(t, y, cj, cache, ycache):
         # contact rows -> K x K Schur matrix in the forces, factorised once per iterate
         kn.compressions(t, y, off, fp, phi, cres, spos, prof, work)
@@ -222,6 +244,12 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
                 for j in range(K):
                     A[k, j] = cres[k, j] + P[k, j] + shift
                 A[k, k] += 1.0 / stiff[k]
+                if moment:
+                    for r in range(R):
+                        wr = phi[r, k] * dinv[r] / M
+                        pe = kn.moment_arm(r, y, off, fp) * e1
+                        for j in range(K):
+                            A[k, j] += wr * (cm * fp[ip + j * R + r] + pe)
             else:
                 for j in range(K):
                     A[k, j] = 0.0
@@ -243,6 +271,9 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
             acc = 0.0
             for r in range(R):
                 acc += phi[r, k] * a[r]
+            if moment and e0 != 0.0:
+                for r in range(R):
+                    acc += phi[r, k] * dinv[r] * kn.moment_arm(r, y, off, fp) * e0 / M
             b[k] = rv[iF + k] + zz0 - acc + dh * xx0
         else:
             b[k] = rv[iF + k]
@@ -256,6 +287,10 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
         g = 0.0
         for k in range(K):
             g += phi[r, k] * b[k]
+        if moment:
+            for k in range(K):
+                g += cm * fp[ip + k * R + r] * b[k]
+            g += kn.moment_arm(r, y, off, fp) * (e0 + e1 * S)
         zq = a[r] + g * dinv[r] / M
         zv[iq + r] = zq
         zv[idq + r] = cj * zq - rv[iq + r]
@@ -317,6 +352,27 @@ def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
     c5 = -vx * acc
     if ix >= 0:
         c5 -= s2 * vx * v[ix] + s1 * v[ivx]
+    if ix >= 0 and kn.moment_on(off):
+        # the friction power is lambda v - c W (kernels.residual): + d(c W) . v
+        if kn.set_valued(off):
+            cm, dcv, dcl, dcf = 0.0, 0.0, 0.0, 0.0
+            if fsum > 0.0:
+                cm = y[iL] / fsum
+                dcl = 1.0 / fsum
+                dcf = -y[iL] / (fsum * fsum)
+        else:
+            cm, dcv, dcl, dcf = mu, dmu, 0.0, 0.0
+        sv = 0.0
+        acc = 0.0
+        for k in range(K):
+            sv += v[iF + k]
+            acc += kn.surface_velocity(k, y, off, fp) * v[iF + k]
+        wm = kn.moment_power(y, off, fp)
+        c1 += wm * (dcv * v[ivx] + dcf * sv + (dcl * v[iL] if iL >= 0 else 0.0)) + cm * acc
+        acc = 0.0
+        for r in range(R):
+            acc += kn.moment_arm(r, y, off, fp) * v[idq + r]
+        c1 += cm * acc
     out[iE] += sign * c0
     out[iE + kn.E_FRICTION] += sign * c1
     out[iE + kn.E_TANGENTIAL_DAMPING] += sign * c2
@@ -341,10 +397,21 @@ def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, pr
     sv = 0.0
     for k in range(K):
         sv += v[iF + k]
+    moment = ix >= 0 and kn.moment_on(off)
+    cm = 0.0
+    dtan = 0.0  # the moment coefficient's change along v: dc/dv v_x + dc/dlambda v_L + dc/dF S
+    ip = off[kn.OFF_IPSI]
+    if moment:
+        cm, dcv, dcl, dcf = kn.moment_share(t, y, off, fp, reg)
+        dtan = dcv * v[ivx] + dcf * sv + (dcl * v[iL] if iL >= 0 else 0.0)
     for r in range(R):
         f = 0.0
         for k in range(K):
             f += phi[r, k] * v[iF + k]
+        if moment:
+            for k in range(K):
+                f += cm * fp[ip + k * R + r] * v[iF + k]
+            f += kn.moment_arm(r, y, off, fp) * dtan
         out[iq + r] = cj * v[iq + r] - v[idq + r]
         out[idq + r] = omega2[r] * v[iq + r] + (cj + cdamp[r]) * v[idq + r] - f / M
     out[iz] = cj * v[iz] - v[ivz]

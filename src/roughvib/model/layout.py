@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["ENERGY_TERMS", "N_OFF", "OFF_IDQ", "OFF_IE", "OFF_IF", "OFF_IL", "OFF_IQ", "OFF_IVX",
-           "OFF_IVZ", "OFF_IX", "OFF_IZ", "OFF_K", "OFF_LAW", "OFF_R", "StateLayout"]
+__all__ = ["ENERGY_TERMS", "N_OFF", "OFF_IDQ", "OFF_IE", "OFF_IF", "OFF_IL", "OFF_IPSI", "OFF_IQ",
+           "OFF_IVX", "OFF_IVZ", "OFF_IX", "OFF_IZ", "OFF_K", "OFF_LAW", "OFF_R", "StateLayout"]
 
 # Positions in the int64 header ``off`` that every kernel receives (:meth:`StateLayout.offsets`).
 # numba reads module-level integers as compile-time constants, so ``off[OFF_IZ]`` compiles to
@@ -36,7 +36,11 @@ OFF_R = 8     #: number of plate modes R
 OFF_K = 9     #: number of contacts K
 OFF_IL = 10   #: friction.force (set-valued laws), -1 otherwise
 OFF_LAW = 11  #: friction-law id (roughvib.physics.friction.LAW_*)
-N_OFF = 12
+#: first position in ``fp`` of the friction moment's lever-scaled slopes (K x R, contact-major:
+#: ``fp[off[OFF_IPSI] + k R + r]`` = hp/2 dphi_r/dx at contact k [1/sqrt(kg)]), -1 when
+#: ``contact.friction_moment`` is off
+OFF_IPSI = 12
+N_OFF = 13
 
 #: running integrals appended to the state (all in J): their time derivatives are powers
 ENERGY_TERMS = (
@@ -156,4 +160,5 @@ class StateLayout:
         off[OFF_K] = self.n_contacts
         off[OFF_IL] = self.index("friction.force")
         off[OFF_LAW] = law
+        off[OFF_IPSI] = -1  # no friction moment; roughvib.model.system.assemble sets it
         return off

@@ -71,7 +71,8 @@ class System:
     #: displacement per unit modal coordinate, which scales the modes' absolute tolerances
     mode_scale: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: (R, K) x-slopes of the shapes at the contacts (area means for contact.patch = "area")
-    #: [1/(m sqrt(kg))], for a friction moment; no kernel reads them yet
+    #: [1/(m sqrt(kg))]; with contact.friction_moment the kernels read them, times the lever
+    #: plate.thickness / 2, from ``fp`` (``off[OFF_IPSI]``, roughvib.model.layout)
     phi_dx: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
 
     # ---- sizes -----------------------------------------------------------------------
@@ -491,11 +492,18 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
     fp[kn.FP_HYST] = fr.switching_hysteresis
     fp = np.concatenate([fp, table])  # the table law's curve follows the scalars (N_FP on)
+    off = layout.offsets(law.law_id)
+    if scene.contact.friction_moment and tangential and R > 0:
+        # the friction force acts on the top surface, hp/2 above the mid-plane: its lever
+        # times the x-slopes of the shapes, contact-major, after the table (kernels.moment_*)
+        off[kn.OFF_IPSI] = fp.size
+        psi = 0.5 * plt.thickness * np.asarray(phi_dx, dtype=float)
+        fp = np.concatenate([fp, np.ascontiguousarray(psi.T).ravel()])
 
     return System(
         scene=scene, layout=layout, profile=profile, contact_s=spos, contact_xy=contact_xy,
         structure=structure, force_amplitude=T0, calibration=calibration,
-        off=layout.offsets(law.law_id), fp=fp,
+        off=off, fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
         work=np.zeros(5 * K + 8), warnings=notes,

@@ -302,6 +302,12 @@ def modal_force(F, u, phiT, M):
 
     ``phiT`` is the mode-shape matrix transposed, shape (K, R), C-contiguous: the sum runs as
     K contiguous axpys over the modes, which vectorise (a reduction over k does not).
+
+    This is the contact forces' part. With a friction moment (``contact.friction_moment``)
+    the modal force also holds ``mu(v) sum_k Psi_rk F_k / M`` (``_moment_force``), which
+    depends on the regime and the velocity; the buffers ``U`` of the step loop carry the
+    whole modal force (``_state_modal_force``), so that the embedded error estimate sees the
+    moment's history too.
     """
     R = u.size
     for r in range(R):
@@ -362,13 +368,49 @@ def _holds_stick(off, reg):
 
 
 @njit(cache=True)
+def _moment_force(F, mu, M, off, fp, u):
+    """u_r = mu sum_k Psi_rk F_k / M: the friction moment's modal force [m/s^2], shape (R,).
+
+    ``Psi`` is packed contact-major in ``fp`` from ``off[OFF_IPSI]`` (K contiguous axpys).
+    """
+    ip, R = off[kn.OFF_IPSI], off[kn.OFF_R]
+    for r in range(R):
+        u[r] = 0.0
+    for k in range(F.size):
+        f = F[k] * mu / M
+        if f != 0.0:
+            base = ip + k * R
+            for r in range(R):
+                u[r] += fp[base + r] * f
+
+
+@njit(cache=True)
+def _state_modal_force(y, u, phiT, off, fp, reg, scratch):
+    """The whole modal force u (R,) of the state y [m/s^2]: the contact forces' part
+    (:func:`modal_force`) and, with a friction moment, the moment's (``_moment_force``,
+    Feldmann law). ``scratch``: length >= R."""
+    iF, K, R = off[kn.OFF_IF], off[kn.OFF_K], off[kn.OFF_R]
+    M = fp[kn.FP_MMODAL]
+    modal_force(y[iF:iF + K], u, phiT, M)
+    if off[kn.OFF_IX] >= 0 and kn.moment_on(off):
+        mu, _ = feldmann_mu(y[off[kn.OFF_IVX]] + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                            fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        um = scratch[:R]
+        _moment_force(y[iF:iF + K], mu, M, off, fp, um)
+        for r in range(R):
+            u[r] += um[r]
+
+
+@njit(cache=True)
 def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     """Block accelerations and the six energy powers of a consistent state.
 
     ``d[D_AZ]`` = z'' [m/s^2], ``d[D_AX]`` = x'' [m/s^2] (0 for prescribed motion), ``d[2:8]`` the
     time derivatives of the energy integrals [W], exactly as in :func:`.kernels.residual`, with
     the friction force of :func:`friction_force` for every law: in the stick regime of a
-    set-valued law it balances the drive (x'' = 0) and, at v = 0, does no work.
+    set-valued law it balances the drive (x'' = 0) and, at v = 0, does no work. With a
+    friction moment the friction's power is ``mu sum_k F_k (v - u'_k)``: the rest goes into
+    the plate.
     """
     _iq, idq, _iz, ivz, ix, _ivx, iF, _iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
@@ -381,10 +423,13 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     x, vx = kn.tangential_kinematics(t, y, off, fp)
     if ix >= 0:
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
-        fric, _, _ = friction_force(t, y, vx, fsum, off, fp, reg)
+        fric, _, mu = friction_force(t, y, vx, fsum, off, fp, reg)
         d[D_AX] = (texc - fric - fp[kn.FP_R2] * vx) / m
         d[D_POWER + kn.E_EXCITATION] = texc * vx
         d[D_POWER + kn.E_FRICTION] = fric * vx
+        if kn.moment_on(off):  # the moment's power goes into the plate, not into heat
+            # (the moment is refused with a set-valued law here: mu is the Feldmann law's)
+            d[D_POWER + kn.E_FRICTION] = fric * vx - mu * kn.moment_power(y, off, fp)
         d[D_POWER + kn.E_TANGENTIAL_DAMPING] = fp[kn.FP_R2] * vx * vx
     else:
         d[D_AX] = 0.0
@@ -439,17 +484,34 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
     idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
     noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
+    # friction moment (contact.friction_moment): the modal force holds mu(v) Psi^T F / M too;
+    # u0 is the whole modal force of y0 (_state_modal_force), u1 receives that of y1
+    moment = ix >= 0 and kn.moment_on(off)
+    um = np.zeros(R if moment else 0)  # the moment's modal force at t1
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
     for r in range(R):
+        ur = u0[r]
         a = (Phi[slot, r, MODE_Q, MODE_Q] * y0[iq + r] + Phi[slot, r, MODE_Q, MODE_DQ] * y0[idq + r]
-             + G0[slot, r, MODE_Q] * u0[r])
+             + G0[slot, r, MODE_Q] * ur)
         sq[r] = a
         sdq[r] = (Phi[slot, r, MODE_DQ, MODE_Q] * y0[iq + r]
-                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * u0[r])
+                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * ur)
         for k in range(K):
             wfree[k] += phi[r, k] * a
+    # the moment's part at t1 moves the contacts by mu1 H F: H_kj = sum_r phi_rk G1_r Psi_rj / M
+    Hm = np.zeros((K, K)) if moment else np.zeros((0, 0))
+    wm = np.zeros(K) if moment else np.zeros(0)
+    if moment:
+        ip = off[kn.OFF_IPSI]
+        for k in range(K):
+            for j in range(K):
+                base = ip + j * R
+                acc = 0.0
+                for r in range(R):
+                    acc += phiT[k, r] * G1[slot, r, MODE_Q] * fp[base + r]
+                Hm[k, j] = acc / M
     # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
     z0 = y0[iz]
     vz0 = y0[ivz]
@@ -477,6 +539,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     nu = nc + (1 if sliding else 0)
     v1 = v0 + h * d0[D_AX] if sliding else 0.0
     texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if sliding else 0.0
+    s_l = reg[kn.REG_S]  # the Feldmann law's latch and branch (its friction moment's mu)
+    b_l = reg[kn.REG_B]
     ok = False
     for _it in range(25):
         ist[I_NEWTON] += 1
@@ -489,6 +553,16 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             x1 = x0
         else:
             x1, v1 = kn.prescribed_motion(t1, fp)
+        mu1 = 0.0
+        dmu1 = 0.0
+        if moment:
+            mu1, dmu1 = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
+                                    fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+            for k in range(K):
+                acc = 0.0
+                for j in range(K):
+                    acc += Hm[k, j] * F[j]
+                wm[k] = acc
         for a in range(nc):
             k = int(idx[a])
             hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
@@ -497,12 +571,18 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
                 j = int(idx[c])
                 acc += G1c[slot, k, j] * F[j]
                 jac[a, c] = G1c[slot, k, j] + beta
+                if moment:
+                    jac[a, c] += mu1 * Hm[k, j]
             jac[a, a] += 1.0 / stiff[k]
+            if moment:
+                acc += mu1 * wm[k]
             rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
             noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
                                             + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
             if sliding:
                 jac[a, nc] = -dh * 0.5 * h
+                if moment:
+                    jac[a, nc] += dmu1 * wm[k]
         if sliding:
             fric, dfric_dv, dfric_dfn = friction_force(t1, y0, v1, S1, off, fp, reg)
             rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[D_AX]
@@ -543,6 +623,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         S1 += F[k]
         y1[iF + k] = F[k]
     modal_force(F, u1, phiT, M)
+    if moment:
+        mu1, _ = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
+                             fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        _moment_force(F, mu1, M, off, fp, um)
+        for r in range(R):
+            u1[r] += um[r]
     for r in range(R):
         y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * u1[r]
         y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * u1[r]
@@ -749,7 +835,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
     if fresh:
         tt[T_HPREV] = 0.0  # no history across a start or an event: step doubling first
         derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
-        modal_force(y[off[kn.OFF_IF]:off[kn.OFF_IF] + off[kn.OFF_K]], u, phiT, M)
+        _state_modal_force(y, u, phiT, off, fp, reg, ut)
     # outputs at grid points the event landed on (after the switch, as IDA does)
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
