@@ -1229,12 +1229,15 @@ class Scene:
 
         ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
         docs/accuracy.md; every friction law) unless the scene needs what only ``ida``
-        offers: overdamped plate modes (``plate.loss_factor >= 2``).
+        offers: overdamped plate modes (``plate.loss_factor >= 2``) or the friction moment
+        with a set-valued friction law (``contact.friction_moment`` with ``coulomb`` or
+        ``table``).
         """
         s = self.solver
         if s.method != "auto":
             return s.resolved()
-        needs_ida = self.plate.kind == "modal" and self.plate.loss_factor >= 2.0
+        needs_ida = ((self.plate.kind == "modal" and self.plate.loss_factor >= 2.0)
+                     or (self.contact.friction_moment and self.friction.law in SET_VALUED_LAWS))
         return s.resolved("ida" if needs_ida else "adaptive-modal")
 
     @property
