@@ -10,7 +10,7 @@ import roughvib
 from roughvib.api import simulate
 from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.scene import SceneError
-from roughvib.solvers.adaptive_modal import SERIES_LIMIT, bump_maps, step_maps
+from roughvib.solvers.adaptive_modal import SERIES_LIMIT, step_maps
 
 
 def _expm_maps(w, zeta, h):
@@ -47,48 +47,6 @@ def test_step_maps_match_the_matrix_exponential(wh, zeta):
     for got, ref in ((G0[0], g0), (G1[0], g1)):
         scale = np.max(np.abs(S @ ref))
         np.testing.assert_allclose(S @ got, S @ ref, rtol=0, atol=2.5 * tol * scale)
-
-
-def _expm_bump(w, zeta, h):
-    """[q, q'](h) from rest under u(t) = t (h - t) / 2, from the exponential of the system
-    augmented with the input's Taylor chain u, u', u''."""
-    A = np.zeros((5, 5))
-    A[0, 1] = 1.0
-    A[1, 0] = -w * w
-    A[1, 1] = -2 * zeta * w
-    A[1, 2] = 1.0
-    A[2, 3] = 1.0
-    A[3, 4] = 1.0
-    return (expm(A * h) @ np.array([0.0, 0.0, 0.0, h / 2, -1.0]))[:2]
-
-
-@pytest.mark.parametrize("wh", [1e-7, 1e-4, 0.03, 0.5, 0.999, 1.001, 3.0, 40.0, 700.0])
-@pytest.mark.parametrize("zeta", [0.0, 0.005, 0.3])
-def test_bump_maps_match_the_matrix_exponential(wh, zeta):
-    """The first-order hold's error map (embedded error estimate) on both branches."""
-    w = 2 * np.pi * 1e4
-    h = wh / w
-    Phi, G0, G1, G2 = (np.zeros((1, 2, 2)), np.zeros((1, 2)), np.zeros((1, 2)),
-                       np.zeros((1, 2)))
-    step_maps(np.array([w * w]), np.array([2 * zeta * w]), h, Phi, G0, G1)
-    bump_maps(np.array([w * w]), np.array([2 * zeta * w]), h, Phi, G2)
-    ref = _expm_bump(w, zeta, h)
-    S = np.diag([w, 1.0])
-    scale = np.max(np.abs(S @ ref))
-    # the closed form subtracts terms of order h^2 / w^2 to get a result of order h^4 / 24
-    # near omega h = 1: a few digits go, which an error estimate can spare
-    np.testing.assert_allclose(S @ G2[0], S @ ref, rtol=0, atol=1e-9 * scale)
-
-
-def test_bump_maps_small_omega_limit():
-    """omega h -> 0: q'' = u, so q(h) = h^4 / 24 and q'(h) = h^3 / 12 (integrals of the bump)."""
-    h = 1e-5
-    w = 1e-3 / h
-    Phi, G0, G1, G2 = (np.zeros((1, 2, 2)), np.zeros((1, 2)), np.zeros((1, 2)),
-                       np.zeros((1, 2)))
-    step_maps(np.array([w * w]), np.array([0.0]), h, Phi, G0, G1)
-    bump_maps(np.array([w * w]), np.array([0.0]), h, Phi, G2)
-    np.testing.assert_allclose(G2[0], [h**4 / 24, h**3 / 12], rtol=1e-6)
 
 
 def test_step_maps_are_continuous_across_the_branch_switch():

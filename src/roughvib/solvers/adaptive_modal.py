@@ -114,11 +114,10 @@ I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 N_IST = 10
 
-#: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1``, ``G2``
-#: (N_SLOTS, R, 2) (G2: bump_maps), ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and
-#: ``hslot`` (N_SLOTS,) the step of each slot (0: empty); numba passes a namedtuple of arrays
-#: at the cost of its fields
-Propagators = collections.namedtuple("Propagators", ["Phi", "G0", "G1", "G2", "G1c", "hslot"])
+#: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1`` (N_SLOTS, R, 2),
+#: ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and ``hslot`` (N_SLOTS,) the step of each
+#: slot (0: empty); numba passes a namedtuple of arrays at the cost of its fields
+Propagators = collections.namedtuple("Propagators", ["Phi", "G0", "G1", "G1c", "hslot"])
 #: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
 #: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
 Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
@@ -143,17 +142,14 @@ B_TRIAL = 4   # a root-search trial
 B_BEST = 5    # the state at the root
 B_WTS = 6     # tolerance weights (Y only)
 N_YBUF = 7
-B_PREV = 7    # D and U only: the accepted point before the current one (embedded estimate)
-N_DBUF = 8
+N_DBUF = 6
 # rows of the margin buffer G: step start, half step, step end, latest trial
 G_START = 0
 G_HALF = 1
 G_END = 2
 G_TRIAL = 3
 N_GBUF = 4
-T_NOW = 0      # the current time [s] in the time box ``tt`` ...
-T_HPREV = 1    # ... and the time since the previous accepted point [s] (0: none, after a
-N_TT = 2       # start or an event: the next step is checked by step doubling)
+T_NOW = 0      # the one entry of the time box ``tt``
 FIRST_ROW = 0  # the output row of t = 0
 
 
@@ -228,60 +224,11 @@ def step_maps(omega2, cdamp, h, Phi, G0, G1):
 
 
 @njit(cache=True)
-def bump_maps(omega2, cdamp, h, Phi, G2):
-    """Response of every mode to the bump u(t) = t (h - t) / 2 over a step, from rest.
-
-    The first-order hold's error: for a force with second derivative u'' the hold misses
-    u - u_hold = -u'' t (h - t) / 2 (to leading order), so the state at the step end misses
-    ``-G2 u''``: the embedded error estimate of :func:`_advance`.
-
-    Parameters
-    ----------
-    omega2, cdamp : ndarray, shape (R,)
-        w_r^2 [rad^2/s^2] and c_r [1/s], as for :func:`step_maps`.
-    h : float
-        Step [s].
-    Phi : ndarray, shape (R, 2, 2)
-        The step's transition matrices from :func:`step_maps` (used above ``SERIES_LIMIT``).
-    G2 : ndarray, shape (R, 2)
-        Filled with [q, q'](h) [s^3 per (m/s^2)/s^2 of u'', i.e. s^4 and s^3 scaled].
-    """
-    R = omega2.size
-    for r in range(R):
-        w2 = omega2[r]
-        c = cdamp[r]
-        if math.sqrt(w2) * h <= SERIES_LIMIT:
-            # with v_n = (A h)^n e2 / n!: G2 = h^3 / 2 sum v_n / ((n + 2)(n + 3))
-            v0, v1 = 0.0, 1.0
-            b0, b1 = 0.0, 0.0
-            for n in range(N_SERIES):
-                f = 1.0 / ((n + 2) * (n + 3))
-                b0 += v0 * f
-                b1 += v1 * f
-                a = h * v1 / (n + 1)
-                b = h * (-w2 * v0 - c * v1) / (n + 1)
-                v0, v1 = a, b
-            s = 0.5 * h * h * h
-            G2[r, MODE_Q] = s * b0
-            G2[r, MODE_DQ] = s * b1
-        else:
-            # particular solution q_p = al t^2 + be t + ga of q'' + c q' + w2 q = (h t - t^2) / 2
-            al = -0.5 / w2
-            be = (0.5 * h - 2.0 * c * al) / w2
-            ga = -(2.0 * al + c * be) / w2
-            G2[r, MODE_Q] = (al * h * h + be * h + ga
-                             - Phi[r, MODE_Q, MODE_Q] * ga - Phi[r, MODE_Q, MODE_DQ] * be)
-            G2[r, MODE_DQ] = (2.0 * al * h + be
-                              - Phi[r, MODE_DQ, MODE_Q] * ga - Phi[r, MODE_DQ, MODE_DQ] * be)
-
-
-@njit(cache=True)
 def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
     """Propagators of step h into cache slot ``slot`` of ``prop``, with G1 in contact
     coordinates."""
-    Phi, G0, G1, G2, G1c, hslot = prop
+    Phi, G0, G1, G1c, hslot = prop
     step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
-    bump_maps(omega2, cdamp, h, Phi[slot], G2[slot])
     R = omega2.size
     K = cres.shape[0]
     for k in range(K):
@@ -306,8 +253,7 @@ def modal_force(F, u, phiT, M):
     This is the contact forces' part. With a friction moment (``contact.friction_moment``)
     the modal force also holds ``mu(v) sum_k Psi_rk F_k / M`` (``_moment_force``), which
     depends on the regime and the velocity; the buffers ``U`` of the step loop carry the
-    whole modal force (``_state_modal_force``), so that the embedded error estimate sees the
-    moment's history too.
+    whole modal force (``_state_modal_force``): every step starts from the whole force.
     """
     R = u.size
     for r in range(R):
@@ -469,7 +415,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
     >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
-    Phi, G0, G1, _G2, G1c, _hslot = prop
+    Phi, G0, G1, G1c, _hslot = prop
     ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
@@ -685,95 +631,6 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
 
 
 @njit(cache=True)
-def _embedded_err(h, hp, y0, y1, d0, d1, dp, u0, u1, up, G2, phi, stiff, atol, rtol, off,
-                  reg, ew):
-    """Local error of one step of length h, estimated from the history, in tolerance weights.
-
-    The step holds the modal force u linear (first-order hold); its leading local error in
-    the modes is ``G2 u''`` (:func:`bump_maps`), with u'' the divided difference of u over the
-    previous point (``up``, a time ``hp`` before the step start), the step start and its end.
-    The block's trapezoidal rule misses ``h^3 / 12`` times the second derivative of its
-    acceleration (velocity) and ``h^2 / 12`` times the change of acceleration over the step
-    (position), the energy integrals ``h^3 / 12`` times the powers' second derivative. A
-    closed contact's force follows its compression: the block's and the plate's errors at the
-    contact times its stiffness. The norm is that of :func:`_err_norm` (RMS over the modes,
-    max over the rest), on one step instead of a step-doubling pair, at no extra propagation.
-
-    ``G2``: the slot's bump response (R, 2); ``ew`` scratch of length >= K.
-    """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
-    c2 = 2.0 / (h + hp)
-    for k in range(K):
-        ew[k] = 0.0
-    acc = 0.0
-    for r in range(R):
-        upp = c2 * ((u1[r] - u0[r]) / h - (u0[r] - up[r]) / hp)
-        eq = G2[r, MODE_Q] * upp
-        edq = G2[r, MODE_DQ] * upp
-        wq = rtol * max(abs(y0[iq + r]), abs(y1[iq + r])) + atol[iq + r]
-        wdq = rtol * max(abs(y0[idq + r]), abs(y1[idq + r])) + atol[idq + r]
-        acc += (eq / wq) ** 2 + (edq / wdq) ** 2
-        for k in range(K):
-            ew[k] += phi[r, k] * eq
-    worst = 0.0
-    if R > 0:
-        worst = math.sqrt(acc / (2 * R))
-    h2 = h * h / 12.0
-    h3 = h2 * h
-    # block, vertical
-    a0 = d0[D_AZ]
-    a1 = d1[D_AZ]
-    ez = h2 * (a1 - a0)
-    evz = h3 * c2 * ((a1 - a0) / h - (a0 - dp[D_AZ]) / hp)
-    worst = max(worst, abs(ez) / (rtol * max(abs(y0[iz]), abs(y1[iz])) + atol[iz]))
-    worst = max(worst, abs(evz) / (rtol * max(abs(y0[ivz]), abs(y1[ivz])) + atol[ivz]))
-    if ix >= 0:
-        a0 = d0[D_AX]
-        a1 = d1[D_AX]
-        ex = h2 * (a1 - a0)
-        evx = h3 * c2 * ((a1 - a0) / h - (a0 - dp[D_AX]) / hp)
-        worst = max(worst, abs(ex) / (rtol * max(abs(y0[ix]), abs(y1[ix])) + atol[ix]))
-        worst = max(worst, abs(evx) / (rtol * max(abs(y0[ivx]), abs(y1[ivx])) + atol[ivx]))
-    for k in range(K):
-        if reg[kn.REG_CLOSED + k] == 1:
-            ef = stiff[k] * (ez - ew[k])
-            i = iF + k
-            worst = max(worst, abs(ef) / (rtol * max(abs(y0[i]), abs(y1[i])) + atol[i]))
-    for j in range(kn.N_ENERGY):
-        p0 = d0[D_POWER + j]
-        ee = h3 * c2 * ((d1[D_POWER + j] - p0) / h - (p0 - dp[D_POWER + j]) / hp)
-        i = iE + j
-        worst = max(worst, abs(ee) / (rtol * max(abs(y0[i]), abs(y1[i])) + atol[i]))
-    if not worst < 1e300:
-        return 1e300
-    return worst
-
-
-@njit(cache=True)
-def _correct_energy(y1, d0, d1, dprev, h, hp, off):
-    """The energy integrals of one step to third order: the step's trapezoidal sums (in ``y1``)
-    less h^3 / 12 times the powers' second divided difference over the previous point, a
-    time ``hp`` before the step start (``dprev``)."""
-    iE = off[kn.OFF_IE]
-    c = 2.0 / (h + hp) * h * h * h / 12.0
-    for i in range(kn.N_ENERGY):
-        p0 = d0[D_POWER + i]
-        y1[iE + i] -= c * ((d1[D_POWER + i] - p0) / h - (p0 - dprev[D_POWER + i]) / hp)
-
-
-@njit(cache=True)
-def _newton_weights(y, wts, atol, rtol, off):
-    """The tolerance weights ``rtol |y| + atol`` of the states :func:`implicit_step` solves
-    for (the contact forces and the block's tangential velocity); the others are not read."""
-    iF = off[kn.OFF_IF]
-    for k in range(off[kn.OFF_K]):
-        wts[iF + k] = rtol * abs(y[iF + k]) + atol[iF + k]
-    ivx = off[kn.OFF_IVX]
-    if ivx >= 0:
-        wts[ivx] = rtol * abs(y[ivx]) + atol[ivx]
-
-
-@njit(cache=True)
 def _is_multiple(rel, h):
     """Whether ``rel`` is (to 1e-7 of h) a whole multiple of h."""
     f = rel / h
@@ -826,14 +683,12 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                                      Y[B_BEST], Y[B_WTS])
     d, da, dm, db, dt_, dbest = D[B_NOW], D[B_FULL], D[B_HALF], D[B_END], D[B_TRIAL], D[B_BEST]
     u, ua, um, ub, ut, ubest = U[B_NOW], U[B_FULL], U[B_HALF], U[B_END], U[B_TRIAL], U[B_BEST]
-    dprev, uprev = D[B_PREV], U[B_PREV]
     g0, gm, gb, gt = G[G_START], G[G_HALF], G[G_END], G[G_TRIAL]
     n = grid.size
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
     t = tt[T_NOW]
     if fresh:
-        tt[T_HPREV] = 0.0  # no history across a start or an event: step doubling first
         derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
         _state_modal_force(y, u, phiT, off, fp, reg, ut)
     # outputs at grid points the event landed on (after the switch, as IDA does)
@@ -877,17 +732,13 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
         if last:
             target = span
         h = target - rel
-        # with a previous point the step is checked by its embedded estimate (one step);
-        # without one (after a start or an event) by step doubling (three)
-        hp = tt[T_HPREV]
-        embedded = hp > 0.0
         if abs(h - hl) <= 1e-7 * hl:
             s_full = lev
             s_half = lev + 1
             if hslot[s_full] <= 0.0:
                 _fill_slot(s_full, hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
-            if not embedded and hslot[s_half] <= 0.0:
+            if hslot[s_half] <= 0.0:
                 _fill_slot(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, prop)
                 ist[I_MAPS] += 1
             h = hslot[s_full]
@@ -895,34 +746,24 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             s_full = SLOT_FLY
             s_half = SLOT_FLY2
             _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, prop)
-            ist[I_MAPS] += 1
-            if not embedded:
-                _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
-                ist[I_MAPS] += 1
+            _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
+            ist[I_MAPS] += 2
         hh = 0.5 * h
-        _newton_weights(y, wts, atol, rtol, off)
+        for i in range(nstate):
+            wts[i] = rtol * abs(y[i]) + atol[i]
+        # the full step (for the error estimate) and the two half steps (kept)
         model = (prop, wts, off, fp, cdamp, phi, phiT, stiff, spos, prof, reg, scratch, ist)
-        if embedded:
-            # one step, kept; its error from the history
-            ok = implicit_step(t, h, y, d, u, yb, db, ub, s_full, *model)
-            ist[I_STEP_EVALS] += 1
-        else:
-            # the full step (for the error estimate) and the two half steps (kept)
-            ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
-            ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
-            ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
-            ist[I_STEP_EVALS] += 3
+        ok = implicit_step(t, h, y, d, u, ya, da, ua, s_full, *model)
+        ok = ok and implicit_step(t, hh, y, d, u, ym, dm, um, s_half, *model)
+        ok = ok and implicit_step(t + hh, h - hh, ym, dm, um, yb, db, ub, s_half, *model)
+        ist[I_STEP_EVALS] += 3
         if not ok:
             ist[I_NEWTON_FAIL] += 1
             ist[I_REJECT] += 1
             ist[I_LEV] = lev + 1
             continue
-        if embedded:
-            err = _embedded_err(h, hp, y, yb, d, db, dprev, u, ub, uprev, prop.G2[s_full], phi,
-                                stiff, atol, rtol, off, reg, scratch.ws)
-        else:
-            # plate.q and plate.dq come first in the layout (StateLayout): 2 R modal states
-            err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R])
+        # plate.q and plate.dq come first in the layout (StateLayout): 2 R modal states
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R])
         if err > 1.0:
             ist[I_REJECT] += 1
             fac = SAFETY * err ** (-1.0 / 3.0)
@@ -934,36 +775,29 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             continue
         ist[I_STEPS] += 1
         t_new = base + target if not last else grid[k]
-        if embedded:
-            _correct_energy(yb, d, db, dprev, h, hp, off)
-        # events: margins at the end (and at the half step of a step-doubling pair)
+        # events: margins at the half step and at the end
         t_mid = t + hh
-        if not embedded:
-            kn.events(t_mid, ym, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
+        kn.events(t_mid, ym, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
         kn.events(t_new, yb, gb, off, fp, phi, cres, spos, prof, reg, rf, work)
         first_half = False
         any_cross = False
         for i in range(n_ev):
             fired[i] = 0
-            if armed[i] == 1 and (gb[i] <= 0.0 or (not embedded and gm[i] <= 0.0)):
+            if armed[i] == 1 and (gm[i] <= 0.0 or gb[i] <= 0.0):
                 any_cross = True
-                if not embedded and gm[i] <= 0.0:
+                if gm[i] <= 0.0:
                     first_half = True
         if any_cross:
-            # the (half) step holding the earliest crossings, re-taken with variable length
-            if embedded:
-                tb = t
-                yb0, db0, ub0, gb0, ge = y, d, u, g0, gb
-                L = h
-            elif first_half:
+            # the half step holding the earliest crossings, re-taken with variable length
+            if first_half:
                 tb = t
                 yb0, db0, ub0, gb0, ge = y, d, u, g0, gm
-                L = hh
             else:
                 tb = t_mid
                 yb0, db0, ub0, gb0, ge = ym, dm, um, gm, gb
-                L = h - hh
-            _newton_weights(yb0, wts, atol, rtol, off)
+            L = hh if first_half else h - hh
+            for i in range(nstate):
+                wts[i] = rtol * abs(yb0[i]) + atol[i]
             theta_best = 1.0
             have_best = False
             for i in range(n_ev):
@@ -1012,7 +846,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                         side = -1
                 # the state at hi (re-taken so that every margin is evaluated there)
                 hs = hi * L
-                if hi == 1.0:  # the (half) step's own end (derivatives are recomputed on entry)
+                if hi == 1.0:  # the half step's own end (derivatives are recomputed on entry)
                     src = ym if first_half else yb
                     for j in range(nstate):
                         ybest[j] = src[j]
@@ -1024,8 +858,6 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                                          *model):
                         tt[T_NOW] = tb
                         return ADV_NEWTON
-                    if embedded:
-                        _correct_energy(ybest, db0, dbest, dprev, hs, hp, off)
                 theta_best = hi
                 have_best = True
                 kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg,
@@ -1041,30 +873,15 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             tt[T_NOW] = te
             # an event exactly on the output time: the row is written after the switch
             return ADV_EVENT
-        # accept. The energy integrals to fourth (step doubling: Simpson's rule over the two
-        # half steps) or third order (one step: _correct_energy, applied above so that an
-        # event's state has it too): the steps' own trapezoidal sums are second order in h,
-        # and on a quiet run the steps are capped by the output grid, so that quadrature error
-        # did not shrink with the tolerance (energy audit 1.1e-8 at any rtol on paper without
-        # roughness; docs/robustness.md)
+        # accept. The energy integrals by Simpson's rule over the two half steps (the midpoint
+        # state is at hand): the half steps' trapezoidal sums are second order in h, and on a
+        # quiet run the steps are capped by the output grid, so that quadrature error did not
+        # shrink with the tolerance (energy audit 1.1e-8 at any rtol on paper without
+        # roughness); Simpson's is fourth order (docs/robustness.md, energy audit)
         iE = off[kn.OFF_IE]
-        if not embedded:
-            for i in range(kn.N_ENERGY):
-                yb[iE + i] = y[iE + i] + h / 6.0 * (d[D_POWER + i] + 4.0 * dm[D_POWER + i]
-                                                     + db[D_POWER + i])
-        # the history of the next step's estimate: the last point before the new one
-        if embedded:
-            for j in range(d.size):
-                dprev[j] = d[j]
-            for j in range(u.size):
-                uprev[j] = u[j]
-            tt[T_HPREV] = h
-        else:
-            for j in range(d.size):
-                dprev[j] = dm[j]
-            for j in range(u.size):
-                uprev[j] = um[j]
-            tt[T_HPREV] = h - hh
+        for i in range(kn.N_ENERGY):
+            yb[iE + i] = y[iE + i] + h / 6.0 * (d[D_POWER + i] + 4.0 * dm[D_POWER + i]
+                                                 + db[D_POWER + i])
         for j in range(nstate):
             y[j] = yb[j]
         for j in range(d.size):
@@ -1161,7 +978,6 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     Phi = np.zeros((N_SLOTS, R, 2, 2))
     G0 = np.zeros((N_SLOTS, R, 2))
     G1 = np.zeros((N_SLOTS, R, 2))
-    G2 = np.zeros((N_SLOTS, R, 2))
     G1c = np.zeros((N_SLOTS, K, K))
     hslot = np.zeros(N_SLOTS)
     Y = np.zeros((N_YBUF, nst))
@@ -1178,10 +994,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    prop = Propagators(Phi, G0, G1, G2, G1c, hslot)
+    prop = Propagators(Phi, G0, G1, G1c, hslot)
     buf = Buffers(Y, D, U, G, armed, fired)
     scratch = Scratch(work, ws, jac, ipiv)
-    tt = np.zeros(N_TT)
+    tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
@@ -1204,12 +1020,6 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         tt[T_NOW] = resume.t
         D[B_NOW] = loop["d"]
         U[B_NOW] = loop["u"]
-        # a checkpoint without the estimate's history (written by an earlier version) resumes
-        # with step doubling, as after an event
-        tt[T_HPREV] = float(loop.get("h_prev", 0.0))
-        if tt[T_HPREV] > 0.0:
-            D[B_PREV] = loop["d_prev"]
-            U[B_PREV] = loop["u_prev"]
         G[G_START] = loop["g"]
         armed[:] = loop["armed"]
         prev = dict(resume.stats)
@@ -1237,9 +1047,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
             regime=copy.deepcopy(regime), events=list(book.events), stats=st,
             loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[B_NOW].copy(),
-                  "u": U[B_NOW].copy(), "g": G[G_START].copy(), "armed": armed.copy(),
-                  "h_prev": float(tt[T_HPREV]), "d_prev": D[B_PREV].copy(),
-                  "u_prev": U[B_PREV].copy()},
+                  "u": U[B_NOW].copy(), "g": G[G_START].copy(), "armed": armed.copy()},
             force_amplitude=float(system.force_amplitude),
             base_dir=str(Path(scene.base_dir).resolve()),
             inputs=input_fingerprint(scene_toml, system.profile.stats)))
