@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from test_coulomb import W, _closed_form_phases, _phases
-from test_friction_table import _table_scene, _write
+from test_coulomb import W, _phases
+from test_friction_table import _write, flat_table_run
 
 import roughvib
 from roughvib.analysis.accuracy import measure_accuracy
@@ -37,19 +37,7 @@ def test_flat_table_with_adaptive_modal_is_the_coulomb_closed_form(tmp_path, mon
     form (the contract allows 1e-6 s), the block held at exactly v = 0 with the friction force
     equal to the drive in stick, and the energy audit closed across the stick phases."""
     monkeypatch.chdir(tmp_path)
-    t_end = 2.0 / 7.0
-    sc = _table_scene(tmp_path, [0.0, 1.0], [mu_sl, mu_sl], **{
-        "excitation.force_amplitude": T0, "friction.mu_stick": mu_st,
-        "friction.mu_slip": mu_sl, "block.tangential_damping": r2, "output.duration": t_end,
-        "solver.method": "adaptive-modal"})
-    r = simulate(sc)
-    assert r.ok, r.summary["message"]
-    assert r.summary["solver"]["method"] == "adaptive-modal"
-    ref = _closed_form_phases(T0, mu_st, mu_sl, r2, t_end)
-    got = _phases(r)
-    assert [k for k, _ in got] == [k for k, _ in ref]
-    assert len(ref) >= 5
-    err = max(abs(a[1] - b[1]) for a, b in zip(got, ref, strict=True))
+    r, err = flat_table_run(tmp_path, "adaptive-modal", T0, mu_st, mu_sl, r2)
     assert err < 1e-7, err
     ds = r.dataset
     t = ds["time"].values

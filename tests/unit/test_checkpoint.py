@@ -23,6 +23,16 @@ from roughvib.solvers.checkpoint import CHECKPOINT_NAME, read_checkpoint, write_
 FAST = {"plate.max_frequency": 5000.0, "output.progress": False}
 
 
+def _assert_as_without_checkpoints(a, scene):
+    """Run ``scene`` without checkpoints and check that run ``a`` has the same outputs and
+    events bit for bit; returns that run."""
+    c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
+    for v in a.dataset.data_vars:
+        np.testing.assert_array_equal(a.dataset[v].values, c.dataset[v].values, err_msg=v)
+    pd.testing.assert_frame_equal(a.events, c.events)
+    return c
+
+
 def _assert_identical(a, b):
     for v in a.dataset.data_vars:
         np.testing.assert_array_equal(a.dataset[v].values, b.dataset[v].values, err_msg=v)
@@ -261,10 +271,7 @@ def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_pa
     b = resume(tmp_path)
     assert b.summary["solver"]["resumes"] == 1
     _assert_identical(a, b)
-    c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
-    for v in a.dataset.data_vars:
-        np.testing.assert_array_equal(a.dataset[v].values, c.dataset[v].values, err_msg=v)
-    pd.testing.assert_frame_equal(a.events, c.events)
+    c = _assert_as_without_checkpoints(a, scene)
     assert a.summary["solver"]["steps"] == c.summary["solver"]["steps"]
 
 
@@ -282,10 +289,7 @@ def test_adaptive_modal_resumes_a_coulomb_stick_phase_identically(tmp_path):
     b = resume(tmp_path)
     assert b.summary["solver"]["resumes"] == 1
     _assert_identical(a, b)
-    c = simulate(scene.with_overrides({"output.checkpoint_interval": 0.0}))
-    for v in a.dataset.data_vars:
-        np.testing.assert_array_equal(a.dataset[v].values, c.dataset[v].values, err_msg=v)
-    pd.testing.assert_frame_equal(a.events, c.events)
+    _assert_as_without_checkpoints(a, scene)
     assert list(a.events["kind"]) == ["slip", "stick"]
 
 
