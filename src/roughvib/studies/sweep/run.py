@@ -385,8 +385,8 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         Receives one-line notes (dashboard address, skipped cases); default: ignored.
     case_rows : bool
         Each worker also computes the ensemble's numbers of its successful cases from the
-        result in memory (:attr:`SweepRun.rows`; for :func:`.ensemble_tables`, which otherwise
-        loads every case again in the client).
+        result in memory (the ``rows`` of the returned ``SweepRun``; for
+        :func:`.ensemble_tables`, which otherwise loads every case again in the client).
 
     Returns
     -------
