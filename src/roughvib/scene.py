@@ -1183,11 +1183,6 @@ class Scene:
             if method not in FRICTION_MOMENT_METHODS:
                 raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' "
                                  f"or 'adaptive-modal', got {self.solver.method!r}")
-            if method == "adaptive-modal" and self.friction.law in SET_VALUED_LAWS:
-                # adaptive-modal's moment takes the Feldmann coefficient mu(v) as T_k / F_k
-                raise SceneError(f"contact.friction_moment = true with friction.law = "
-                                 f"{self.friction.law!r} needs solver.method 'ida', got "
-                                 f"'adaptive-modal'")
         if self.output.radiation and self.plate.kind != "modal":
             raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
                              f"'modal'), got plate.kind = {self.plate.kind!r}")
@@ -1228,16 +1223,14 @@ class Scene:
         given explicitly (:meth:`Solver.resolved`).
 
         ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
-        docs/accuracy.md; every friction law) unless the scene needs what only ``ida``
-        offers: overdamped plate modes (``plate.loss_factor >= 2``) or the friction moment
-        with a set-valued friction law (``contact.friction_moment`` with ``coulomb`` or
-        ``table``).
+        docs/accuracy.md; every friction law, with or without the friction moment) unless the
+        scene needs what only ``ida`` offers: overdamped plate modes
+        (``plate.loss_factor >= 2``).
         """
         s = self.solver
         if s.method != "auto":
             return s.resolved()
-        needs_ida = ((self.plate.kind == "modal" and self.plate.loss_factor >= 2.0)
-                     or (self.contact.friction_moment and self.friction.law in SET_VALUED_LAWS))
+        needs_ida = self.plate.kind == "modal" and self.plate.loss_factor >= 2.0
         return s.resolved("ida" if needs_ida else "adaptive-modal")
 
     @property

@@ -530,8 +530,8 @@ def verification_scene(scene: Scene) -> tuple[Scene, str]:
     """The second, independent solve that checks a run of ``scene`` (``verify=True``).
 
     The other event-driven solver at its ``reference`` preset: IDA checks adaptive-modal and
-    adaptive-modal checks IDA. Where adaptive-modal cannot run (overdamped plate modes; the
-    friction moment with a set-valued law), IDA checks IDA at 100x tighter rtol, atol and
+    adaptive-modal checks IDA. Where adaptive-modal cannot run (overdamped plate modes),
+    IDA checks IDA at 100x tighter rtol, atol and
     atol_acceleration. The fixed-step schemes are checked by the ``auto`` method at
     ``reference``.
 

@@ -116,12 +116,16 @@ N_IST = 10
 
 #: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1`` (N_SLOTS, R, 2),
 #: ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and ``hslot`` (N_SLOTS,) the step of each
-#: slot (0: empty); numba passes a namedtuple of arrays at the cost of its fields
-Propagators = collections.namedtuple("Propagators", ["Phi", "G0", "G1", "G1c", "hslot"])
+#: slot (0: empty); with a friction moment ``Hm`` (N_SLOTS, K, K) the moment's G1 in contact
+#: coordinates, ``H_kj = sum_r phi_rk G1_r Psi_rj / M``, and ``hmslot`` (N_SLOTS,) the step it
+#: was computed for (both of size 0 along K without the moment); numba passes a namedtuple of
+#: arrays at the cost of its fields
+Propagators = collections.namedtuple("Propagators",
+                                     ["Phi", "G0", "G1", "G1c", "hslot", "Hm", "hmslot"])
 #: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
 #: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
 Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
-#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 2 R + 5 K + 3),
+#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 3 R + 6 K + 3),
 #: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
 Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
 
@@ -227,7 +231,7 @@ def step_maps(omega2, cdamp, h, Phi, G0, G1):
 def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
     """Propagators of step h into cache slot ``slot`` of ``prop``, with G1 in contact
     coordinates."""
-    Phi, G0, G1, G1c, hslot = prop
+    Phi, G0, G1, G1c, hslot = prop.Phi, prop.G0, prop.G1, prop.G1c, prop.hslot
     step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
     R = omega2.size
     K = cres.shape[0]
@@ -331,18 +335,72 @@ def _moment_force(F, mu, M, off, fp, u):
 
 
 @njit(cache=True)
+def _moment_coefficient(t1, v1, S1, off, fp, reg):
+    """The friction moment's share c (T_k = c F_k) at the end of a step, and its slopes.
+
+    The step's unknowns are the velocity v1 and the closed contacts' forces (sum S1), so c is
+    written in them rather than read from a state (:func:`.kernels.moment_share` is the same c
+    of a whole state). Feldmann law: ``c = mu(v1)`` of the regime's branch and latch. A
+    set-valued law in slip b: ``c = b mu_k(b v1)`` (its ``lambda / F_N``, whatever F_N); in
+    stick ``c = lambda / S1`` with the holding force ``lambda = T_exc(t1)`` (v = 0), and 0
+    when no contact carries load.
+
+    Returns
+    -------
+    c : float
+        [-].
+    dc_dv : float
+        d c / d v1 [s/m].
+    dc_ds : float
+        d c / d S1 [1/N]: the same for every closed contact's force.
+    """
+    if kn.set_valued(off):
+        b = reg[kn.REG_B]
+        if b != 0:
+            muk, dmuk = kn.kinetic(b * v1, off, fp)
+            return b * muk, dmuk, 0.0  # d/dv of b mu_k(b v): b^2 mu_k' = mu_k'
+        if not S1 > 0.0:
+            return 0.0, 0.0, 0.0
+        lam = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+        return lam / S1, 0.0, -lam / (S1 * S1)
+    mu, dmu = feldmann_mu(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
+                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    return mu, dmu, 0.0
+
+
+@njit(cache=True)
+def _moment_map(slot, prop, phiT, off, fp):
+    """The moment's G1 in contact coordinates, ``Hm[slot]``, for the slot's step, computed
+    once per step length: ``H_kj = sum_r phi_rk G1_r Psi_rj / M`` [m/N]."""
+    if prop.hmslot[slot] == prop.hslot[slot]:
+        return
+    Hm, G1 = prop.Hm, prop.G1
+    ip, R = off[kn.OFF_IPSI], off[kn.OFF_R]
+    K = Hm.shape[1]
+    M = fp[kn.FP_MMODAL]
+    for k in range(K):
+        for j in range(K):
+            base = ip + j * R
+            acc = 0.0
+            for r in range(R):
+                acc += phiT[k, r] * G1[slot, r, MODE_Q] * fp[base + r]
+            Hm[slot, k, j] = acc / M
+    prop.hmslot[slot] = prop.hslot[slot]
+
+
+@njit(cache=True)
 def _state_modal_force(y, u, phiT, off, fp, reg, scratch):
     """The whole modal force u (R,) of the state y [m/s^2]: the contact forces' part
-    (:func:`modal_force`) and, with a friction moment, the moment's (``_moment_force``,
-    Feldmann law). ``scratch``: length >= R."""
+    (:func:`modal_force`) and, with a friction moment, the moment's (``_moment_force``, with
+    the share ``c`` of :func:`.kernels.moment_share`: ``mu(v)`` for the Feldmann law,
+    ``lambda / F_N`` for a set-valued law). ``scratch``: length >= R."""
     iF, K, R = off[kn.OFF_IF], off[kn.OFF_K], off[kn.OFF_R]
     M = fp[kn.FP_MMODAL]
     modal_force(y[iF:iF + K], u, phiT, M)
     if off[kn.OFF_IX] >= 0 and kn.moment_on(off):
-        mu, _ = feldmann_mu(y[off[kn.OFF_IVX]] + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
-                            fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        c, _, _, _ = kn.moment_share(0.0, y, off, fp, reg)  # t: only prescribed motion reads it
         um = scratch[:R]
-        _moment_force(y[iF:iF + K], mu, M, off, fp, um)
+        _moment_force(y[iF:iF + K], c, M, off, fp, um)
         for r in range(R):
             u[r] += um[r]
 
@@ -369,13 +427,15 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     x, vx = kn.tangential_kinematics(t, y, off, fp)
     if ix >= 0:
         texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
-        fric, _, mu = friction_force(t, y, vx, fsum, off, fp, reg)
+        fric, _, _ = friction_force(t, y, vx, fsum, off, fp, reg)
         d[D_AX] = (texc - fric - fp[kn.FP_R2] * vx) / m
         d[D_POWER + kn.E_EXCITATION] = texc * vx
         d[D_POWER + kn.E_FRICTION] = fric * vx
         if kn.moment_on(off):  # the moment's power goes into the plate, not into heat
-            # (the moment is refused with a set-valued law here: mu is the Feldmann law's)
-            d[D_POWER + kn.E_FRICTION] = fric * vx - mu * kn.moment_power(y, off, fp)
+            # its share c of the friction force per unit contact force (a set-valued law's
+            # c = lambda / F_N reads the state's lambda: set before derivatives is called)
+            c, _, _, _ = kn.moment_share(t, y, off, fp, reg)
+            d[D_POWER + kn.E_FRICTION] = fric * vx - c * kn.moment_power(y, off, fp)
         d[D_POWER + kn.E_TANGENTIAL_DAMPING] = fp[kn.FP_R2] * vx * vx
     else:
         d[D_AX] = 0.0
@@ -413,9 +473,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     Newton does not converge (the caller takes a smaller step).
 
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
-    >= 2 R + 5 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
+    >= 3 R + 6 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
-    Phi, G0, G1, G1c, _hslot = prop
+    Phi, G0, G1, G1c = prop.Phi, prop.G0, prop.G1, prop.G1c
     ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
@@ -430,10 +490,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
     idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
     noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
-    # friction moment (contact.friction_moment): the modal force holds mu(v) Psi^T F / M too;
-    # u0 is the whole modal force of y0 (_state_modal_force), u1 receives that of y1
+    # friction moment (contact.friction_moment): the modal force holds c Psi^T F / M too
+    # (c: _moment_coefficient); u0 is the whole modal force of y0 (_state_modal_force), u1
+    # receives that of y1
     moment = ix >= 0 and kn.moment_on(off)
-    um = np.zeros(R if moment else 0)  # the moment's modal force at t1
+    um = ws[2 * R + 5 * K + 3:3 * R + 5 * K + 3]  # the moment's modal force at t1
+    wm = ws[3 * R + 5 * K + 3:3 * R + 6 * K + 3]  # its displacement at the contacts / c
     # free modal response and plate displacement at the contacts
     for k in range(K):
         wfree[k] = 0.0
@@ -446,18 +508,10 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
                   + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * ur)
         for k in range(K):
             wfree[k] += phi[r, k] * a
-    # the moment's part at t1 moves the contacts by mu1 H F: H_kj = sum_r phi_rk G1_r Psi_rj / M
-    Hm = np.zeros((K, K)) if moment else np.zeros((0, 0))
-    wm = np.zeros(K) if moment else np.zeros(0)
+    # the moment's part at t1 moves the contacts by c1 Hm F (_moment_map)
+    Hm = prop.Hm[slot]
     if moment:
-        ip = off[kn.OFF_IPSI]
-        for k in range(K):
-            for j in range(K):
-                base = ip + j * R
-                acc = 0.0
-                for r in range(R):
-                    acc += phiT[k, r] * G1[slot, r, MODE_Q] * fp[base + r]
-                Hm[k, j] = acc / M
+        _moment_map(slot, prop, phiT, off, fp)
     # vertical trapezoidal rule: vz1 = (av - h S1 / (2 m)) / cz, z1 = zc - beta S1
     z0 = y0[iz]
     vz0 = y0[ivz]
@@ -485,8 +539,6 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     nu = nc + (1 if sliding else 0)
     v1 = v0 + h * d0[D_AX] if sliding else 0.0
     texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if sliding else 0.0
-    s_l = reg[kn.REG_S]  # the Feldmann law's latch and branch (its friction moment's mu)
-    b_l = reg[kn.REG_B]
     ok = False
     for _it in range(25):
         ist[I_NEWTON] += 1
@@ -501,9 +553,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
             x1, v1 = kn.prescribed_motion(t1, fp)
         mu1 = 0.0
         dmu1 = 0.0
+        dmus = 0.0
         if moment:
-            mu1, dmu1 = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
-                                    fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+            mu1, dmu1, dmus = _moment_coefficient(t1, v1, S1, off, fp, reg)
             for k in range(K):
                 acc = 0.0
                 for j in range(K):
@@ -518,7 +570,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
                 acc += G1c[slot, k, j] * F[j]
                 jac[a, c] = G1c[slot, k, j] + beta
                 if moment:
-                    jac[a, c] += mu1 * Hm[k, j]
+                    jac[a, c] += mu1 * Hm[k, j] + dmus * wm[k]
             jac[a, a] += 1.0 / stiff[k]
             if moment:
                 acc += mu1 * wm[k]
@@ -570,8 +622,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         y1[iF + k] = F[k]
     modal_force(F, u1, phiT, M)
     if moment:
-        mu1, _ = feldmann_mu(v1 + s_l * fp[kn.FP_VH], b_l, fp[kn.FP_MU_SLIP],
-                             fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+        mu1, _, _ = _moment_coefficient(t1, v1, S1, off, fp, reg)
         _moment_force(F, mu1, M, off, fp, um)
         for r in range(R):
             u1[r] += um[r]
@@ -988,13 +1039,14 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     G = np.zeros((N_GBUF, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
-    ws = np.zeros(2 * R + 5 * K + 3)
+    ws = np.zeros(3 * R + 6 * K + 3)
     jac = np.zeros((K + 1, K + 1))
     ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    prop = Propagators(Phi, G0, G1, G1c, hslot)
+    km = K if kn.moment_on(off) else 0  # the moment's contact-coordinate maps (Hm)
+    prop = Propagators(Phi, G0, G1, G1c, hslot, np.zeros((N_SLOTS, km, km)), np.zeros(N_SLOTS))
     buf = Buffers(Y, D, U, G, armed, fired)
     scratch = Scratch(work, ws, jac, ipiv)
     tt = np.zeros(1)
