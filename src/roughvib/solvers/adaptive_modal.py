@@ -120,8 +120,10 @@ N_IST = 10
 #: coordinates, ``H_kj = sum_r phi_rk G1_r Psi_rj / M``, and ``hmslot`` (N_SLOTS,) the step it
 #: was computed for (both of size 0 along K without the moment); numba passes a namedtuple of
 #: arrays at the cost of its fields
+#: ``P`` (N_SLOTS, N_MAP, R) holds the same maps as Phi, G0 and G1, one contiguous row per
+#: entry (``MAP_*``): the step's loops over the modes read them at unit stride
 Propagators = collections.namedtuple("Propagators",
-                                     ["Phi", "G0", "G1", "G1c", "hslot", "Hm", "hmslot"])
+                                     ["Phi", "G0", "G1", "G1c", "hslot", "Hm", "hmslot", "P"])
 #: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
 #: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
 Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
@@ -132,6 +134,16 @@ Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
 # components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
 MODE_Q = 0
 MODE_DQ = 1
+# rows of the propagators' mode-contiguous copy P (Propagators.P): Phi's four entries, G0, G1
+MAP_QQ = 0
+MAP_QD = 1
+MAP_DQ = 2
+MAP_DD = 3
+MAP_G0Q = 4
+MAP_G0D = 5
+MAP_G1Q = 6
+MAP_G1D = 7
+N_MAP = 8
 # rows of the derivative vector d of derivatives(): z'', x'', then the N_ENERGY powers
 D_AZ = 0
 D_AX = 1
@@ -234,6 +246,16 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
     Phi, G0, G1, G1c, hslot = prop.Phi, prop.G0, prop.G1, prop.G1c, prop.hslot
     step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
     R = omega2.size
+    P = prop.P[slot]
+    for r in range(R):
+        P[MAP_QQ, r] = Phi[slot, r, MODE_Q, MODE_Q]
+        P[MAP_QD, r] = Phi[slot, r, MODE_Q, MODE_DQ]
+        P[MAP_DQ, r] = Phi[slot, r, MODE_DQ, MODE_Q]
+        P[MAP_DD, r] = Phi[slot, r, MODE_DQ, MODE_DQ]
+        P[MAP_G0Q, r] = G0[slot, r, MODE_Q]
+        P[MAP_G0D, r] = G0[slot, r, MODE_DQ]
+        P[MAP_G1Q, r] = G1[slot, r, MODE_Q]
+        P[MAP_G1D, r] = G1[slot, r, MODE_DQ]
     K = cres.shape[0]
     for k in range(K):
         for j in range(K):
@@ -245,6 +267,24 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
             for j in range(K):
                 G1c[slot, k, j] += a * phi[r, j]
     hslot[slot] = h
+
+
+@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+def _dot(a, b):
+    """sum_r a[r] b[r] of two equally long vectors, summed in whatever order vectorises."""
+    acc = 0.0
+    for r in range(a.size):
+        acc += a[r] * b[r]
+    return acc
+
+
+@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+def _damping_sum(c, v):
+    """sum_r c[r] v[r]^2, summed in whatever order vectorises."""
+    acc = 0.0
+    for r in range(c.size):
+        acc += c[r] * v[r] * v[r]
+    return acc
 
 
 @njit(cache=True)
@@ -443,10 +483,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
         d[D_POWER + kn.E_FRICTION] = 0.0
         d[D_POWER + kn.E_TANGENTIAL_DAMPING] = 0.0
     d[D_POWER + kn.E_VERTICAL_DAMPING] = fp[kn.FP_R1] * vz * vz
-    p = 0.0
-    for r in range(R):
-        p += cdamp[r] * y[idq + r] * y[idq + r]
-    d[D_POWER + kn.E_PLATE_DAMPING] = M * p
+    d[D_POWER + kn.E_PLATE_DAMPING] = M * _damping_sum(cdamp, y[idq:idq + R])
     rough = 0.0
     for k in range(K):
         _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
@@ -475,7 +512,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
     >= 3 R + 6 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
     """
-    Phi, G0, G1, G1c = prop.Phi, prop.G0, prop.G1, prop.G1c
+    G1c = prop.G1c
     ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
@@ -496,18 +533,21 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     moment = ix >= 0 and kn.moment_on(off)
     um = ws[2 * R + 5 * K + 3:3 * R + 5 * K + 3]  # the moment's modal force at t1
     wm = ws[3 * R + 5 * K + 3:3 * R + 6 * K + 3]  # its displacement at the contacts / c
-    # free modal response and plate displacement at the contacts
-    for k in range(K):
-        wfree[k] = 0.0
+    # free modal response and plate displacement at the contacts (unit-stride loops over the
+    # modes: the maps' rows of P, the state's plate.q and plate.dq)
+    P = prop.P[slot]
+    pqq, pqd, pdq, pdd = P[MAP_QQ], P[MAP_QD], P[MAP_DQ], P[MAP_DD]
+    g0q, g0d = P[MAP_G0Q], P[MAP_G0D]
+    yq = y0[iq:iq + R]
+    ydq = y0[idq:idq + R]
     for r in range(R):
+        q = yq[r]
+        dq = ydq[r]
         ur = u0[r]
-        a = (Phi[slot, r, MODE_Q, MODE_Q] * y0[iq + r] + Phi[slot, r, MODE_Q, MODE_DQ] * y0[idq + r]
-             + G0[slot, r, MODE_Q] * ur)
-        sq[r] = a
-        sdq[r] = (Phi[slot, r, MODE_DQ, MODE_Q] * y0[iq + r]
-                  + Phi[slot, r, MODE_DQ, MODE_DQ] * y0[idq + r] + G0[slot, r, MODE_DQ] * ur)
-        for k in range(K):
-            wfree[k] += phi[r, k] * a
+        sq[r] = pqq[r] * q + pqd[r] * dq + g0q[r] * ur
+        sdq[r] = pdq[r] * q + pdd[r] * dq + g0d[r] * ur
+    for k in range(K):
+        wfree[k] = _dot(phiT[k], sq)
     # the moment's part at t1 moves the contacts by c1 Hm F (_moment_map)
     Hm = prop.Hm[slot]
     if moment:
@@ -626,9 +666,12 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         _moment_force(F, mu1, M, off, fp, um)
         for r in range(R):
             u1[r] += um[r]
+    g1q, g1d = P[MAP_G1Q], P[MAP_G1D]
+    y1q = y1[iq:iq + R]
+    y1dq = y1[idq:idq + R]
     for r in range(R):
-        y1[iq + r] = sq[r] + G1[slot, r, MODE_Q] * u1[r]
-        y1[idq + r] = sdq[r] + G1[slot, r, MODE_DQ] * u1[r]
+        y1q[r] = sq[r] + g1q[r] * u1[r]
+        y1dq[r] = sdq[r] + g1d[r] * u1[r]
     vz1 = (av - 0.5 * h * S1 / m) / cz
     y1[ivz] = vz1
     y1[iz] = zc - beta * S1
@@ -664,21 +707,33 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
     """
     n = ya.size
     worst = 0.0
-    acc = 0.0
-    for i in range(n):
+    acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal)
+    if not acc < 1e300:  # NaN or inf in a mode: the step is rejected as non-finite
+        return 1e300
+    for i in range(n_modal, n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
         e = abs(ya[i] - yb[i]) / (3.0 * w)
         if not e < 1e300:  # NaN or inf anywhere: the step is rejected as non-finite
             return 1e300
-        if i < n_modal:
-            acc += e * e
-        elif e > worst:
+        if e > worst:
             worst = e
     if n_modal > 0:
         rms = math.sqrt(acc / n_modal)
         if rms > worst:
             worst = rms
     return worst
+
+
+@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
+    """sum over the first n_modal states of ((ya - yb) / (3 w))^2, w = rtol max(|y0|, |yb|)
+    + atol, summed in whatever order vectorises; NaN or inf in any term makes it so."""
+    acc = 0.0
+    for i in range(n_modal):
+        w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
+        e = (ya[i] - yb[i]) / (3.0 * w)
+        acc += e * e
+    return acc
 
 
 @njit(cache=True)
@@ -1046,7 +1101,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
     km = K if kn.moment_on(off) else 0  # the moment's contact-coordinate maps (Hm)
-    prop = Propagators(Phi, G0, G1, G1c, hslot, np.zeros((N_SLOTS, km, km)), np.zeros(N_SLOTS))
+    prop = Propagators(Phi, G0, G1, G1c, hslot, np.zeros((N_SLOTS, km, km)), np.zeros(N_SLOTS),
+                       np.zeros((N_SLOTS, N_MAP, R)))
     buf = Buffers(Y, D, U, G, armed, fired)
     scratch = Scratch(work, ws, jac, ipiv)
     tt = np.zeros(1)
