@@ -334,16 +334,18 @@ def moment_power(y, off, fp):
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
 def _plate_at_contacts(y, off, phi, cres, w):
-    """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k)."""
+    """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k).
+
+    Each sum over the modes runs in a local accumulator, in whatever order vectorises
+    (round-off only; an accumulation in ``w[k]`` itself is a store and a load per mode)."""
     iq, iF, R, K = off[OFF_IQ], off[OFF_IF], off[OFF_R], off[OFF_K]
     for k in range(K):
-        w[k] = 0.0
-    for r in range(R):
-        q = y[iq + r]
-        for k in range(K):
-            w[k] += phi[r, k] * q
+        acc = 0.0
+        for r in range(R):
+            acc += phi[r, k] * y[iq + r]
+        w[k] = acc
     for k in range(K):
         acc = 0.0
         for j in range(K):
@@ -753,6 +755,29 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     _ = iF
 
 
+@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+def _observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi, cm, M):
+    """Plate acceleration at the observation point [m/s^2]: sum_r phi_obs_r q''_r, with
+    q''_r = f_r / M - c_r q'_r - w_r^2 q_r and the modal force f_r = sum_k phi_rk F_k (plus
+    ``cm sum_k Psi_rk F_k`` with the friction moment: ``psi`` its K x R slopes, contact-major,
+    or empty). Summed in whatever order vectorises (round-off only)."""
+    R = q.size
+    K = fk.size
+    inv_m = 1.0 / M
+    acc = 0.0
+    for r in range(R):
+        f = 0.0
+        for k in range(K):
+            f += phi[r, k] * fk[k]
+        acc += phi_obs[r] * (f * inv_m - cdamp[r] * dq[r] - omega2[r] * q[r])
+    if psi.size > 0:
+        for k in range(K):
+            fm = cm * fk[k] * inv_m
+            for r in range(R):
+                acc += phi_obs[r] * psi[k * R + r] * fm
+    return acc
+
+
 @njit(cache=True)
 def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
             work):
@@ -771,16 +796,8 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
     cm = 0.0
     if moment:
         cm, _, _, _ = moment_share(t, y, off, fp, reg)
-    ip = off[OFF_IPSI]
-    acc = 0.0
-    for r in range(R):
-        f = 0.0
-        for k in range(K):
-            f += phi[r, k] * fk[k]
-        if moment:
-            for k in range(K):
-                f += cm * fp[ip + k * R + r] * fk[k]
-        acc += phi_obs[r] * (f / M - cdamp[r] * y[idq + r] - omega2[r] * y[iq + r])
+    acc = _observed_acceleration(y[iq:iq + R], y[idq:idq + R], fk, phi, phi_obs, omega2, cdamp,
+                                 fp[off[OFF_IPSI]:] if moment else fp[:0], cm, M)
     x, vx = tangential_kinematics(t, y, off, fp)
     mu = np.nan
     fr = np.nan
