@@ -220,10 +220,11 @@ class RunData:
                 # h5netcdf's dimension checks once more per variable (~1 ms each)
                 var = f.create_variable(name, dimensions=dims, dtype=values.dtype,
                                         data=values, fillvalue=fill, chunks=None)
+                va = var.attrs  # each ``var.attrs`` looks the variable up in the file again
                 for k, v in vattrs.items():
-                    var.attrs[k] = v
+                    va[k] = v
                 if name in per_var:
-                    var.attrs["coordinates"] = per_var[name]
+                    va["coordinates"] = per_var[name]
 
 
 class _LazyField:
