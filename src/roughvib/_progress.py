@@ -4,8 +4,9 @@ A tqdm bar redraws itself with carriage returns many times a second; written int
 (a batch job, ``2> run.log``, a CI log) that is one endless line. When the stream is not a
 terminal, :func:`progress_bar` returns a :class:`LineProgress` instead, which writes one
 complete line at every tenth of the work (at most one every 5 s) and at least one every 30 s
-while the work advances, and the final state at the end. A leaf module
-(tqdm is imported only for a terminal), so that every stage may show progress.
+while the work advances, and the final state at the end. With ``disable`` it returns a
+:class:`NoProgress`, which keeps count and shows nothing. A leaf module (tqdm is imported only
+for a terminal or a notebook), so that every stage may show progress.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import sys
 import time
 from typing import IO, Any
 
-__all__ = ["LineProgress", "progress_bar"]
+__all__ = ["LineProgress", "NoProgress", "progress_bar"]
 
 
 def _interactive(file: IO) -> bool:
@@ -39,7 +40,7 @@ def progress_bar(total: float, *, desc: str, unit: str, initial: float = 0.0,
     initial : float
         Work already done (a resumed run or sweep).
     disable : bool
-        Show nothing.
+        Show nothing (a :class:`NoProgress`: neither tqdm nor its lock is created).
     file : file object, optional
         Default: ``sys.stderr``.
     value_format : str
@@ -49,11 +50,13 @@ def progress_bar(total: float, *, desc: str, unit: str, initial: float = 0.0,
 
     Returns
     -------
-    tqdm.tqdm or LineProgress
-        Both have ``n``, ``total``, ``update``, ``refresh``, ``set_postfix`` and ``close``.
+    tqdm.tqdm or LineProgress or NoProgress
+        Each has ``n``, ``total``, ``update``, ``refresh``, ``set_postfix`` and ``close``.
     """
+    if disable:  # a silent run (--no-progress, sweep cases) pays no tqdm import, no lock
+        return NoProgress(total, initial=initial)
     file = sys.stderr if file is None else file
-    if disable or _interactive(file):
+    if _interactive(file):
         from tqdm import tqdm
 
         return tqdm(total=total, desc=desc, unit=unit, initial=initial, disable=disable,
@@ -72,6 +75,41 @@ def _clock(seconds: float) -> str:
     m, s = divmod(int(round(seconds)), 60)
     h, m = divmod(m, 60)
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+class NoProgress:
+    """A progress indicator that shows nothing: ``progress_bar(..., disable=True)``.
+
+    It counts like the others (``n``, ``total``, ``update``) and writes nothing anywhere.
+
+    Parameters
+    ----------
+    total : float
+    initial : float
+    """
+
+    def __init__(self, total: float, *, initial: float = 0.0) -> None:
+        self.total = total
+        self.n = initial
+
+    def update(self, n: float = 1) -> None:
+        """Add ``n`` units of work."""
+        self.n += n
+
+    def refresh(self) -> None:
+        """Nothing to show."""
+
+    def set_postfix(self, refresh: bool = True, **values: Any) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+    def __enter__(self) -> NoProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 class LineProgress:

@@ -216,13 +216,15 @@ class RunData:
                 f.dimensions[dim] = size
             for name, (dims, values, vattrs) in self.variables.items():
                 fill = np.nan if values.dtype.kind == "f" else None
+                # the values with the variable: a separate ``var[...] = values`` costs
+                # h5netcdf's dimension checks once more per variable (~1 ms each)
                 var = f.create_variable(name, dimensions=dims, dtype=values.dtype,
-                                        fillvalue=fill, chunks=None)
+                                        data=values, fillvalue=fill, chunks=None)
+                va = var.attrs  # each ``var.attrs`` looks the variable up in the file again
                 for k, v in vattrs.items():
-                    var.attrs[k] = v
+                    va[k] = v
                 if name in per_var:
-                    var.attrs["coordinates"] = per_var[name]
-                var[...] = values
+                    va["coordinates"] = per_var[name]
 
 
 class _LazyField:

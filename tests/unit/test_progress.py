@@ -5,7 +5,7 @@ import io
 import pytest
 
 from roughvib import _progress
-from roughvib._progress import LineProgress, progress_bar
+from roughvib._progress import LineProgress, NoProgress, progress_bar
 
 
 class _Tty(io.StringIO):
@@ -35,8 +35,14 @@ def test_terminal_gets_tqdm_and_a_file_gets_lines():
     assert isinstance(bar, tqdm)
     bar.close()
     assert isinstance(progress_bar(1.0, desc="x", unit="s", file=io.StringIO()), LineProgress)
-    assert isinstance(progress_bar(1.0, desc="x", unit="s", disable=True, file=io.StringIO()),
-                      tqdm)
+    for file in (_Tty(), io.StringIO()):  # disabled: silent on a terminal and in a file
+        bar = progress_bar(1.0, desc="x", unit="s", disable=True, file=file, initial=0.25)
+        assert isinstance(bar, NoProgress) and (bar.n, bar.total) == (0.25, 1.0)
+        bar.update(0.5)
+        bar.set_postfix(failed=1)
+        bar.refresh()
+        bar.close()
+        assert bar.n == 0.75 and file.getvalue() == ""
 
 
 def test_lines_at_tenths_at_most_every_gap_and_after_the_interval(clock):

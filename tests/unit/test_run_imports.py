@@ -20,8 +20,8 @@ TINY = ["--set", "output.duration=0.005", "--set", "plate.max_frequency=2000", "
 # used by the studies and reports, by IDA, by xarray (with dask) to build and write a Dataset
 # or by pandas for the event table: never by an adaptive-modal run that is saved
 NOT_IN_A_RUN = ("scipy.signal", "scipy.stats", "matplotlib", "sksundae", "xarray", "dask", "pandas",
-                "distributed", "roughvib.studies.compare", "roughvib.views.report",
-                "roughvib.views.figures", "roughvib.analysis.spectra")
+                "distributed", "roughvib.studies", "roughvib.views", "roughvib.analysis.spectra",
+                "tqdm", "multiprocessing")
 
 
 def _loaded_after(code: str, env: dict | None = None) -> set[str]:
@@ -48,6 +48,16 @@ def test_an_adaptive_modal_run_imports_only_what_it_uses(tmp_path):
     assert sorted(m for m in loaded if m.startswith(NOT_IN_A_RUN)) == []
     assert sorted(m for m in loaded if m.startswith(
         ("scipy.special", "scipy.optimize", "scipy.interpolate"))) == []
+
+
+def test_the_command_line_imports_no_command_before_it_runs():
+    # the parser of every command is built from the cli modules alone: numpy, numba, the
+    # studies (with dask) and the views (with matplotlib) come with the command that uses them
+    loaded = _loaded_after("import roughvib.cli\nroughvib.cli.build_parser()")
+    assert "roughvib.cli.sweep" in loaded and "roughvib.cli.run" in loaded
+    assert sorted(m for m in loaded if m.startswith(
+        (*NOT_IN_A_RUN, "numpy", "numba", "scipy", "h5py", "h5netcdf", "roughvib.simulation",
+         "roughvib.results"))) == []
 
 
 def test_the_api_imports_each_name_from_its_stage_on_first_use():

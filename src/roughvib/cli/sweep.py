@@ -8,10 +8,9 @@ from pathlib import Path
 
 from roughvib.cli.args import EXIT_INTERRUPT, EXIT_TERM, Terminated, out_path, parse_sets
 from roughvib.scene import SceneError
-from roughvib.studies.sweep.ensemble import ensemble_tables
-from roughvib.studies.sweep.report import sweep_report
-from roughvib.studies.sweep.run import run_sweep
-from roughvib.studies.sweep.spec import SUCCESS, builtin_sweeps, load_sweep
+
+# the sweep machinery (the studies, the views of the report, logging, hashing) is imported by
+# the sweep commands when they run: every other command, `roughvib run` first, does without
 
 __all__ = ["add_parsers", "cmd_sweep", "cmd_sweep_report"]
 
@@ -26,6 +25,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         ``scheduler`` (address or None), ``workers`` (int or None); optional ``set`` (list of
         KEY=VALUE), ``no_progress``, ``report``, ``list``.
     """
+    from roughvib.studies.sweep.ensemble import ensemble_tables
+    from roughvib.studies.sweep.report import sweep_report
+    from roughvib.studies.sweep.run import run_sweep
+    from roughvib.studies.sweep.spec import SUCCESS, builtin_sweeps, load_sweep
+
     if getattr(args, "list", False):
         sweeps = builtin_sweeps()
         width = max((len(n) for n in sweeps), default=0)
@@ -77,6 +81,8 @@ def cmd_sweep_report(args: argparse.Namespace) -> int:
     args : argparse.Namespace
         ``dir``: the sweep directory.
     """
+    from roughvib.studies.sweep.report import sweep_report
+
     try:
         path = sweep_report(args.dir)
     except FileNotFoundError as exc:
