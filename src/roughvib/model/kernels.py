@@ -334,7 +334,31 @@ def moment_power(y, off, fp):
     return acc
 
 
-@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+#: the floating-point liberties of the sums over the modes: reassociation (so that a sum
+#: vectorises), no signed zeros, fused multiply-add; never "no NaN / no inf", so that a
+#: non-finite value still reaches the solvers' checks
+SUM_FASTMATH = {"reassoc", "nsz", "contract"}
+
+
+@njit(cache=True, fastmath=SUM_FASTMATH)
+def vdot(a, b):
+    """sum_r a[r] b[r] of two equally long vectors, summed in whatever order vectorises."""
+    acc = 0.0
+    for r in range(a.size):
+        acc += a[r] * b[r]
+    return acc
+
+
+@njit(cache=True, fastmath=SUM_FASTMATH)
+def weighted_square_sum(c, v):
+    """sum_r c[r] v[r]^2 of two equally long vectors, summed in whatever order vectorises."""
+    acc = 0.0
+    for r in range(c.size):
+        acc += c[r] * v[r] * v[r]
+    return acc
+
+
+@njit(cache=True, fastmath=SUM_FASTMATH)
 def _plate_at_contacts(y, off, phi, cres, w):
     """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k).
 
@@ -755,8 +779,8 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     _ = iF
 
 
-@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
-def _observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi, cm, M):
+@njit(cache=True, fastmath=SUM_FASTMATH)
+def observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi, cm, M):
     """Plate acceleration at the observation point [m/s^2]: sum_r phi_obs_r q''_r, with
     q''_r = f_r / M - c_r q'_r - w_r^2 q_r and the modal force f_r = sum_k phi_rk F_k (plus
     ``cm sum_k Psi_rk F_k`` with the friction moment: ``psi`` its K x R slopes, contact-major,
@@ -796,8 +820,8 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
     cm = 0.0
     if moment:
         cm, _, _, _ = moment_share(t, y, off, fp, reg)
-    acc = _observed_acceleration(y[iq:iq + R], y[idq:idq + R], fk, phi, phi_obs, omega2, cdamp,
-                                 fp[off[OFF_IPSI]:] if moment else fp[:0], cm, M)
+    acc = observed_acceleration(y[iq:iq + R], y[idq:idq + R], fk, phi, phi_obs, omega2, cdamp,
+                                fp[off[OFF_IPSI]:] if moment else fp[:0], cm, M)
     x, vx = tangential_kinematics(t, y, off, fp)
     mu = np.nan
     fr = np.nan

@@ -269,24 +269,6 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
     hslot[slot] = h
 
 
-@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
-def _dot(a, b):
-    """sum_r a[r] b[r] of two equally long vectors, summed in whatever order vectorises."""
-    acc = 0.0
-    for r in range(a.size):
-        acc += a[r] * b[r]
-    return acc
-
-
-@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
-def _damping_sum(c, v):
-    """sum_r c[r] v[r]^2, summed in whatever order vectorises."""
-    acc = 0.0
-    for r in range(c.size):
-        acc += c[r] * v[r] * v[r]
-    return acc
-
-
 @njit(cache=True)
 def modal_force(F, u, phiT, M):
     """u_r = sum_k phi_rk F_k / M: the modal force per unit modal mass [m/s^2].
@@ -483,7 +465,7 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
         d[D_POWER + kn.E_FRICTION] = 0.0
         d[D_POWER + kn.E_TANGENTIAL_DAMPING] = 0.0
     d[D_POWER + kn.E_VERTICAL_DAMPING] = fp[kn.FP_R1] * vz * vz
-    d[D_POWER + kn.E_PLATE_DAMPING] = M * _damping_sum(cdamp, y[idq:idq + R])
+    d[D_POWER + kn.E_PLATE_DAMPING] = M * kn.weighted_square_sum(cdamp, y[idq:idq + R])
     rough = 0.0
     for k in range(K):
         _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
@@ -547,7 +529,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         sq[r] = pqq[r] * q + pqd[r] * dq + g0q[r] * ur
         sdq[r] = pdq[r] * q + pdd[r] * dq + g0d[r] * ur
     for k in range(K):
-        wfree[k] = _dot(phiT[k], sq)
+        wfree[k] = kn.vdot(phiT[k], sq)
     # the moment's part at t1 moves the contacts by c1 Hm F (_moment_map)
     Hm = prop.Hm[slot]
     if moment:
@@ -724,7 +706,7 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
     return worst
 
 
-@njit(cache=True, fastmath={"reassoc", "nsz", "contract"})
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
 def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
     """sum over the first n_modal states of ((ya - yb) / (3 w))^2, w = rtol max(|y0|, |yb|)
     + atol, summed in whatever order vectorises; NaN or inf in any term makes it so."""

@@ -332,15 +332,13 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         else:
             x1, v1 = kn.prescribed_motion(t1, fp)
         # ---- modal free response and plate displacement at the contacts ----------------
-        for k in range(K):
-            wfree[k] = 0.0
         for r in range(R):
             sq[r] = (Phi[r, MODE_Q, MODE_Q] * q[r] + Phi[r, MODE_Q, MODE_DQ] * dq[r]
                      + G0[r, MODE_Q] * u[r])
             sdq[r] = (Phi[r, MODE_DQ, MODE_Q] * q[r] + Phi[r, MODE_DQ, MODE_DQ] * dq[r]
                       + G0[r, MODE_DQ] * u[r])
-            for k in range(K):
-                wfree[k] += phi[r, k] * sq[r]
+        for k in range(K):  # summed in vectorisable order (kernels.vdot)
+            wfree[k] = kn.vdot(phi[:, k], sq)
         # ---- block (average-acceleration Newmark), affine in the total force S1 ----------
         z0, vz0, az0 = zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ]
         mp = m + r1 * h / 2
@@ -357,11 +355,12 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         S1 = 0.0
         for k in range(K):
             S1 += Fn[k]
+        inv_m = 1.0 / M
         for r in range(R):
             acc = 0.0
             for k in range(K):
                 acc += phi[r, k] * Fn[k]
-            u_new[r] = acc / M
+            u_new[r] = acc * inv_m
             q[r] = sq[r] + G1[r, MODE_Q] * u_new[r]
             dq[r] = sdq[r] + G1[r, MODE_DQ] * u_new[r]
             u[r] = u_new[r]
@@ -389,9 +388,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
             q_fric = mu1 * S1 * v1
         q_r2 = r2 * v1 * v1 if tangential else 0.0
         q_r1 = r1 * vz1 * vz1
-        q_pl = 0.0
-        for r in range(R):
-            q_pl += M * cdamp[r] * dq[r] * dq[r]
+        q_pl = M * kn.weighted_square_sum(cdamp, dq)
         q_ro = 0.0
         for k in range(K):
             q_ro += Fn[k] * dhk[k] * v1
@@ -411,12 +408,8 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         tang[TG_VX] = v1
         if (n + 1) % out_every == 0:
             row += 1
-            acc = 0.0
-            for r in range(R):
-                f = 0.0
-                for k in range(K):
-                    f += phi[r, k] * Fn[k]
-                acc += phi_obs[r] * (f / M - cdamp[r] * dq[r] - omega2[r] * q[r])
+            acc = kn.observed_acceleration(q, dq, Fn, phi, phi_obs, omega2, cdamp, fp[:0], 0.0,
+                                           M)
             out[row, kn.OUT_Z] = z1
             out[row, kn.OUT_VZ] = vz1
             out[row, kn.OUT_AZ] = az1
