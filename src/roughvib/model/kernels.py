@@ -336,14 +336,18 @@ def moment_power(y, off, fp):
 
 @njit(cache=True)
 def _plate_at_contacts(y, off, phi, cres, w):
-    """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k)."""
+    """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k).
+
+    Each sum runs over r in a local accumulator (w may alias nothing the compiler can see
+    through, so an accumulation in ``w[k]`` itself is a store and a load per mode); the
+    order of the terms is that of ``r``, as always.
+    """
     iq, iF, R, K = off[OFF_IQ], off[OFF_IF], off[OFF_R], off[OFF_K]
     for k in range(K):
-        w[k] = 0.0
-    for r in range(R):
-        q = y[iq + r]
-        for k in range(K):
-            w[k] += phi[r, k] * q
+        acc = 0.0
+        for r in range(R):
+            acc += phi[r, k] * y[iq + r]
+        w[k] = acc
     for k in range(K):
         acc = 0.0
         for j in range(K):
@@ -699,6 +703,14 @@ def scatter(vals, perm, jj):
 
 
 @njit(cache=True)
+def latch_margin(y, off, fp, reg, rf):
+    """The Feldmann law's latch margin ``eps - s (v - v_ext)`` [m/s] (``events``' entry
+    ``K + ROOT_LATCH``): the only margin that depends on the running extremum ``rf[RF_VEXT]``,
+    so the only one to renew when a grid point has moved that extremum."""
+    return fp[FP_EPS] - reg[REG_S] * (y[off[OFF_IVX]] - rf[RF_VEXT])
+
+
+@njit(cache=True)
 def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     """Root functions, each a *margin* that is positive while the current regime holds.
 
@@ -740,7 +752,7 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
         vx = y[off[OFF_IVX]]
         xx = vx + reg[REG_S] * fp[FP_VH]
         ev[K + ROOT_BRANCH] = reg[REG_B] * xx
-        ev[K + ROOT_LATCH] = fp[FP_EPS] - reg[REG_S] * (vx - rf[RF_VEXT])
+        ev[K + ROOT_LATCH] = latch_margin(y, off, fp, reg, rf)
         vs2 = fp[FP_VSTICK] * fp[FP_VSTICK]
         if reg[REG_PHASE] == 1:
             ev[K + ROOT_PHASE] = vs2 - vx * vx
