@@ -13,17 +13,27 @@ time of ``--repeat`` solves each (numba compilation and loading excluded by a fi
 Printed: solver CPU times, step counts and their ratio. Only the solve is timed: assembly,
 force calibration and the pilot are the same for both and are measured by
 ``bench_fixed_cost.py``.
+
+OpenBLAS is held to one thread (``OPENBLAS_NUM_THREADS=1`` unless set): the floor solves its
+contact system with ``numpy.linalg.solve``, whose OpenBLAS worker threads otherwise spin
+between calls, and their CPU time counts in the process's (measured: the floor's process
+CPU time 2.1-3.5 s against 0.29-0.41 s held to one thread, on a loaded machine). The adaptive
+solver calls no BLAS.
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-from dataclasses import replace
+import os
 
-from roughvib import simulation
-from roughvib.model.system import assemble
-from roughvib.scene import load_scene
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy is imported
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+
+from roughvib import simulation  # noqa: E402
+from roughvib.model.system import assemble  # noqa: E402
+from roughvib.scene import load_scene  # noqa: E402
 
 #: the floor: the exact-modal fixed-step scheme at the output step [s]
 FLOOR_STEP = 1e-5

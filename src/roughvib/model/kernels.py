@@ -725,6 +725,14 @@ def scatter(vals, perm, jj):
 
 
 @njit(cache=True)
+def latch_margin(y, off, fp, reg, rf):
+    """The Feldmann law's latch margin ``eps - s (v - v_ext)`` [m/s] (``events``' entry
+    ``K + ROOT_LATCH``): the only margin that depends on the running extremum ``rf[RF_VEXT]``,
+    so the only one to renew when a grid point has moved that extremum."""
+    return fp[FP_EPS] - reg[REG_S] * (y[off[OFF_IVX]] - rf[RF_VEXT])
+
+
+@njit(cache=True)
 def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
     """Root functions, each a *margin* that is positive while the current regime holds.
 
@@ -766,7 +774,7 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
         vx = y[off[OFF_IVX]]
         xx = vx + reg[REG_S] * fp[FP_VH]
         ev[K + ROOT_BRANCH] = reg[REG_B] * xx
-        ev[K + ROOT_LATCH] = fp[FP_EPS] - reg[REG_S] * (vx - rf[RF_VEXT])
+        ev[K + ROOT_LATCH] = latch_margin(y, off, fp, reg, rf)
         vs2 = fp[FP_VSTICK] * fp[FP_VSTICK]
         if reg[REG_PHASE] == 1:
             ev[K + ROOT_PHASE] = vs2 - vx * vx

@@ -987,12 +987,13 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                               spos, prof, reg, rf, work, track_latch)
             ist[I_K] = k + 1
             ist[I_IVL] = 0
-            if track_latch:
-                # the latch margin depends on the extremum just updated
-                kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-                for i in range(n_ev):
-                    if g0[i] > 0.0:
-                        armed[i] = 1
+            if track_latch and not kn.set_valued(off):
+                # the Feldmann latch's margin depends on the extremum just updated (the
+                # other margins, those of a set-valued law included, do not: g0 holds them)
+                il = off[kn.OFF_K] + kn.ROOT_LATCH
+                g0[il] = kn.latch_margin(y, off, fp, reg, rf)
+                if g0[il] > 0.0:
+                    armed[il] = 1
         # step size: up one level when the error is small and the time is on that level
         if err * 8.0 <= SAFETY ** 3 and ist[I_LEV] > 0:
             up = h_max / 2.0 ** (ist[I_LEV] - 1)
