@@ -41,8 +41,9 @@ class WorkerLost(RuntimeError):
     """The worker process running a task died ``attempts`` times in a row."""
 
 
-def _worker_main(conn, env: dict[str, str], preload: tuple[str, ...]) -> None:
-    """A worker process: set its environment, import ``preload``, run tasks until told to stop.
+def _worker_main(conn, env: dict[str, str], initializer: Callable[[], Any] | None) -> None:
+    """A worker process: set its environment, call ``initializer``, run tasks until told to
+    stop.
 
     Each message from the client is ``(key, function, args)`` or None (stop); each answer is
     ``(key, True, value)`` or ``(key, False, exception)``.
@@ -50,11 +51,8 @@ def _worker_main(conn, env: dict[str, str], preload: tuple[str, ...]) -> None:
     os.environ.update(env)
     with contextlib.suppress(ValueError):
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the client stops the workers itself
-    import importlib
-
-    for name in preload:  # the solver stack, once per worker, before the first task arrives
-        with contextlib.suppress(Exception):
-            importlib.import_module(name)
+    if initializer is not None:  # e.g. the solver's imports, before the first task arrives
+        initializer()
     while True:
         try:
             msg = conn.recv()
@@ -84,8 +82,8 @@ class LocalPool:
         Worker processes (>= 1), started at once.
     env : dict, optional
         Environment variables set in every worker before anything is imported there.
-    preload : tuple of str
-        Modules every worker imports when it starts.
+    initializer : callable, optional
+        Called once in every worker when it starts (importable by name, no arguments).
     attempts : int
         How often a task is started in all when its worker dies under it (default 3).
 
@@ -96,12 +94,12 @@ class LocalPool:
     """
 
     def __init__(self, workers: int, *, env: dict[str, str] | None = None,
-                 preload: tuple[str, ...] = (), attempts: int = 3) -> None:
+                 initializer: Callable[[], Any] | None = None, attempts: int = 3) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self._ctx = multiprocessing.get_context("spawn")
         self._env = dict(env or {})
-        self._preload = tuple(preload)
+        self._initializer = initializer
         self._attempts = attempts
         self._queue: deque[tuple[Any, Callable, tuple]] = deque()
         self._tries: dict[Any, int] = {}
@@ -114,7 +112,7 @@ class LocalPool:
 
     def _start_worker(self) -> None:
         parent, child = self._ctx.Pipe(duplex=True)
-        proc = self._ctx.Process(target=_worker_main, args=(child, self._env, self._preload),
+        proc = self._ctx.Process(target=_worker_main, args=(child, self._env, self._initializer),
                                  daemon=True, name="roughvib-sweep-worker")
         # a worker ignores SIGINT from its birth (a disposition "ignore" survives exec, and
         # Python then installs no KeyboardInterrupt handler): Ctrl-C reaches the whole process

@@ -453,8 +453,17 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                     rows)
 
 
-#: what each worker of the local pool imports when it starts (the task's own imports)
-_PRELOAD = ("roughvib.simulation",)
+def _init_worker() -> None:
+    """Start of a local pool's worker: the solver's imports before the first case arrives, and
+    a thread lock for tqdm (whose default lock is a multiprocessing semaphore, left behind, with
+    a warning of Python's resource tracker, by a worker stopped in the middle of a case; the
+    workers draw no bars)."""
+    import threading
+
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
+    import roughvib.simulation  # noqa: F401
 
 
 def _pool_outcomes(order: list[Case], args: dict[str, tuple], workers: int | None):
@@ -467,7 +476,7 @@ def _pool_outcomes(order: list[Case], args: dict[str, tuple], workers: int | Non
     from roughvib.studies.sweep.pool import LocalPool
 
     n = min(workers or os.cpu_count() or 1, len(order))
-    pool = LocalPool(n, env=dict(THREAD_ENV), preload=_PRELOAD)
+    pool = LocalPool(n, env=dict(THREAD_ENV), initializer=_init_worker)
     by_name = {c.name: c for c in order}
     for c in order:
         pool.submit(c.name, _run_case, *args[c.name])
