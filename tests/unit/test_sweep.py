@@ -206,6 +206,33 @@ def test_builtin_paper_velocity_sweep():
         sw.load_sweep("no-such-sweep")
 
 
+def test_sweep_nc_written_without_xarray_decodes_as_xarrays_own_file(tmp_path):
+    # sweep.nc is written with h5netcdf directly (no dask imports); xarray's own writer of the
+    # same contents is the reference: grid and case list, a text key, a failed case (NaN)
+    from roughvib.studies.sweep.tables import METRICS, _dataset_parts, _write_sweep_nc
+
+    spec = sw.load_sweep({"name": "c", "base": "paper", "grid": {"roughness.seed": [1, 2]},
+                          "case": [{"block.mass": 0.3, "solver.method": "ida"},
+                                   {"block.mass": -1.0}]})
+    cases = spec.cases()
+    table = pd.DataFrame({"case": [c.name for c in cases],
+                          "status": ["success", "input_error"] * 2,
+                          "message": ["", "block.mass must be > 0 kg, got -1"] * 2,
+                          "wall_time": [1.5, np.nan, 2.5, np.nan]})
+    for i, col in enumerate(METRICS):
+        table[col] = [float(i), np.nan, -float(i), np.nan]
+    coords, data, attrs = _dataset_parts(spec, table)
+    _write_sweep_nc(tmp_path / "direct.nc", coords, data, attrs)
+    xr.Dataset(data, coords=coords, attrs=attrs).to_netcdf(tmp_path / "xarray.nc",
+                                                           engine="h5netcdf")
+    direct = xr.load_dataset(tmp_path / "direct.nc", engine="h5netcdf")
+    xr.testing.assert_identical(direct, xr.load_dataset(tmp_path / "xarray.nc",
+                                                        engine="h5netcdf"))
+    assert list(direct["solver.method"].values) == ["ida", "auto"]
+    assert direct["status"].dims == ("roughness.seed", "case")
+    assert np.isnan(direct["wall_time"].values[0, 1])
+
+
 def test_units_of_scene_keys_come_from_the_scene_docstrings():
     assert sw.scene_key_units("block.mass") == "kg"
     assert sw.scene_key_units("excitation.target_rms_velocity") == "m/s"
