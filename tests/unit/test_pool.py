@@ -49,7 +49,7 @@ def test_terminate_stops_a_running_task_at_once():
     results = pool.results()
     t0 = time.monotonic()
     pool._feed(pool._procs[0])  # hand the task out without waiting for it
-    [proc] = [slot[0] for slot in pool._procs]
+    [proc] = [w.proc for w in pool._procs]
     pool.terminate()
     assert time.monotonic() - t0 < 10.0
     assert not proc.is_alive()

@@ -22,6 +22,7 @@ What a Dask cluster gave a sweep, the pool keeps:
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing
 import os
 import signal
@@ -29,7 +30,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable, Iterator
 from multiprocessing.connection import wait
-from typing import Any
+from typing import Any, NamedTuple
 
 __all__ = ["LocalPool", "WorkerLost"]
 
@@ -39,6 +40,31 @@ _JOIN_TIMEOUT = 5.0
 
 class WorkerLost(RuntimeError):
     """The worker process running a task died ``attempts`` times in a row."""
+
+
+class _Task(NamedTuple):
+    """A task as sent to a worker."""
+
+    key: Any
+    fn: Callable
+    args: tuple
+
+
+class _Answer(NamedTuple):
+    """A worker's answer: the task's value (``ok``) or its exception."""
+
+    key: Any
+    ok: bool
+    value: Any
+
+
+@dataclasses.dataclass
+class _Worker:
+    """A worker process, the client's end of its pipe and the task it runs (None: idle)."""
+
+    proc: Any
+    conn: Any
+    task: _Task | None = None
 
 
 def _worker_main(conn, env: dict[str, str], initializer: Callable[[], Any] | None) -> None:
@@ -60,17 +86,17 @@ def _worker_main(conn, env: dict[str, str], initializer: Callable[[], Any] | Non
             return
         if msg is None:
             return
-        key, fn, args = msg
+        task = _Task(*msg)
         try:
-            answer = (key, True, fn(*args))
+            answer = _Answer(task.key, True, task.fn(*task.args))
         except Exception as exc:  # noqa: BLE001 - handed to the client as the outcome
-            answer = (key, False, exc)
+            answer = _Answer(task.key, False, exc)
         try:
-            conn.send(answer)
+            conn.send(tuple(answer))
         except Exception:  # noqa: BLE001 - an outcome that does not pickle
-            text = "".join(traceback.format_exception_only(type(answer[2]), answer[2])) \
-                if not answer[1] else "the task's value could not be sent to the client"
-            conn.send((key, False, RuntimeError(text.strip())))
+            text = ("".join(traceback.format_exception_only(type(answer.value), answer.value))
+                    if not answer.ok else "the task's value could not be sent to the client")
+            conn.send((task.key, False, RuntimeError(text.strip())))
 
 
 class LocalPool:
@@ -101,10 +127,10 @@ class LocalPool:
         self._env = dict(env or {})
         self._initializer = initializer
         self._attempts = attempts
-        self._queue: deque[tuple[Any, Callable, tuple]] = deque()
+        self._queue: deque[_Task] = deque()
         self._tries: dict[Any, int] = {}
-        self._done: deque[tuple[Any, bool, Any]] = deque()  # outcomes known without a worker
-        self._procs: list[Any] = []  # [process, connection, key running or None]
+        self._done: deque[_Answer] = deque()  # outcomes known without a worker
+        self._procs: list[_Worker] = []
         for _ in range(workers):
             self._start_worker()
 
@@ -127,18 +153,18 @@ class LocalPool:
             if previous is not None:
                 signal.signal(signal.SIGINT, previous)
         child.close()
-        self._procs.append([proc, parent, None, None])
+        self._procs.append(_Worker(proc, parent))
 
     @property
     def pids(self) -> list[int]:
         """Process ids of the current workers."""
-        return [p[0].pid for p in self._procs]
+        return [w.proc.pid for w in self._procs]
 
     # ---- tasks ----------------------------------------------------------------------------
 
     def submit(self, key: Any, fn: Callable, *args: Any) -> None:
         """Queue ``fn(*args)`` under ``key`` (unique); ``fn`` must be importable by name."""
-        self._queue.append((key, fn, args))
+        self._queue.append(_Task(key, fn, args))
         self._tries[key] = 0
 
     def cancel_queued(self) -> int:
@@ -147,21 +173,21 @@ class LocalPool:
         self._queue.clear()
         return n
 
-    def _feed(self, slot: list) -> None:
-        """Hand the next queued task to the idle worker of ``slot``."""
-        while slot[2] is None and self._queue:
+    def _feed(self, worker: _Worker) -> None:
+        """Hand the next queued task to ``worker`` if it is idle."""
+        while worker.task is None and self._queue:
             task = self._queue.popleft()
-            self._tries[task[0]] += 1
+            self._tries[task.key] += 1
             try:
-                slot[1].send(task)
+                worker.conn.send(tuple(task))
             except (OSError, EOFError):  # the worker is gone: its death is handled later
                 self._queue.appendleft(task)
-                self._tries[task[0]] -= 1
+                self._tries[task.key] -= 1
                 return
             except Exception as exc:  # noqa: BLE001 - a task that does not pickle
-                self._done.append((task[0], False, exc))
+                self._done.append(_Answer(task.key, False, exc))
                 continue
-            slot[2], slot[3] = task[0], task
+            worker.task = task
 
     def results(self) -> Iterator[tuple[Any, bool, Any]]:
         """The outcome of every task, as each one ends: ``(key, ok, value or exception)``.
@@ -169,38 +195,38 @@ class LocalPool:
         A task whose worker died ``attempts`` times ends with ``ok`` False and a
         :class:`WorkerLost`.
         """
-        for slot in self._procs:
-            self._feed(slot)
-        while self._done or any(slot[2] is not None for slot in self._procs):
+        for worker in self._procs:
+            self._feed(worker)
+        while self._done or any(w.task is not None for w in self._procs):
             while self._done:
-                yield self._done.popleft()
-            if not any(slot[2] is not None for slot in self._procs):
+                yield tuple(self._done.popleft())
+            if not any(w.task is not None for w in self._procs):
                 break
-            ready = wait([s[1] for s in self._procs] + [s[0].sentinel for s in self._procs])
-            for slot in list(self._procs):
-                proc, conn, key, task = slot
+            ready = wait([w.conn for w in self._procs] + [w.proc.sentinel for w in self._procs])
+            for worker in list(self._procs):
+                proc, conn, task = worker.proc, worker.conn, worker.task
                 if conn in ready or (proc.sentinel in ready and conn.poll()):
                     try:
-                        k, ok, value = conn.recv()
+                        answer = _Answer(*conn.recv())
                     except (EOFError, OSError):
                         pass  # died while answering: handled as a death below
                     else:
-                        slot[2] = slot[3] = None
-                        self._feed(slot)
-                        yield k, ok, value
+                        worker.task = None
+                        self._feed(worker)
+                        yield tuple(answer)
                         continue
                 if proc.sentinel in ready or not proc.is_alive():
-                    self._procs.remove(slot)
+                    self._procs.remove(worker)
                     conn.close()
                     proc.join()
                     self._start_worker()
-                    if key is not None:
-                        if self._tries[key] < self._attempts:
+                    if task is not None:
+                        if self._tries[task.key] < self._attempts:
                             self._queue.appendleft(task)  # again, before the others
                         else:
-                            yield key, False, WorkerLost(
-                                f"the worker process running it died {self._tries[key]} times "
-                                f"(exit code {proc.exitcode})")
+                            yield (task.key, False, WorkerLost(
+                                f"the worker process running it died {self._tries[task.key]} "
+                                f"times (exit code {proc.exitcode})"))
                     self._feed(self._procs[-1])
 
     # ---- stopping -------------------------------------------------------------------------
@@ -208,30 +234,30 @@ class LocalPool:
     def terminate(self) -> None:
         """Stop every worker now (SIGTERM, then SIGKILL after a few seconds); drop the queue."""
         self._queue.clear()
-        for proc, conn, _, _ in self._procs:
+        for w in self._procs:
             with contextlib.suppress(Exception):
-                proc.terminate()
-            conn.close()
+                w.proc.terminate()
+            w.conn.close()
         self._reap()
 
     def close(self) -> None:
         """Tell the idle workers to exit and wait for them (killed after a few seconds)."""
         self._queue.clear()
-        for proc, conn, key, _ in self._procs:
+        for w in self._procs:
             with contextlib.suppress(Exception):
-                if key is None:
-                    conn.send(None)
+                if w.task is None:
+                    w.conn.send(None)
                 else:
-                    proc.terminate()
-            conn.close()
+                    w.proc.terminate()
+            w.conn.close()
         self._reap()
 
     def _reap(self) -> None:
-        for proc, *_ in self._procs:
-            proc.join(_JOIN_TIMEOUT)
-            if proc.is_alive():
-                proc.kill()
-                proc.join()
+        for w in self._procs:
+            w.proc.join(_JOIN_TIMEOUT)
+            if w.proc.is_alive():
+                w.proc.kill()
+                w.proc.join()
         self._procs.clear()
 
     def __enter__(self) -> LocalPool:
