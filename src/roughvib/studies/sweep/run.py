@@ -552,10 +552,11 @@ _COST_KEYS = (("output", "duration"), ("excitation", "target_rms_velocity"),
 
 
 def _longest_first(base: Scene, cases: list[Case]) -> dict[str, int]:
-    """Dask priorities that start the cases expected to take longest first.
+    """Priorities that start the cases expected to take longest first.
 
-    The cases go to the workers in the order of their priority (equal priorities in the
-    order submitted), and a long case started last would run alone at the end: on 2 workers
+    The cases are submitted in the order of their priority, and a Dask cluster also gets
+    them as task priorities (equal priorities in the order submitted); the local pool runs
+    them in the order submitted. A long case started last would run alone at the end: on 2 workers
     the 12 cases of ``paper-velocity`` (solver CPU 1.9-5.4 s each) take 24.0 s of
     solver time in the order of the grid and 22.5 s longest first (22.4 s is the even split).
     The estimate only orders the cases, by the values of :data:`_COST_KEYS` (the case's own,
