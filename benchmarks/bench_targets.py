@@ -12,7 +12,7 @@ The three targets (docs/performance.md, "Issue 28: the default run, a sweep and 
 1. **default run, warm**: ``roughvib run`` (the ``paper`` scene, every default) with numba's
    and roughvib's caches filled by one unmeasured run first: at most 2 s wall for the whole
    command;
-2. **paper-velocity sweep**: ``roughvib sweep paper-velocity`` (12 cases, local cluster of one
+2. **paper-velocity sweep**: ``roughvib sweep paper-velocity`` (12 cases, local pool of one
    worker per core) into a new directory: at most 10 s wall on 2 cores;
 3. **roughness ensemble**: ``roughvib run paper --seeds 100`` into a new directory: at most
    60 s wall (``--quick``: 10 seeds, no target; the time per seed is printed).

@@ -1,8 +1,10 @@
-"""Sweeps on dask.distributed: file format, case names, a small sweep, kill and resume, a failing
-case, the scheduler address, the report.
+"""Sweeps: file format, case names, a small sweep, kill and resume, a failing case, the
+scheduler address, the report.
 
-One 2-worker LocalCluster (processes, one thread each) is shared by the module; the sweeps use
-0.01 s runs with plate modes to 3 kHz (about 1 s per case once a worker has loaded the kernels).
+Most sweeps run as Dask tasks on one 2-worker LocalCluster (processes, one thread each) shared by
+the module, standing in for a cluster given by address; the others run on the sweep's own local
+pool (no Dask). The sweeps use 0.01 s runs with plate modes to 3 kHz (about 1 s per case once a
+worker has loaded the kernels).
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ import subprocess
 import sys
 import time
 import tomllib
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,7 @@ import roughvib
 from roughvib.cli.sweep import add_parsers
 from roughvib.scene import SceneError
 from roughvib.studies import sweep as sw
+from roughvib.studies.sweep import pool as sw_pool
 from roughvib.studies.sweep import run as sw_run
 from roughvib.studies.sweep.spec import old_case_name
 
@@ -204,6 +206,33 @@ def test_builtin_paper_velocity_sweep():
         sw.load_sweep("no-such-sweep")
 
 
+def test_sweep_nc_written_without_xarray_decodes_as_xarrays_own_file(tmp_path):
+    # sweep.nc is written with h5netcdf directly (no dask imports); xarray's own writer of the
+    # same contents is the reference: grid and case list, a text key, a failed case (NaN)
+    from roughvib.studies.sweep.tables import METRICS, _dataset_parts, _write_sweep_nc
+
+    spec = sw.load_sweep({"name": "c", "base": "paper", "grid": {"roughness.seed": [1, 2]},
+                          "case": [{"block.mass": 0.3, "solver.method": "ida"},
+                                   {"block.mass": -1.0}]})
+    cases = spec.cases()
+    table = pd.DataFrame({"case": [c.name for c in cases],
+                          "status": ["success", "input_error"] * 2,
+                          "message": ["", "block.mass must be > 0 kg, got -1"] * 2,
+                          "wall_time": [1.5, np.nan, 2.5, np.nan]})
+    for i, col in enumerate(METRICS):
+        table[col] = [float(i), np.nan, -float(i), np.nan]
+    coords, data, attrs = _dataset_parts(spec, table)
+    _write_sweep_nc(tmp_path / "direct.nc", coords, data, attrs)
+    xr.Dataset(data, coords=coords, attrs=attrs).to_netcdf(tmp_path / "xarray.nc",
+                                                           engine="h5netcdf")
+    direct = xr.load_dataset(tmp_path / "direct.nc", engine="h5netcdf")
+    xr.testing.assert_identical(direct, xr.load_dataset(tmp_path / "xarray.nc",
+                                                        engine="h5netcdf"))
+    assert list(direct["solver.method"].values) == ["ida", "auto"]
+    assert direct["status"].dims == ("roughness.seed", "case")
+    assert np.isnan(direct["wall_time"].values[0, 1])
+
+
 def test_units_of_scene_keys_come_from_the_scene_docstrings():
     assert sw.scene_key_units("block.mass") == "kg"
     assert sw.scene_key_units("excitation.target_rms_velocity") == "m/s"
@@ -229,11 +258,11 @@ def test_scheduler_address_is_passed_to_dask_client(monkeypatch, tmp_path):
             seen.append(address)
             raise _Connected
 
-    def no_local_cluster(*a, **kw):
-        raise AssertionError("a LocalCluster was started although a scheduler was given")
+    def no_local_pool(*a, **kw):
+        raise AssertionError("a local pool was started although a scheduler was given")
 
     monkeypatch.setattr(distributed, "Client", FakeClient)
-    monkeypatch.setattr(distributed, "LocalCluster", no_local_cluster)
+    monkeypatch.setattr(sw_pool, "LocalPool", no_local_pool)
     monkeypatch.setattr(sw_run, "_probe", lambda address: None)  # no scheduler at head:8786
     spec = _write(tmp_path / "s.toml", SMALL)
     args = _parser().parse_args(["sweep", str(spec), "--out", str(tmp_path / "out"),
@@ -296,19 +325,21 @@ def test_a_task_never_recomputes_a_complete_case_and_cleans_dead_workers_tmp(tmp
     assert _stamp(cases / case.name) == before
 
 
-def test_local_cluster_has_single_threaded_workers(monkeypatch, tmp_path):
+def test_local_pool_has_single_threaded_workers_at_most_one_per_case(monkeypatch, tmp_path):
     seen = {}
 
-    def fake_cluster(**kw):
-        seen.update(kw)
+    def fake_pool(workers, **kw):
+        seen.update(kw, workers=workers)
         raise _Connected
 
-    monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
-    with pytest.raises(_Connected):
-        sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out", workers=3,
-                     progress=False)
-    assert seen["n_workers"] == 3 and seen["threads_per_worker"] == 1 and seen["processes"]
-    assert seen["env"]["NUMBA_NUM_THREADS"] == "1" and seen["env"]["OMP_NUM_THREADS"] == "1"
+    monkeypatch.setattr(sw_pool, "LocalPool", fake_pool)
+    monkeypatch.setattr(distributed, "Client", fake_pool)  # no Dask without a scheduler
+    for workers, expected in ((3, 3), (9, 4)):  # SMALL has 4 cases
+        with pytest.raises(_Connected):
+            sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out",
+                         workers=workers, progress=False)
+        assert seen["workers"] == expected
+        assert seen["env"]["NUMBA_NUM_THREADS"] == "1" and seen["env"]["OMP_NUM_THREADS"] == "1"
     with pytest.raises(SceneError, match="workers must be >= 1, got 0"):
         sw.run_sweep(tmp_path / "s.toml", tmp_path / "out", workers=0)
 
@@ -426,16 +457,19 @@ def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, clien
     pd.testing.assert_frame_equal(resumed, reference)
 
 
-def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path):
+@pytest.mark.parametrize("pool", ["dask", "local"])
+def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path, pool):
     # a killed worker loses the results it held; Dask would recompute them (4 of 12 cases
-    # ran twice in the report of issue 18): finished cases must stay untouched on disk
+    # ran twice in the report of issue 18): finished cases must stay untouched on disk. The
+    # local pool starts a new worker and gives it the case the killed one was running.
     import threading
 
     spec = _write(tmp_path / "small.toml", SMALL)
     out = tmp_path / "out"
     box: dict = {}
     thread = threading.Thread(target=lambda: box.update(
-        run=sw.run_sweep(spec, out, client=client, progress=False)))
+        run=sw.run_sweep(spec, out, client=client if pool == "dask" else None, workers=2,
+                         progress=False)))
     thread.start()
     deadline = time.monotonic() + 150
     while not _completed(out / "cases"):
@@ -477,21 +511,6 @@ def test_case_directories_of_the_old_names_are_adopted_not_recomputed(small_run,
                "nothing recomputed" in n for n in notes)
     assert list(again.table["case"]) == [c.name for c in spec.cases()]
     assert (again.table["status"] == "success").all()
-
-
-def test_busy_dashboard_port_is_one_line_not_a_dask_warning(monkeypatch, tmp_path):
-    def busy_port_cluster(**kw):
-        warnings.warn("Port 8787 is already in use.\nPerhaps you already have a cluster "
-                      "running?\nHosting the HTTP server on port 40001 instead", UserWarning,
-                      stacklevel=1)
-        raise _Connected
-
-    monkeypatch.setattr(distributed, "LocalCluster", busy_port_cluster)
-    with warnings.catch_warnings(record=True) as seen, pytest.raises(_Connected):
-        warnings.simplefilter("always")
-        sw.run_sweep(_write(tmp_path / "s.toml", SMALL), tmp_path / "out", workers=1,
-                     progress=False)
-    assert not [w for w in seen if "already in use" in str(w.message)]
 
 
 def test_invalid_case_fails_alone_with_its_message(client, tmp_path, capsys):

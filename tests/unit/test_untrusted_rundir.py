@@ -417,7 +417,11 @@ base = "paper"
 """
 
 
-def test_a_sweep_stopped_by_sigterm_exits_143_with_one_line(tmp_path):
+@pytest.mark.parametrize(("signum", "code", "word"), [(signal.SIGTERM, 143, "terminated"),
+                                                      (signal.SIGINT, 130, "interrupted")])
+def test_a_sweep_stopped_by_a_signal_exits_with_one_line(tmp_path, signum, code, word):
+    # SIGTERM to the command; SIGINT to its whole process group, as Ctrl-C in a terminal
+    # sends it (the workers ignore it: the command stops them)
     spec = tmp_path / "tiny.toml"
     spec.write_text(TINY)
     out = tmp_path / "out"
@@ -437,15 +441,18 @@ def test_a_sweep_stopped_by_sigterm_exits_143_with_one_line(tmp_path):
                 pytest.fail(f"the sweep ended or stalled before a case completed: "
                             f"{proc.communicate()[1].decode()[-2000:]}")
             time.sleep(0.2)
-        proc.send_signal(signal.SIGTERM)
+        if signum == signal.SIGINT:
+            os.killpg(proc.pid, signum)
+        else:
+            proc.send_signal(signum)
         _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     err = err.decode()
-    assert proc.returncode == 143, err
+    assert proc.returncode == code, err
     assert err.strip().splitlines() == [
-        f"roughvib: sweep terminated; completed cases are kept in {out}/cases, run the same "
+        f"roughvib: sweep {word}; completed cases are kept in {out}/cases, run the same "
         f"command again to resume"], err
 
 

@@ -102,10 +102,10 @@ def add_parsers(subparsers) -> None:
     fmt = argparse.RawDescriptionHelpFormatter
     s = subparsers.add_parser(
         "sweep", formatter_class=fmt,
-        help="run a parameter study on a local or Dask cluster (resumable)",
+        help="run a parameter study on local worker processes or a Dask cluster (resumable)",
         description="Run every case of a sweep (a base scene and the values to vary, as a grid "
-                    "and/or a list of cases) as one task on dask.distributed: a local cluster "
-                    "of single-threaded worker processes by default, or the cluster of "
+                    "and/or a list of cases) as one task: on a local pool of single-threaded "
+                    "worker processes by default, or as Dask tasks on the cluster of "
                     "--scheduler. Each case writes DIR/cases/<case>/ atomically; re-running "
                     "the same command skips completed cases and re-runs failed or missing "
                     "ones. At the end DIR/sweep.csv and DIR/sweep.nc hold one row per case. "
@@ -123,9 +123,10 @@ def add_parsers(subparsers) -> None:
     s.add_argument("--out", metavar="DIR", help="sweep directory (default: runs/<sweep name>)")
     s.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of a running Dask scheduler, e.g. tcp://head:8786 (default: "
-                        "start a local cluster); DIR must be on a filesystem the workers share")
+                        "a local pool of worker processes); DIR must be on a filesystem the "
+                        "workers share")
     s.add_argument("--workers", type=int, metavar="N",
-                   help="worker processes of the local cluster (default: all cores; one "
+                   help="worker processes of the local pool (default: all cores; one "
                         "thread each)")
     s.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="fixed value for every case, e.g. --set output.duration=0.2 "

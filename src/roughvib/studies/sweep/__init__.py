@@ -1,10 +1,12 @@
-"""Parameter studies ("sweeps") on dask.distributed: resumable, one result directory per case.
+"""Parameter studies ("sweeps") on local worker processes or dask.distributed: resumable, one
+result directory per case.
 
-The package is split by responsibility: :mod:`.spec` (the sweep file, its cases and their
-names, the layout of a sweep directory), :mod:`.run` (running the cases as Dask tasks and
-publishing their directories), :mod:`.tables` (the sweep table and dataset, the slope fits) and
-:mod:`.report` (the data of the sweep report, rendered by :mod:`roughvib.views.sweep_report`).
-The command-line handlers live in :mod:`roughvib.cli.sweep`.
+The package is split by responsibility: :mod:`.spec` (the sweep file, its cases and their names,
+the layout of a sweep directory), :mod:`.run` (running the cases as tasks and publishing their
+directories), :mod:`.pool` (the local pool of worker processes), :mod:`.tables` (the sweep table
+and dataset, the slope fits) and :mod:`.report` (the data of the sweep report, rendered by
+:mod:`roughvib.views.sweep_report`). The command-line handlers live in
+:mod:`roughvib.cli.sweep`.
 
 A sweep file (TOML) names a base scene and the values to vary::
 
@@ -40,8 +42,9 @@ shell needs quoted; the exact values are in case.json), so it stays the same whe
 extended and changes when the base scene or the fixed values change. Case directories named the
 way roughvib 0.1 named them (``target_rms_velocity=0.01,seed=2-...``) are renamed on resuming.
 
-Each case is one Dask task. Without a scheduler address a ``LocalCluster`` of worker processes
-with one thread each is started; numba, OpenMP and BLAS are limited to one thread per worker so
+Each case is one task. Without a scheduler address (or client) the cases run on a local pool of
+worker processes with one thread each (:class:`.pool.LocalPool`, no Dask); with one, each case is
+one Dask task on that cluster. numba, OpenMP and BLAS are limited to one thread per worker so
 that the workers do not oversubscribe the cores.
 """
 

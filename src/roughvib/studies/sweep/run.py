@@ -1,7 +1,9 @@
-"""Running a sweep: each case one Dask task that writes its directory under a temporary name and
+"""Running a sweep: each case one task that writes its directory under a temporary name and
 renames it into place when complete; resuming skips the complete cases, and so does a task whose
-case is complete on disk (Dask re-runs the tasks of a killed worker). One sweep at a time per
-directory (a lock file); temporary directories of killed workers are removed."""
+case is complete on disk (Dask re-runs the tasks of a killed worker). The tasks run on a local
+pool of worker processes (:mod:`.pool`), or as Dask tasks on a cluster given by its scheduler's
+address or client. One sweep at a time per directory (a lock file); temporary directories of
+killed workers are removed."""
 
 from __future__ import annotations
 
@@ -9,12 +11,10 @@ import contextlib
 import dataclasses
 import hashlib
 import json
-import logging
 import os
 import re
 import secrets
 import shutil
-import signal
 import socket
 import sys
 import threading
@@ -209,32 +209,14 @@ def _run_case(base: Scene, name: str, values: dict[str, Any], cases_dir: str,
 
 
 def _local_dask():
-    """Inside a task, make xarray lock its netCDF writes locally: each case writes its own
-    files, and a cluster-wide lock would tie every write to the scheduler connection."""
-    try:
-        import dask
-    except ImportError:  # pragma: no cover - tasks always run under dask
+    """Inside a Dask task, make xarray lock its netCDF writes locally: each case writes its
+    own files, and a cluster-wide lock would tie every write to the scheduler connection. A
+    worker of the local pool has not imported dask: nothing to do there."""
+    if "dask" not in sys.modules:
         return contextlib.nullcontext()
+    import dask
+
     return dask.config.set(scheduler="synchronous")
-
-
-#: loggers of a worker process whose warnings are Dask's own bookkeeping when a sweep stops
-#: early (``Async instruction ... ended with CancelledError`` for each cancelled case); the
-#: sweep reports the interruption itself, in one line
-_WORKER_QUIET_LOGGERS = ("distributed.worker.state_machine", "distributed.worker")
-
-
-def _ignore_sigint() -> bool:
-    """Run on the workers of a sweep's own LocalCluster: Ctrl-C in the terminal reaches the
-    whole process group; the client shuts the workers down, so they need not react. Also
-    lowers the workers' logging of cancelled tasks to errors (:data:`_WORKER_QUIET_LOGGERS`)."""
-    for name in _WORKER_QUIET_LOGGERS:
-        logging.getLogger(name).setLevel(logging.ERROR)
-    try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread of the worker process
-        return False
-    return True
 
 
 def _is_complete(case_dir: Path) -> bool:
@@ -314,53 +296,26 @@ def _probe(address: str) -> None:
                          f"a scheduler with 'dask scheduler' or check the address") from None
 
 
-def _connect(scheduler: str | None, workers: int | None):
-    """A Dask client: to ``scheduler`` if given, else to a new LocalCluster (returned too)."""
+def _connect(scheduler: str):
+    """A Dask client of the scheduler at ``scheduler``."""
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:  # pragma: no cover - depends on the installation
-        raise SceneError("sweeps need dask.distributed: "
+        raise SceneError("--scheduler needs dask.distributed: "
                          "pip install 'dask[distributed]>=2024.1'") from None
-    if scheduler:
-        try:
-            return Client(scheduler, timeout=CONNECT_TIMEOUT), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise SceneError(f"--scheduler {scheduler}: no Dask scheduler answered within "
-                             f"{CONNECT_TIMEOUT:g} s ({_one_line(exc)}); start one with 'dask "
-                             f"scheduler' or check the address") from None
-    n = workers or os.cpu_count() or 1
-    with warnings.catch_warnings():  # the port is in the dashboard line run_sweep writes
-        warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
-                                category=UserWarning)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               env=dict(THREAD_ENV))
     try:
-        client = Client(cluster)
-        client.run(_ignore_sigint)
-        return client, cluster
-    except BaseException:
-        cluster.close()
-        raise
-
-
-def _close_quietly(cluster) -> None:
-    """Close the sweep's own LocalCluster without Dask's "Worker process still alive after 4.0
-    seconds, killing": the cases are published by then, and on a busy machine the workers,
-    which ignore SIGINT, are simply slower to exit than the nanny waits."""
-    nanny = logging.getLogger("distributed.nanny")
-    level = nanny.level
-    nanny.setLevel(logging.ERROR)
-    try:
-        cluster.close()
-    finally:
-        nanny.setLevel(level)
+        return Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SceneError(f"--scheduler {scheduler}: no Dask scheduler answered within "
+                         f"{CONNECT_TIMEOUT:g} s ({_one_line(exc)}); start one with 'dask "
+                         f"scheduler' or check the address") from None
 
 
 def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *,
               scheduler: str | None = None, workers: int | None = None, client: Any = None,
               overrides: dict[str, Any] | None = None, progress: bool = True,
               log: Callable[[str], None] | None = None, case_rows: bool = False) -> SweepRun:
-    """Run (or resume) a sweep: each case one Dask task writing ``out/cases/<case>/``.
+    """Run (or resume) a sweep: each case one task writing ``out/cases/<case>/``.
 
     Parameters
     ----------
@@ -370,11 +325,12 @@ def run_sweep(sweep: str | os.PathLike | Sweep | dict, out: str | os.PathLike, *
         Sweep directory; created if needed. With a remote scheduler it must be on a filesystem
         the workers share, under the same path.
     scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://head:8786``). Default: a new
-        ``LocalCluster`` for this call.
+        Address of a running Dask scheduler (``tcp://head:8786``): each case one Dask task
+        on its cluster. Default: a local pool of worker processes for this call
+        (:class:`~roughvib.studies.sweep.pool.LocalPool`; no Dask).
     workers : int, optional
-        Worker processes of the local cluster (default: all cores), one thread each.
-        Ignored with ``scheduler`` or ``client``.
+        Worker processes of the local pool (default: all cores, at most one per case), one
+        thread each. Ignored with ``scheduler`` or ``client``.
     client : dask.distributed.Client, optional
         Use this client (and its cluster) instead; it is not closed.
     overrides : dict, optional
@@ -446,65 +402,44 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
     errors: dict[str, tuple[str, str]] = {}
     rows: dict[str, Any] = {}
     interrupted = False
-    closing = None  # the local cluster shutting down while the tables are written
+    closing = None  # the local workers shutting down while the tables are written
     if todo:
-        from dask.distributed import as_completed
-
-        own = client is None
-        cluster = None
-        if own:
-            client, cluster = _connect(scheduler, workers)
-        futures: dict[Any, Case] = {}
+        rank = _longest_first(spec.base, todo)
+        # submitted in that order too: the first tasks reach idle workers at once
+        order = sorted(todo, key=lambda c: -rank[c.name])
+        args = {c.name: (spec.base, c.name, c.values, str(cases_dir), token, case_rows)
+                for c in order}
+        if client is None and not scheduler:
+            stop, outcomes = _pool_outcomes(order, args, workers)
+        else:
+            stop, outcomes = _dask_outcomes(order, args, rank, client, scheduler, token, note)
         bar = None
         try:
-            if getattr(client, "dashboard_link", None):
-                note(f"dask dashboard: {client.dashboard_link}")
             bar = progress_bar(len(cases), initial=skipped, desc=f"sweep {spec.name}",
                                unit="case", disable=not progress, file=sys.stderr)
-            rank = _longest_first(spec.base, todo)
-            # submitted in that order too: the first tasks reach idle workers at once
-            for c in sorted(todo, key=lambda c: -rank[c.name]):
-                fut = client.submit(_run_case, spec.base, c.name, c.values, str(cases_dir),
-                                    token, case_rows, pure=False, key=f"case-{c.name}-{token}",
-                                    priority=rank[c.name])
-                futures[fut] = c
             failed_now = 0
-            for fut in as_completed(list(futures)):
-                # forget the future once read: Dask then has no result to recompute when the
-                # worker that holds it dies (the task would find its case complete anyway)
-                case = futures.pop(fut)
-                try:
-                    done = fut.result()
+            for case, ok, done in outcomes:
+                if ok:
                     status = done["status"]
                     if "row" in done:
                         rows[case.name] = done["row"]
-                except Exception as exc:  # the task itself died (worker lost, no directory)
-                    status = "worker_lost" if type(exc).__name__ == "KilledWorker" else "error"
-                    errors[case.name] = (status, _one_line(exc))
-                    _record_failure(cases_dir, case.name, status, _one_line(exc))
+                else:  # the task itself died (worker lost, no directory)
+                    lost = type(done).__name__ in ("KilledWorker", "WorkerLost")
+                    status = "worker_lost" if lost else "error"
+                    errors[case.name] = (status, _one_line(done))
+                    _record_failure(cases_dir, case.name, status, _one_line(done))
                 failed_now += status != SUCCESS
                 bar.set_postfix(failed=failed_now, refresh=False)
                 bar.update()
         except BaseException:
             # interrupted: queued cases are dropped; the tables are written below, once the
-            # local workers have stopped (cases in flight may still finish and count)
+            # local workers have stopped
             interrupted = True
-            with contextlib.suppress(Exception):  # never hide the interrupt itself
-                client.cancel([f for f in futures if not f.done()])
             raise
         finally:
             if bar is not None:
                 bar.close()
-            if own:
-                client.close()
-                if cluster is not None and not interrupted:
-                    # every task has ended: the workers exit (0.4-0.7 s here) while this
-                    # process writes the tables from the published case directories
-                    closing = threading.Thread(target=_close_quietly, args=(cluster,),
-                                               name="roughvib-sweep-close")
-                    closing.start()
-                elif cluster is not None:
-                    _close_quietly(cluster)
+            closing = stop(interrupted)
             if interrupted:
                 with contextlib.suppress(Exception):
                     _write_tables(spec, out, errors)
@@ -518,6 +453,97 @@ def _run_locked(spec: Sweep, out: Path, cases_dir: Path, *, scheduler: str | Non
                     rows)
 
 
+def _init_worker() -> None:
+    """Start of a local pool's worker: the solver's imports before the first case arrives, and
+    a thread lock for tqdm (whose default lock is a multiprocessing semaphore, left behind, with
+    a warning of Python's resource tracker, by a worker stopped in the middle of a case; the
+    workers draw no bars)."""
+    import threading
+
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
+    import roughvib.simulation  # noqa: F401
+
+
+def _pool_outcomes(order: list[Case], args: dict[str, tuple], workers: int | None):
+    """Run the cases on a :class:`LocalPool` of this machine.
+
+    Returns ``(stop, outcomes)``: ``outcomes`` yields ``(case, ok, value or exception)`` as
+    the cases end; ``stop(interrupted)`` stops the workers (at once when interrupted, else in a
+    thread that it returns, so that the tables are written meanwhile).
+    """
+    from roughvib.studies.sweep.pool import LocalPool
+
+    n = min(workers or os.cpu_count() or 1, len(order))
+    pool = LocalPool(n, env=dict(THREAD_ENV), initializer=_init_worker)
+    by_name = {c.name: c for c in order}
+    for c in order:
+        pool.submit(c.name, _run_case, *args[c.name])
+
+    def outcomes():
+        for name, ok, value in pool.results():
+            yield by_name[name], ok, value
+
+    def stop(interrupted: bool):
+        if interrupted:
+            pool.terminate()
+            return None
+        closing = threading.Thread(target=pool.close, name="roughvib-sweep-close")
+        closing.start()
+        return closing
+
+    return stop, outcomes()
+
+
+def _dask_outcomes(order: list[Case], args: dict[str, tuple], rank: dict[str, int], client,
+                   scheduler: str | None, token: str, note: Callable[[str], None]):
+    """Run the cases as Dask tasks: on ``client``, or on a new client of ``scheduler``.
+
+    Returns ``(stop, outcomes)`` as :func:`_pool_outcomes`; ``stop`` cancels the tasks not
+    ended when interrupted and closes a client made here.
+    """
+    from dask.distributed import as_completed
+
+    own = client is None
+    if own:
+        client = _connect(scheduler)
+    if getattr(client, "dashboard_link", None):
+        note(f"dask dashboard: {client.dashboard_link}")
+    futures: dict[Any, Case] = {}
+    try:
+        for c in order:
+            fut = client.submit(_run_case, *args[c.name], pure=False,
+                                key=f"case-{c.name}-{token}", priority=rank[c.name])
+            futures[fut] = c
+    except BaseException:
+        if own:
+            client.close()
+        raise
+
+    def outcomes():
+        for fut in as_completed(list(futures)):
+            # forget the future once read: Dask then has no result to recompute when the
+            # worker that holds it dies (the task would find its case complete anyway)
+            case = futures.pop(fut)
+            try:
+                value = fut.result()
+            except Exception as exc:  # the task itself died (worker lost, no directory)
+                yield case, False, exc
+            else:
+                yield case, True, value
+
+    def stop(interrupted: bool):
+        if interrupted:
+            with contextlib.suppress(Exception):  # never hide the interrupt itself
+                client.cancel([f for f in futures if not f.done()])
+        if own:
+            client.close()
+        return None
+
+    return stop, outcomes()
+
+
 #: the scene keys by which one case costs more than another of the same sweep, in order: the
 #: simulated time, then the speed of sliding (the default solver's steps grow with it: the
 #: roughness passes the contacts faster)
@@ -526,10 +552,11 @@ _COST_KEYS = (("output", "duration"), ("excitation", "target_rms_velocity"),
 
 
 def _longest_first(base: Scene, cases: list[Case]) -> dict[str, int]:
-    """Dask priorities that start the cases expected to take longest first.
+    """Priorities that start the cases expected to take longest first.
 
-    The cases go to the workers in the order of their priority (equal priorities in the
-    order submitted), and a long case started last would run alone at the end: on 2 workers
+    The cases are submitted in the order of their priority, and a Dask cluster also gets
+    them as task priorities (equal priorities in the order submitted); the local pool runs
+    them in the order submitted. A long case started last would run alone at the end: on 2 workers
     the 12 cases of ``paper-velocity`` (solver CPU 1.9-5.4 s each) take 24.0 s of
     solver time in the order of the grid and 22.5 s longest first (22.4 s is the even split).
     The estimate only orders the cases, by the values of :data:`_COST_KEYS` (the case's own,
