@@ -23,14 +23,14 @@ def test_fixed_step_converges_at_theoretical_order(reference, method, order):
     if method == "paper" and over["plate.residual_compliance"]:
         pytest.skip("the paper's scheme has no residual compliance (paper-faithful)")
     hs = [2e-4 / 2**k for k in range(2, 6)]
+    runs = [simulate(roughvib.load_scene("paper-handset", {**over, "solver.method": method,
+                                                            "solver.step": h}))
+            for h in hs]
+    assert all(r.ok for r in runs)
     for var in ("block_vertical_acceleration", "plate_vertical_acceleration"):
         a_ref = reference.dataset[var].values
-        errs = []
-        for h in hs:
-            r = simulate(roughvib.load_scene("paper-handset", {**over, "solver.method": method,
-                                                               "solver.step": h}))
-            assert r.ok
-            errs.append(np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref)))
+        errs = [np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref))
+                for r in runs]
         slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
         assert abs(slope - order) < 0.3, (var, errs)
         # agreement with IDA within what the order predicts at the finest step
@@ -132,7 +132,8 @@ def test_paper_scheme_plate_level_has_no_false_quasi_static_part():
     component 19 dB above the whole plate level). Overall level within 1 dB; third-octave bands
     100 Hz - 1 kHz within 1 dB, except the band of the contact resonance
     f_c = sqrt(s_total / m) / 2 pi: there backward Euler's numerical damping (damping ratio
-    about w_c h / 2 = 0.02) takes 2.2 dB at 1e-5 s. Band errors fall at first order."""
+    about w_c h / 2 = 0.02) takes 2.2 dB at 1e-5 s. Band errors fall at first order
+    (checked over the first 0.03 s)."""
     from roughvib.analysis.spectra import band_levels, third_octave_bands, total_level
 
     base = {"output.duration": 0.05, "output.transient": 0.0, "output.progress": False,
@@ -149,17 +150,26 @@ def test_paper_scheme_plate_level_has_no_false_quasi_static_part():
     _, lo, hi = third_octave_bands(100.0, 1000.0)
     resonance = (lo <= f_contact) & (f_contact < hi)
     assert resonance.sum() == 1
-    worst = []
-    for h in (1e-5, 5e-6):
-        r = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "paper",
-                                                           "solver.step": h}))
-        assert r.ok
-        a = r.dataset["plate_vertical_acceleration"].values
-        d = band_levels(a, 1e5, fmin=100.0, fmax=1000.0)[1] - l_ref
-        if h == 1e-5:
-            bands = dict(zip(fc.round(), d.round(2), strict=True))
-            assert abs(total_level(a, ref=1.0) - total_level(a_ref, ref=1.0)) < 1.0
-            assert np.all(np.abs(d[~resonance]) < 1.0), bands
-            assert np.all(np.abs(d[resonance]) < 3.0), bands
-        worst.append(np.max(np.abs(d)))
+    r = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "paper",
+                                                       "solver.step": 1e-5}))
+    assert r.ok
+    a = r.dataset["plate_vertical_acceleration"].values
+    d = band_levels(a, 1e5, fmin=100.0, fmax=1000.0)[1] - l_ref
+    bands = dict(zip(fc.round(), d.round(2), strict=True))
+    assert abs(total_level(a, ref=1.0) - total_level(a_ref, ref=1.0)) < 1.0
+    assert np.all(np.abs(d[~resonance]) < 1.0), bands
+    assert np.all(np.abs(d[resonance]) < 3.0), bands
+    # first order: half the step, half the band errors. Compared over the first 0.03 s of the
+    # three runs (the scheme's work grows about with the square of its step count: at 5e-6 s
+    # 9.7 s of CPU over 0.05 s, 3.0 s over 0.03 s); 0.03 s still resolves the 100 Hz band
+    fine = simulate(roughvib.load_scene("paper-handset", {**base, "solver.method": "paper",
+                                                          "solver.step": 5e-6,
+                                                          "output.duration": 0.03}))
+    assert fine.ok
+    a_fine = fine.dataset["plate_vertical_acceleration"].values
+    m = a_fine.size
+    assert m == round(0.03 / 1e-5) + 1
+    l_ref_m = band_levels(a_ref[:m], 1e5, fmin=100.0, fmax=1000.0)[1]
+    worst = [np.max(np.abs(band_levels(x, 1e5, fmin=100.0, fmax=1000.0)[1] - l_ref_m))
+             for x in (a[:m], a_fine)]
     assert 0.4 < worst[1] / worst[0] < 0.65, worst

@@ -21,7 +21,9 @@ def _run(linear_solver, rtol, **extra):
 
 @pytest.mark.parametrize("extra", [{}, {"friction.law": "coulomb", "output.duration": 0.04}])
 def test_gmres_converges_to_the_sparse_reference(extra):
-    ref = _run("sparse", 1e-10, **extra)
+    # rtol 1e-9, 100x tighter than the finest GMRES run: against a 1e-10 reference the errors
+    # below move by at most 6 % (measured), at half the reference's cost
+    ref = _run("sparse", 1e-9, **extra)
     errors = []
     for rtol in (1e-5, 1e-7):
         r = _run("gmres", rtol, **extra)

@@ -219,13 +219,28 @@ def _wait_for(path, proc, timeout=240.0):
         time.sleep(0.05)
 
 
+# long enough (1 s simulated) that the signal, sent once the first checkpoint (0.01 s) exists,
+# lands in the integration: at 0.12 s the rest of the run could end first
+KILLED_SETS = ["--set", "output.duration=1.0", "--set", "plate.max_frequency=5000",
+               "--set", "output.checkpoint_interval=0.01", "--no-progress", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def straight_killed_sets(tmp_path_factory):
+    """The uninterrupted run of :data:`KILLED_SETS` (deterministic), made once for both
+    signals; the tests only read its files."""
+    own = tmp_path_factory.mktemp("straight")
+    with pytest.MonkeyPatch.context() as mp:  # in its own directory, as every test
+        mp.chdir(own)
+        assert main(["run", "--out", str(own / "run"), *KILLED_SETS]) == 0
+    return own / "run"
+
+
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGTERM, 143, "terminated"),
                                            (signal.SIGINT, 130, "interrupted")])
-def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, sig, code, word):
-    # long enough (1 s simulated) that the signal, sent once the first checkpoint (0.01 s)
-    # exists, lands in the integration: at 0.12 s the rest of the run could end first
-    sets = ["--set", "output.duration=1.0", "--set", "plate.max_frequency=5000",
-            "--set", "output.checkpoint_interval=0.01", "--no-progress", "--quiet"]
+def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, sig, code, word,
+                                                                     straight_killed_sets):
+    sets = KILLED_SETS
     killed = tmp_path / "killed"
     proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
                             text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
@@ -243,12 +258,18 @@ def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, s
     assert ok.returncode == 0, ok.stderr
     assert not (killed / CHECKPOINT_NAME).exists()  # removed once the result is saved
 
-    _assert_same_as_straight_run(tmp_path / "straight", killed, sets)
+    _assert_same_files(straight_killed_sets, killed)
 
 
 def _assert_same_as_straight_run(straight, resumed, sets):
     """Run ``sets`` uninterrupted into ``straight``; its files must equal ``resumed``'s."""
     assert main(["run", "--out", str(straight), *sets]) == 0
+    _assert_same_files(straight, resumed)
+
+
+def _assert_same_files(straight, resumed):
+    """The result, events and scene files of run directories ``straight`` and ``resumed`` are
+    equal."""
     a = xr.load_dataset(straight / "result.nc", engine="h5netcdf")
     b = xr.load_dataset(resumed / "result.nc", engine="h5netcdf")
     for v in a.data_vars:

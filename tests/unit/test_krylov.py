@@ -57,11 +57,20 @@ def _states(system, trial, rng):
     return y, reg, rf
 
 
+def _as_ida_gives(a):
+    """A read-only copy of ``a``: IDA hands its iterate and vectors to the callbacks read-only,
+    so the kernels run here in the specialisation a run uses (and compile no second one)."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
 def _dense_jacobian(system, t, y, cj, reg, rf):
     n = system.layout.size
     pattern, perm = _sparsity(system)
     vals = np.zeros(perm.size)
-    kn.jacobian_values(t, y, np.zeros(n), cj, vals, *system.kernel_args(reg, rf))
+    kn.jacobian_values(t, _as_ida_gives(y), _as_ida_gives(np.zeros(n)), cj, vals,
+                       *system.kernel_args(reg, rf))
     data = np.zeros(perm.size)
     kn.scatter(vals, perm, data)
     return sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()
@@ -69,17 +78,17 @@ def _dense_jacobian(system, t, y, cj, reg, rf):
 
 def _psolve(system, t, y, cj, reg, rv, ws, work):
     zv = np.full_like(rv, np.nan)
-    krylov.precond_solve(t, y, cj, rv, zv, system.off, system.fp, system.omega2,
-                         system.cdamp, system.phi, system.stiff, system.cres,
+    krylov.precond_solve(t, _as_ida_gives(y), cj, _as_ida_gives(rv), zv, system.off, system.fp,
+                         system.omega2, system.cdamp, system.phi, system.stiff, system.cres,
                          system.contact_s, system.prof, reg, work, *ws)
     return zv
 
 
 def _jv(system, t, y, cj, reg, v):
     out = np.full_like(v, np.nan)
-    krylov.jac_vec(t, y, cj, v, out, system.off, system.fp, system.omega2, system.cdamp,
-                   system.phi, system.stiff, system.cres, system.contact_s, system.prof, reg,
-                   np.zeros_like(system.work))
+    krylov.jac_vec(t, _as_ida_gives(y), cj, _as_ida_gives(v), out, system.off, system.fp,
+                   system.omega2, system.cdamp, system.phi, system.stiff, system.cres,
+                   system.contact_s, system.prof, reg, np.zeros_like(system.work))
     return out
 
 

@@ -16,6 +16,14 @@ def _small_scene(**kw):
     return roughvib.load_scene("paper-handset", {**SMALL_SCENE, **kw})
 
 
+def _read_only(a):
+    """A read-only copy of ``a``, as IDA hands y and y' to the Jacobian: the kernel runs in
+    the specialisation a run compiles (numba would compile a second one for writable arrays)."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
 def _fd_jacobian(system, t, y, yp, cj, reg, rf):
     n = y.size
     args = system.kernel_args(reg, rf)
@@ -73,7 +81,8 @@ def test_analytic_jacobian_matches_finite_differences(overrides):
         J = _fd_jacobian(system, 0.003, y, yp, cj, reg, rf)
         pattern, perm = _sparsity(system)
         vals = np.zeros(perm.size)
-        kn.jacobian_values(0.003, y, yp, cj, vals, *system.kernel_args(reg, rf))
+        kn.jacobian_values(0.003, _read_only(y), _read_only(yp), cj, vals,
+                           *system.kernel_args(reg, rf))
         data = np.zeros(perm.size)
         kn.scatter(vals, perm, data)
         A = sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()
