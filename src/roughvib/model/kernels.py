@@ -358,12 +358,14 @@ def weighted_square_sum(c, v):
     return acc
 
 
-@njit(cache=True, fastmath=SUM_FASTMATH)
+@njit(cache=True)
 def _plate_at_contacts(y, off, phi, cres, w):
     """w[k] = sum_r phi[r, k] q_r + sum_j cres[k, j] F_j (plate displacement at contact k).
 
-    Each sum over the modes runs in a local accumulator, in whatever order vectorises
-    (round-off only; an accumulation in ``w[k]`` itself is a store and a load per mode)."""
+    Each sum over the modes runs in a local accumulator (an accumulation in ``w[k]`` itself is
+    a store and a load per mode), in the order of the modes: IDA's residual goes through here,
+    and its runs stay what they were to the last bit (a vectorised order changed where an
+    extreme scene's IDA run stalls; ``tests/physics/test_extremes.py``)."""
     iq, iF, R, K = off[OFF_IQ], off[OFF_IF], off[OFF_R], off[OFF_K]
     for k in range(K):
         acc = 0.0

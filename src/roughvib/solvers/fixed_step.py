@@ -274,9 +274,7 @@ def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff,
         p_fric = mu0 * S0 * v0
     p_r2 = r2 * v0 * v0
     p_r1 = r1 * zv[ZV_VZ] * zv[ZV_VZ]
-    p_pl = 0.0
-    for r in range(R):
-        p_pl += M * cdamp[r] * dq[r] * dq[r]
+    p_pl = M * kn.weighted_square_sum(cdamp, dq)
     p_ro = 0.0
     for k in range(K):
         p_ro += Fv[k] * dhk[k] * v0
