@@ -442,3 +442,21 @@ def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
     msg = r.summary["message"]
     assert "within one output interval" in msg and "Hint:" in msg and "\n" not in msg
     assert r.summary["solver"]["steps"] <= step_budget(1e-5)
+
+
+def test_ida_stopped_by_its_jacobian_guard_in_the_first_call_reports_its_counts(monkeypatch):
+    """The Jacobian guard firing inside the very first IDA call (here forced: one Jacobian
+    per output interval, 20 000 // 20 000) stops the run as `stalled` and still reports IDA's
+    own step and evaluation counts, validated before the first step, not "unavailable"."""
+    from roughvib.solvers import ida
+
+    monkeypatch.setattr(ida, "JACOBIANS_PER_STEP_BUDGET", 20_000)  # 20 000 // 20 000: one
+    r = _run(**{"solver.method": "ida", "output.duration": 0.002,
+                "plate.max_frequency": 2000.0})
+    assert r.status == "stalled", r.summary["message"]
+    assert "more than 1 Jacobians" in r.summary["message"]
+    st = r.summary["solver"]
+    assert "note" not in st, st.get("note")
+    # IDA evaluated the residual before it asked for its first Jacobian; it took no step yet
+    assert isinstance(st["steps"], int) and st["steps"] >= 0
+    assert st["residual_evaluations"] > 0

@@ -570,8 +570,10 @@ def solve_ida(system: System, *, progress: bool | None = None,
                       f"{counters.problem}", RuntimeWarning, stacklevel=2)
     h_restart = 0.0  # first step after the latest restart [s] (0: IDA's own estimate)
     h_restart_cap = RESTART_STEP_FRACTION * out_cfg.step
+    # validated before the first step too, so that a failure inside the first IDA call (the
+    # Jacobian guard) still reports IDA's counts
+    counters.validate_time(t_start)
     if resume is not None and resume.loop.get("h_restart", 0.0) > 0:
-        counters.validate_time(t_start)
         h_restart = float(resume.loop["h_restart"])
         counters.set_init_step(h_restart)
 
@@ -606,8 +608,15 @@ def solve_ida(system: System, *, progress: bool | None = None,
     first_result = True
 
     def close_segment(r) -> None:
-        stats["residual_evaluations"] += int(r.nfev)
-        stats["jacobian_evaluations"] += int(r.njev)
+        """Add the counts of the IDA segment since the latest (re)initialisation; ``r`` is its
+        latest result, or None when the segment failed inside its first call (then IDA's own
+        counters give the evaluations, where they are validated)."""
+        if r is not None:
+            stats["residual_evaluations"] += int(r.nfev)
+            stats["jacobian_evaluations"] += int(r.njev)
+        elif counters.ok:
+            stats["residual_evaluations"] += counters.count("IDAGetNumResEvals") or 0
+            stats["jacobian_evaluations"] += counters.count("IDAGetNumJacEvals") or 0
         s = counters.steps()
         if s is not None:
             stats["steps"] += s
@@ -666,7 +675,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
                     last_fired = set()
                     continue
                 close_segment(r)
-                r_event, r = r, None  # closed: a failure before the next result adds nothing
+                r_event, r = r, None  # closed; a later failure adds what follows
                 y, yp = book.apply(te, np.asarray(r_event.y, dtype=float), fired)
                 # first step after the restart: RESTART_STEP_FRACTION of the last step
                 h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
@@ -730,8 +739,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
             y = np.array(r.y, dtype=float) if r.status != 2 else y
     except SolverFailure as exc:
         status, message = exc.status, str(exc)
-        if r is not None:
-            close_segment(r)
+        close_segment(r)  # r None: the failure came inside the segment's first call
     finally:
         bar.close()
 
@@ -742,7 +750,8 @@ def solve_ida(system: System, *, progress: bool | None = None,
     stats_d = dict(stats)
     if not counters.ok:
         stats_d["steps"] = None
-        stats_d["note"] = "step counts unavailable (sksundae layout changed)"
+        why = counters.problem or "IDA's counters could not be validated"
+        stats_d["note"] = f"step counts unavailable ({why})"
     t_final = float(grid[k - 1]) if k > 0 else 0.0
     return RawSolution(time=grid, outputs=outs, events=events, stats=stats_d, status=status,
                        message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
