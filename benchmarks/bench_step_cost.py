@@ -60,32 +60,21 @@ def _loop_implicit(reps, t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp
 
 
 @njit
-def _loop_propagate(reps, y0, u0, slot, prop, off, phi, ws):
+def _loop_propagate(reps, y0, u0, slot, prop, off, phiT, ws):
     """implicit_step's free response of the modes (its first loop), alone."""
-    Phi, G0 = prop.Phi, prop.G0
     iq, idq, R, K = off[kn.OFF_IQ], off[kn.OFF_IDQ], off[kn.OFF_R], off[kn.OFF_K]
     sq = ws[0:R]
     sdq = ws[R:2 * R]
     wfree = ws[2 * R:2 * R + K]
     for _ in range(reps):
-        for k in range(K):
-            wfree[k] = 0.0
-        for r in range(R):
-            ur = u0[r]
-            a = (Phi[slot, r, 0, 0] * y0[iq + r] + Phi[slot, r, 0, 1] * y0[idq + r]
-                 + G0[slot, r, 0] * ur)
-            sq[r] = a
-            sdq[r] = (Phi[slot, r, 1, 0] * y0[iq + r] + Phi[slot, r, 1, 1] * y0[idq + r]
-                      + G0[slot, r, 1] * ur)
-            for k in range(K):
-                wfree[k] += phi[r, k] * a
+        am.free_response(prop.P[slot], y0[iq:iq + R], y0[idq:idq + R], u0, phiT, sq, sdq,
+                         wfree)
 
 
 @njit
 def _loop_assemble(reps, t1, y1, d1, u1, slot, prop, off, fp, cdamp, phiT, spos, prof, reg,
                    ws):
     """implicit_step's assembly of the new state (modal force, q, q', derivatives), alone."""
-    G1 = prop.G1
     iq, idq, iF, R, K = off[kn.OFF_IQ], off[kn.OFF_IDQ], off[kn.OFF_IF], off[kn.OFF_R], \
         off[kn.OFF_K]
     M = fp[kn.FP_MMODAL]
@@ -94,9 +83,7 @@ def _loop_assemble(reps, t1, y1, d1, u1, slot, prop, off, fp, cdamp, phiT, spos,
     F = y1[iF:iF + K].copy()
     for _ in range(reps):
         am.modal_force(F, u1, phiT, M)
-        for r in range(R):
-            y1[iq + r] = sq[r] + G1[slot, r, 0] * u1[r]
-            y1[idq + r] = sdq[r] + G1[slot, r, 1] * u1[r]
+        am.forced_response(prop.P[slot], sq, sdq, u1, y1[iq:iq + R], y1[idq:idq + R])
         am.derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
 
 
@@ -175,15 +162,12 @@ def measure(name: str, reps: int) -> dict:
     n = system.layout.size
     lev = int(cp.loop["ist"][am.I_LEV])
     h_max = scene.output.step
-    prop = am.Propagators(np.zeros((am.N_SLOTS, R, 2, 2)), np.zeros((am.N_SLOTS, R, 2)),
-                          np.zeros((am.N_SLOTS, R, 2)), np.zeros((am.N_SLOTS, K, K)),
-                          np.zeros(am.N_SLOTS))
+    prop = am.new_propagators(R, K, bool(kn.moment_on(off)))
     M = fp[kn.FP_MMODAL]
     for s in (lev, lev + 1):
         am._fill_slot(s, h_max / 2.0 ** s, omega2, cdamp, phi, cres, M, prop)
     phiT = np.ascontiguousarray(phi.T)
-    scratch = am.Scratch(work, np.zeros(2 * R + 5 * K + 3), np.zeros((K + 1, K + 1)),
-                         np.zeros(K + 1, dtype=np.int64))
+    scratch = am.new_scratch(work, R, K)
     atol = _atol_vector(system)
     rtol = scene.solver.rtol
     y = np.array(cp.y)
@@ -202,7 +186,7 @@ def measure(name: str, reps: int) -> dict:
     c["implicit_half"] = _per_call(_loop_implicit, reps, t, 0.5 * h, y, d, u, y1, d1, u1,
                                    lev + 1, *model)
     yb, db, ub = y1.copy(), d1.copy(), u1.copy()
-    c["propagate"] = _per_call(_loop_propagate, reps, y, u, lev, prop, off, phi,
+    c["propagate"] = _per_call(_loop_propagate, reps, y, u, lev, prop, off, phiT,
                                np.zeros(2 * R + 5 * K + 3))
     c["assemble"] = _per_call(_loop_assemble, reps, t + h, y1.copy(), d1.copy(), u1.copy(),
                               lev, prop, off, fp, cdamp, phiT, spos, prof, reg,

@@ -114,14 +114,15 @@ I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 N_IST = 10
 
-#: the propagator cache of _advance: ``Phi`` (N_SLOTS, R, 2, 2), ``G0``, ``G1`` (N_SLOTS, R, 2),
-#: ``G1c`` (N_SLOTS, K, K) (G1 in contact coordinates) and ``hslot`` (N_SLOTS,) the step of each
-#: slot (0: empty); with a friction moment ``Hm`` (N_SLOTS, K, K) the moment's G1 in contact
-#: coordinates, ``H_kj = sum_r phi_rk G1_r Psi_rj / M``, and ``hmslot`` (N_SLOTS,) the step it
-#: was computed for (both of size 0 along K without the moment); numba passes a namedtuple of
-#: arrays at the cost of its fields
-#: ``P`` (N_SLOTS, N_MAP, R) holds the same maps as Phi, G0 and G1, one contiguous row per
-#: entry (``MAP_*``): the step's loops over the modes read them at unit stride
+#: the propagator cache of _advance: ``P`` (N_SLOTS, N_MAP, R) the maps Phi, G0 and G1 of
+#: :func:`step_maps` of each slot, one contiguous row per entry (``MAP_*``), so that the step's
+#: loops over the modes read them at unit stride; ``G1c`` (N_SLOTS, K, K) G1 in contact
+#: coordinates and ``hslot`` (N_SLOTS,) the step of each slot (0: empty); with a friction
+#: moment ``Hm`` (N_SLOTS, K, K) the moment's G1 in contact coordinates,
+#: ``H_kj = sum_r phi_rk G1_r Psi_rj / M``, and ``hmslot`` (N_SLOTS,) the step it was computed
+#: for (both of size 0 along K without the moment); ``Phi`` (R, 2, 2), ``G0``, ``G1`` (R, 2)
+#: receive :func:`step_maps` for the slot being filled. numba passes a namedtuple of arrays at
+#: the cost of its fields (:func:`new_propagators` makes one)
 Propagators = collections.namedtuple("Propagators",
                                      ["Phi", "G0", "G1", "G1c", "hslot", "Hm", "hmslot", "P"])
 #: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
@@ -130,6 +131,22 @@ Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired
 #: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 3 R + 6 K + 3),
 #: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
 Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
+
+
+def new_propagators(R: int, K: int, moment: bool) -> Propagators:
+    """An empty propagator cache for R modes and K contacts (``Hm`` sized for the friction
+    moment when ``moment``)."""
+    km = K if moment else 0
+    return Propagators(np.zeros((R, 2, 2)), np.zeros((R, 2)), np.zeros((R, 2)),
+                       np.zeros((N_SLOTS, K, K)), np.zeros(N_SLOTS),
+                       np.zeros((N_SLOTS, km, km)), np.zeros(N_SLOTS),
+                       np.zeros((N_SLOTS, N_MAP, R)))
+
+
+def new_scratch(work: np.ndarray, R: int, K: int) -> Scratch:
+    """implicit_step's scratch for R modes and K contacts, with the kernels' ``work``."""
+    return Scratch(work, np.zeros(3 * R + 6 * K + 3), np.zeros((K + 1, K + 1)),
+                   np.zeros(K + 1, dtype=np.int64))
 
 # components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
 MODE_Q = 0
@@ -244,24 +261,25 @@ def _fill_slot(slot, h, omega2, cdamp, phi, cres, M, prop):
     """Propagators of step h into cache slot ``slot`` of ``prop``, with G1 in contact
     coordinates."""
     Phi, G0, G1, G1c, hslot = prop.Phi, prop.G0, prop.G1, prop.G1c, prop.hslot
-    step_maps(omega2, cdamp, h, Phi[slot], G0[slot], G1[slot])
+    step_maps(omega2, cdamp, h, Phi, G0, G1)
     R = omega2.size
     P = prop.P[slot]
     for r in range(R):
-        P[MAP_QQ, r] = Phi[slot, r, MODE_Q, MODE_Q]
-        P[MAP_QD, r] = Phi[slot, r, MODE_Q, MODE_DQ]
-        P[MAP_DQ, r] = Phi[slot, r, MODE_DQ, MODE_Q]
-        P[MAP_DD, r] = Phi[slot, r, MODE_DQ, MODE_DQ]
-        P[MAP_G0Q, r] = G0[slot, r, MODE_Q]
-        P[MAP_G0D, r] = G0[slot, r, MODE_DQ]
-        P[MAP_G1Q, r] = G1[slot, r, MODE_Q]
-        P[MAP_G1D, r] = G1[slot, r, MODE_DQ]
+        P[MAP_QQ, r] = Phi[r, MODE_Q, MODE_Q]
+        P[MAP_QD, r] = Phi[r, MODE_Q, MODE_DQ]
+        P[MAP_DQ, r] = Phi[r, MODE_DQ, MODE_Q]
+        P[MAP_DD, r] = Phi[r, MODE_DQ, MODE_DQ]
+        P[MAP_G0Q, r] = G0[r, MODE_Q]
+        P[MAP_G0D, r] = G0[r, MODE_DQ]
+        P[MAP_G1Q, r] = G1[r, MODE_Q]
+        P[MAP_G1D, r] = G1[r, MODE_DQ]
     K = cres.shape[0]
     for k in range(K):
         for j in range(K):
             G1c[slot, k, j] = cres[k, j]
+    g1q = P[MAP_G1Q]
     for r in range(R):
-        gr = G1[slot, r, MODE_Q] / M
+        gr = g1q[r] / M
         for k in range(K):
             a = phi[r, k] * gr
             for j in range(K):
@@ -396,7 +414,8 @@ def _moment_map(slot, prop, phiT, off, fp):
     once per step length: ``H_kj = sum_r phi_rk G1_r Psi_rj / M`` [m/N]."""
     if prop.hmslot[slot] == prop.hslot[slot]:
         return
-    Hm, G1 = prop.Hm, prop.G1
+    Hm = prop.Hm
+    g1q = prop.P[slot, MAP_G1Q]
     ip, R = off[kn.OFF_IPSI], off[kn.OFF_R]
     K = Hm.shape[1]
     M = fp[kn.FP_MMODAL]
@@ -405,7 +424,7 @@ def _moment_map(slot, prop, phiT, off, fp):
             base = ip + j * R
             acc = 0.0
             for r in range(R):
-                acc += phiT[k, r] * G1[slot, r, MODE_Q] * fp[base + r]
+                acc += phiT[k, r] * g1q[r] * fp[base + r]
             Hm[slot, k, j] = acc / M
     prop.hmslot[slot] = prop.hslot[slot]
 
@@ -473,6 +492,48 @@ def derivatives(t, y, d, off, fp, cdamp, spos, prof, reg):
     d[D_POWER + kn.E_ROUGHNESS] = rough
 
 
+@njit(cache=True, inline="always")  # inlined into implicit_step: a call costs speed here
+def free_response(P, q, dq, u0, phiT, sq, sdq, wfree):
+    """The modes' response at the step end without the force's end value, and the plate
+    displacement it gives at the contacts (implicit_step's first loop over the modes).
+
+    Parameters
+    ----------
+    P : ndarray, shape (N_MAP, R)
+        The slot's maps (``Propagators.P[slot]``).
+    q, dq : ndarray, shape (R,)
+        Modal coordinates and velocities at the step start [sqrt(kg) m, sqrt(kg) m/s].
+    u0 : ndarray, shape (R,)
+        Modal force per unit modal mass at the step start [m/s^2].
+    phiT : ndarray, shape (K, R)
+        Mode shapes at the contacts, transposed.
+    sq, sdq : ndarray, shape (R,)
+        Receive ``Phi [q, q'] + G0 u0``.
+    wfree : ndarray, shape (K,)
+        Receives ``sum_r phi_rk sq_r`` [m].
+    """
+    pqq, pqd, pdq, pdd = P[MAP_QQ], P[MAP_QD], P[MAP_DQ], P[MAP_DD]
+    g0q, g0d = P[MAP_G0Q], P[MAP_G0D]
+    for r in range(q.size):
+        qr = q[r]
+        dqr = dq[r]
+        ur = u0[r]
+        sq[r] = pqq[r] * qr + pqd[r] * dqr + g0q[r] * ur
+        sdq[r] = pdq[r] * qr + pdd[r] * dqr + g0d[r] * ur
+    for k in range(wfree.size):
+        wfree[k] = kn.vdot(phiT[k], sq)
+
+
+@njit(cache=True, inline="always")  # inlined into implicit_step: a call costs speed here
+def forced_response(P, sq, sdq, u1, q1, dq1):
+    """The modes at the step end: ``[q1, q1'] = [sq, sdq] + G1 u1`` (P, sq, sdq as in
+    :func:`free_response`; u1 the modal force at the step end [m/s^2], shape (R,))."""
+    g1q, g1d = P[MAP_G1Q], P[MAP_G1D]
+    for r in range(sq.size):
+        q1[r] = sq[r] + g1q[r] * u1[r]
+        dq1[r] = sdq[r] + g1d[r] * u1[r]
+
+
 @njit(cache=True)
 def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp, phi, phiT,
                   stiff, spos, prof, reg, scratch, ist):
@@ -518,18 +579,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     # free modal response and plate displacement at the contacts (unit-stride loops over the
     # modes: the maps' rows of P, the state's plate.q and plate.dq)
     P = prop.P[slot]
-    pqq, pqd, pdq, pdd = P[MAP_QQ], P[MAP_QD], P[MAP_DQ], P[MAP_DD]
-    g0q, g0d = P[MAP_G0Q], P[MAP_G0D]
-    yq = y0[iq:iq + R]
-    ydq = y0[idq:idq + R]
-    for r in range(R):
-        q = yq[r]
-        dq = ydq[r]
-        ur = u0[r]
-        sq[r] = pqq[r] * q + pqd[r] * dq + g0q[r] * ur
-        sdq[r] = pdq[r] * q + pdd[r] * dq + g0d[r] * ur
-    for k in range(K):
-        wfree[k] = kn.vdot(phiT[k], sq)
+    free_response(P, y0[iq:iq + R], y0[idq:idq + R], u0, phiT, sq, sdq, wfree)
     # the moment's part at t1 moves the contacts by c1 Hm F (_moment_map)
     Hm = prop.Hm[slot]
     if moment:
@@ -648,12 +698,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         _moment_force(F, mu1, M, off, fp, um)
         for r in range(R):
             u1[r] += um[r]
-    g1q, g1d = P[MAP_G1Q], P[MAP_G1D]
-    y1q = y1[iq:iq + R]
-    y1dq = y1[idq:idq + R]
-    for r in range(R):
-        y1q[r] = sq[r] + g1q[r] * u1[r]
-        y1dq[r] = sdq[r] + g1d[r] * u1[r]
+    forced_response(P, sq, sdq, u1, y1[iq:iq + R], y1[idq:idq + R])
     vz1 = (av - 0.5 * h * S1 / m) / cz
     y1[ivz] = vz1
     y1[iz] = zc - beta * S1
@@ -1064,11 +1109,6 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
 
     nst = lay.size
     n_ev = K + 3
-    Phi = np.zeros((N_SLOTS, R, 2, 2))
-    G0 = np.zeros((N_SLOTS, R, 2))
-    G1 = np.zeros((N_SLOTS, R, 2))
-    G1c = np.zeros((N_SLOTS, K, K))
-    hslot = np.zeros(N_SLOTS)
     Y = np.zeros((N_YBUF, nst))
     Y[B_NOW] = y
     y = Y[B_NOW]  # the current state, updated in place by _advance
@@ -1077,17 +1117,12 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     G = np.zeros((N_GBUF, n_ev))
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
-    ws = np.zeros(3 * R + 6 * K + 3)
-    jac = np.zeros((K + 1, K + 1))
-    ipiv = np.zeros(K + 1, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    km = K if kn.moment_on(off) else 0  # the moment's contact-coordinate maps (Hm)
-    prop = Propagators(Phi, G0, G1, G1c, hslot, np.zeros((N_SLOTS, km, km)), np.zeros(N_SLOTS),
-                       np.zeros((N_SLOTS, N_MAP, R)))
+    prop = new_propagators(R, K, bool(kn.moment_on(off)))
     buf = Buffers(Y, D, U, G, armed, fired)
-    scratch = Scratch(work, ws, jac, ipiv)
+    scratch = new_scratch(work, R, K)
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
