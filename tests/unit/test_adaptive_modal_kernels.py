@@ -208,3 +208,31 @@ def test_error_norm_is_rms_over_the_modes_and_max_over_the_rest():
         bad = ya.copy()
         bad[pos] = np.nan
         assert _err_norm(bad, yb, y0, atol, 1e-6, 2) >= 1e300
+
+
+def test_error_norm_over_many_modes_weighs_each_by_the_larger_magnitude():
+    """The modal sum runs in vectorised order (round-off only): over an odd number of modes it
+    equals the formula term by term, with each weight taken from the larger of |y0| and |yb|,
+    and a zero weight or an infinite state is still rejected."""
+    from roughvib.solvers.adaptive_modal import _err_norm
+
+    rng = np.random.default_rng(7)
+    n_modal = 787  # not a multiple of any vector width
+    n = n_modal + 3
+    y0 = rng.normal(size=n) * 10.0 ** rng.uniform(-9, -3, size=n)
+    yb = y0 * rng.uniform(0.1, 10.0, size=n)  # either may be the larger
+    atol = np.full(n, 1e-12)
+    rtol = 1e-5
+    w = rtol * np.maximum(np.abs(y0), np.abs(yb)) + atol
+    ya = yb + 3.0 * w * rng.uniform(-2.0, 2.0, size=n)
+    e = (ya - yb) / (3.0 * w)
+    expect = max(np.sqrt(np.mean(e[:n_modal] ** 2)), np.max(np.abs(e[n_modal:])))
+    assert _err_norm(ya, yb, y0, atol, rtol, n_modal) == pytest.approx(expect, rel=1e-12)
+    zero = atol.copy()
+    zero[5] = 0.0
+    y0z, ybz = y0.copy(), yb.copy()
+    y0z[5] = ybz[5] = 0.0  # weight exactly zero: not a finite error
+    assert _err_norm(ya, ybz, y0z, zero, rtol, n_modal) >= 1e300
+    big = ya.copy()
+    big[300] = np.inf
+    assert _err_norm(big, yb, y0, atol, rtol, n_modal) >= 1e300
