@@ -2,8 +2,9 @@
 
 References are independent of the solver under test: IDA (BDF, a different discretisation)
 at tolerances 100x tighter, and the orders that theory predicts for a second-order one-step
-method with step-doubling control (local error ~ h^3, so steps ~ rtol^(-1/3) and global
-error ~ h^2 ~ rtol^(2/3)).
+method with step-doubling control and local extrapolation (the error test judges the
+second-order half steps, local error ~ h^3, so steps ~ rtol^(-1/3); the extrapolated solution
+kept is third order, global error ~ h^3 ~ rtol).
 """
 
 import numpy as np
@@ -26,8 +27,10 @@ def _am(over, rtol):
 
 
 def test_error_and_work_follow_the_theoretical_orders():
-    """Steps ~ rtol^(-1/3), error ~ rtol^(2/3) on a smooth scene (output step 2e-4 s, so the
-    largest step never binds), against IDA at rtol 1e-11."""
+    """Steps ~ rtol^(-1/3), error ~ rtol on a smooth scene (output step 2e-4 s, so the
+    largest step never binds), against IDA at rtol 1e-11. Without the extrapolation the error
+    fell like rtol^(2/3) (slope 0.63), outside the bound here; with it the slopes were
+    1.15-1.24, the loosest tolerance not yet asymptotic."""
     ref = simulate(roughvib.load_scene("paper-handset", {**SMOOTH, **TIGHT_IDA}))
     rtols = [1e-4, 1e-6, 1e-8]
     runs = [_am(SMOOTH, rt) for rt in rtols]
@@ -37,8 +40,8 @@ def test_error_and_work_follow_the_theoretical_orders():
         a_ref = ref.dataset[var].values
         errs = [np.max(np.abs(r.dataset[var].values - a_ref)) / np.max(np.abs(a_ref))
                 for r in runs]
-        assert np.polyfit(np.log(rtols), np.log(errs), 1)[0] == pytest.approx(2 / 3, abs=0.1)
-        assert errs[-1] < 5e-6, (var, errs)
+        assert np.polyfit(np.log(rtols), np.log(errs), 1)[0] == pytest.approx(1.0, abs=0.3)
+        assert errs[-1] < rtols[-1], (var, errs)  # a third-order solution: below rtol
     audits = [abs(r.summary["energy_audit"]["relative_residual"]) for r in runs]
     assert audits[-1] < audits[0] / 100
 

@@ -236,3 +236,96 @@ def test_error_norm_over_many_modes_weighs_each_by_the_larger_magnitude():
     big = ya.copy()
     big[300] = np.inf
     assert _err_norm(big, yb, y0, atol, rtol, n_modal) >= 1e300
+
+
+@pytest.mark.parametrize("law", ["feldmann", "coulomb"])
+def test_extrapolation_is_richardsons_and_keeps_the_energy_integrals(law):
+    """The kept state is ``yb + (yb - ya) / 3`` (the two half steps' estimate removed) in every
+    state but the energy integrals; in a Coulomb stick the algebraic friction force is the one
+    that holds the extrapolated state, not an extrapolated number."""
+    from roughvib.model import kernels as kn
+    from roughvib.solvers.adaptive_modal import _extrapolate
+
+    system, y, t, (reg, rf) = _consistent_state(law)
+    off, fp, _o, _c, phi, _po, _s, cres, spos, prof, _r, _f, work = system.kernel_args(reg, rf)
+    rng = np.random.default_rng(3)
+    yb = y * (1.0 + 1e-6 * rng.standard_normal(y.size))
+    ya = y * (1.0 + 1e-6 * rng.standard_normal(y.size))
+    before = yb.copy()
+    ge = np.zeros(system.n_contacts + 3)
+    armed = np.zeros(ge.size, dtype=np.int64)
+    assert _extrapolate(t, ya, yb, np.zeros_like(y), ge, armed, off, fp, phi, cres, spos, prof,
+                        reg, rf, work)
+    expect = before + (before - ya) / 3.0
+    lay = system.layout
+    e = lay.slice("energy.excitation_work").start
+    energy = slice(e, e + kn.N_ENERGY)
+    expect[energy] = before[energy]
+    if law == "coulomb":
+        il = off[kn.OFF_IL]
+        assert yb[il] == kn.coulomb_friction(t, yb, off, fp, reg)
+        assert yb[il] != expect[il]  # recomputed, not extrapolated
+        expect[il] = yb[il]
+    np.testing.assert_array_equal(yb, expect)
+    # the margins returned are those of the kept state
+    g = np.zeros_like(ge)
+    kn.events(t, yb, g, off, fp, phi, cres, spos, prof, reg, rf, work)
+    np.testing.assert_array_equal(ge, g)
+
+
+def test_extrapolation_that_would_cross_an_armed_margin_is_not_made():
+    """Sliding forward (Feldmann branch +1, margin v - v_h): half steps that end at a positive
+    margin m, and a full step at v + 4 m, extrapolate to a margin of -m / 3. With that root
+    armed the half-step result is kept as it is; unarmed, the extrapolation is made."""
+    from roughvib.model import kernels as kn
+    from roughvib.solvers.adaptive_modal import _extrapolate
+
+    system, y, t, (reg, rf) = _consistent_state("feldmann")
+    off, fp, _o, _c, phi, _po, _s, cres, spos, prof, _r, _f, work = system.kernel_args(reg, rf)
+    K = system.n_contacts
+    ivx = system.layout.index("block.vx")
+    g = np.zeros(K + 3)
+    kn.events(t, y, g, off, fp, phi, cres, spos, prof, reg, rf, work)
+    margin = g[K + kn.ROOT_BRANCH]
+    assert margin > 0.0
+    ya = y.copy()
+    ya[ivx] = y[ivx] + 4.0 * margin
+    for armed_branch, made in ((1, False), (0, True)):
+        yb = y.copy()
+        armed = np.zeros(K + 3, dtype=np.int64)
+        armed[K + kn.ROOT_BRANCH] = armed_branch
+        ge = np.zeros(K + 3)
+        done = _extrapolate(t, ya, yb, np.zeros_like(y), ge, armed, off, fp, phi, cres, spos,
+                            prof, reg, rf, work)
+        assert done is made
+        if made:
+            assert ge[K + kn.ROOT_BRANCH] == pytest.approx(-margin / 3.0, rel=1e-9)
+            assert yb[ivx] == pytest.approx(y[ivx] - 4.0 * margin / 3.0, rel=1e-12)
+        else:
+            np.testing.assert_array_equal(yb, y)
+
+
+def _consistent_state(law):
+    """A consistent state of the small scene, sliding forward (Feldmann) or held in a Coulomb
+    stick, with the plate moving; returns (system, y, t, (reg, rf))."""
+    from roughvib.model import kernels as kn
+    from roughvib.model.system import assemble
+
+    over = {**SMALL_SCENE, "friction.law": law, "contact.velocity_factor": False,
+            "output.progress": False}
+    if law == "coulomb":
+        over["friction.stribeck_velocity"] = 3e-3
+    system = assemble(roughvib.load_scene("paper", over))
+    lay = system.layout
+    y, closed = system.static_equilibrium()
+    reg, rf = system.new_regime_arrays()
+    reg[kn.REG_B] = 1 if law == "feldmann" else 0
+    reg[kn.REG_S] = -1
+    reg[kn.REG_CLOSED:] = closed
+    rng = np.random.default_rng(7)
+    y[lay.slice("plate.dq")] = 1e-4 * rng.standard_normal(system.n_modes)
+    y[lay.index("block.vz")] = 2e-4
+    y[lay.index("block.vx")] = 0.004 if law == "feldmann" else 0.0
+    t = 0.0123
+    y, _ = system.consistent(t, y, reg, rf)
+    return system, y, t, (reg, rf)
