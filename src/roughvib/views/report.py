@@ -114,6 +114,7 @@ _SOLVER_ROWS = {
     "largest_step": ("largest step taken", "s"),
     "steps": ("steps", ""),
     "rejected_steps": ("rejected steps", ""),
+    "extrapolated_steps": ("steps kept extrapolated to third order", ""),
     "error_test_failures": ("error test failures", ""),
     "step_evaluations": ("implicit step evaluations", ""),
     "root_evaluations": ("trial steps of the event searches", ""),
