@@ -849,13 +849,14 @@ ACCURACY_LEVELS = ("reference", "standard", "draft")
 #: methods miss the contract's event-time limit (about 1.5 steps), and the paper's scheme keeps
 #: no energy audit, so it never meets the contract.
 ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
-    # adaptive-modal: one decade looser than before issue 28 (the old standard preset is the
-    # reference now). Measured over the default length against tight runs (docs/accuracy.md):
-    # paper and paper-100mms -0.068 dB worst band, events <= 4.4e-8 s; with the friction
-    # moment the 40 kHz band comes within the contract's 80 dB and reads +0.34 dB against IDA
+    # adaptive-modal: the kept states are extrapolated to third order, so the reference's
+    # plate-mode tolerance is a decade looser than the rtol. Measured over the default length
+    # against tight runs (docs/accuracy.md): worst plate band +0.0057 dB (paper), -0.011 dB
+    # (paper-100mms), events <= 3.3e-10 s; with the friction moment the 40 kHz band comes
+    # within the contract's 80 dB and reads -0.098 dB
     "adaptive-modal": {
-        "reference": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-7,
-                      "atol_acceleration_relative": 1e-5},
+        "reference": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-6,
+                      "atol_acceleration_relative": 1e-4},
         "standard": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
                      "atol_acceleration_relative": 1e-4},
         "draft": {"rtol": 1e-3, "atol": 1e-11, "atol_acceleration": 1e-5,

@@ -17,7 +17,7 @@ What this module adds to the fixed-step scheme, to make it a reference-grade sol
 * **Error control** by step doubling: every step of length h is also taken as two steps of
   h/2; ``(y_h - y_{h/2,h/2}) / 3`` estimates the local error of the two half steps, and the
   state kept is the two half steps with that estimate removed (local extrapolation, third
-  order: :func:`_extrapolate`). The estimate is weighted by IDA's tolerances (``solver.rtol``,
+  order: ``_extrapolate``). The estimate is weighted by IDA's tolerances (``solver.rtol``,
   ``solver.atol``, ``solver.atol_acceleration``:
   ``roughvib.solvers.ida._atol_vector``): RMS over the modes as in IDA, max over the
   block, contact and energy states (see ``_err_norm``). Step sizes are
