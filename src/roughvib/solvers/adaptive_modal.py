@@ -798,7 +798,7 @@ def _extrapolate(t1, ya, yb, ye, ge, armed, off, fp, phi, cres, spos, prof, reg,
     size.
     """
     iE = off[kn.OFF_IE]
-    for j in range(yb.size):
+    for j in range(iE, iE + kn.N_ENERGY):
         ye[j] = yb[j]
     for j in range(iE):
         ye[j] = yb[j] + (yb[j] - ya[j]) / 3.0
