@@ -38,7 +38,8 @@ source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
 templates_path = ["_templates"]
 exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py",
-                    "figures/*.py", "**/sg_execution_times.rst", "sg_execution_times.rst"]
+                    "figures/*.py", "**/sg_execution_times.rst", "sg_execution_times.rst",
+                    "_fragments/*"]  # included into pages, not pages of their own
 
 # every cross-reference must resolve (a broken one is a warning, and CI builds with -W)
 nitpicky = True
