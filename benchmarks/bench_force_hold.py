@@ -70,12 +70,14 @@ from roughvib.results import load_result  # noqa: E402
 from roughvib.scene import load_scene  # noqa: E402
 from roughvib.simulation import simulate  # noqa: E402
 from roughvib.solvers.checkpoint import start_state  # noqa: E402
+from roughvib.solvers.ida import _atol_vector  # noqa: E402
 
 N_PHI = 4           # phi_1 .. phi_4: holds up to cubic
 N_SERIES = 30       # terms of the phi-function series for |z| < 1
 HERMITE = "hermite"
 LINEAR = "linear"
 TRAPEZOIDAL = "trapezoidal"
+HERMITE_ORDER = 4            # of the Hermite step: its step-doubling estimate divides by 15
 FIXED_POINT_ITERATIONS = 8   # Hermite tangential rule: x1 <-> a1 (converges by h^2/12 each)
 
 
@@ -331,12 +333,20 @@ def solve_coupled(vp: Vertical, start: np.ndarray, inp: Input, h: float, hold: s
     return out, forces, cpu
 
 
-def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str):
+def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str, doubling=None):
     """The whole step (vertical hold ``hold``, tangential ``rule``), one per output interval.
 
     The Feldmann law's branch and latch switch at ``events`` (time, branch, latch), which the
-    steps meet exactly. Returns the outputs (n, 2), the tangential velocity (n,) and the
-    contact forces (n, K).
+    steps meet exactly. Returns the outputs (n, 2), the tangential velocity (n,), the contact
+    forces (n, K) and the step-doubling estimates (below; empty without ``doubling``).
+
+    ``doubling = (atol, rtol, order)``: at every pair of output intervals without an event,
+    one step over the pair is also taken from the pair's start, and the estimate
+    ``(y_pair - y_two) / (2^order - 1)`` of the two interval steps' error is measured in
+    ``adaptive-modal``'s weights (``rtol max(|y0|, |y|) + atol``; ``atol`` over ``[q, dq, z,
+    vz, x, vx, F]``): the RMS over the modes and the largest of the others, with the index of
+    that largest (0 z, 1 vz, 2 x, 3 vx, 4 + k the force of contact k). Returns a list of
+    (time, modal RMS, largest other, its index).
     """
     fp = system.fp
     K = vp.K
@@ -417,10 +427,37 @@ def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str):
         out[i] = outputs(vp, x[:vp.R], v[:vp.R], v[vp.R], st["F"])
         vel[i], forces[i] = st["v"], st["F"]
 
+    def state_vector():
+        x, v = osc.physical(*st["a"])
+        return np.r_[x[:vp.R], v[:vp.R], x[vp.R], v[vp.R], st["x"], st["v"], st["F"]]
+
+    def estimate(i):
+        """The step-doubling estimate over the intervals from t[i - 1] (docstring)."""
+        saved = {key: (tuple(a.copy() for a in val) if isinstance(val, tuple) else val)
+                 for key, val in st.items()}
+        y0 = state_vector()
+        step(t[i - 1], t[i + 1] - t[i - 1])
+        y_pair = state_vector()
+        st.update(saved)
+        step(t[i - 1], t[i] - t[i - 1])
+        step(t[i], t[i + 1] - t[i])
+        y_two = state_vector()
+        st.update(saved)
+        atol, rtol, order = doubling
+        err = np.abs(y_pair - y_two) / ((2 ** order - 1)
+                                        * (rtol * np.maximum(np.abs(y0), np.abs(y_two)) + atol))
+        rest = err[2 * vp.R:]
+        return (t[i - 1], float(np.sqrt(np.mean(err[:2 * vp.R] ** 2))), float(rest.max()),
+                int(rest.argmax()))
+
+    estimates = []
     restart(0.0)
     record(0)
     pending = [e for e in events if e[0] > 0.0]
     for i in range(1, n):
+        quiet = not any(t[i - 1] <= e[0] <= t[min(i + 1, n - 1)] for e in pending[:1])
+        if doubling is not None and i % 2 == 1 and i + 1 < n and quiet:
+            estimates.append(estimate(i))
         ta = t[i - 1]
         while pending and pending[0][0] < t[i]:
             te, branch, latch = pending.pop(0)
@@ -431,7 +468,7 @@ def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str):
             restart(ta)
         step(ta, t[i] - ta)
         record(i)
-    return out, vel, forces
+    return out, vel, forces, estimates
 
 
 def reference_events(ref) -> list[tuple[float, float, float]]:
@@ -532,12 +569,43 @@ def main(argv=None) -> None:
     print("|---|---|---|---|---|---|---|---|")
     for hold, rule in ((LINEAR, TRAPEZOIDAL), (HERMITE, TRAPEZOIDAL), (HERMITE, HERMITE)):
         cpu = time.process_time()
-        out, vel, forces = solve_full(system, vp, ds, events, hold, rule)
+        out, vel, forces, _ = solve_full(system, vp, ds, events, hold, rule)
         cpu = time.process_time() - cpu
         cells = band_cells(out, ds, win, dt)
         vrel = np.sqrt(np.mean((vel[win] - v_ref) ** 2) / np.mean(v_ref ** 2))
         print(f"| {hold} F | {rule} | {cells[0]} | {cells[1]} | {cells[2]} | {vrel:.2g} | "
               f"{np.max(np.abs(forces - f_ref)):.2g} | {cpu:.1f} |", flush=True)
+    doubling_estimates(scene, system, vp, ds, events)
+
+
+def doubling_estimates(scene, system, vp: Vertical, ds, events) -> None:
+    """Print how the Hermite step's step-doubling estimate over two output intervals sits
+    in the default run's tolerances (those a default run of the scene reports, its
+    acceleration tolerance set by its pilot)."""
+    base = simulate(scene, progress=False).summary["solver"]
+    solved = replace(scene.solver, rtol=float(base["rtol"]), atol=float(base["atol"]),
+                     atol_acceleration=float(base["atol_acceleration"]))
+    weights = assemble(replace(scene, solver=solved),
+                       force_amplitude=float(ds.attrs["force_amplitude"]))
+    full = _atol_vector(weights)
+    lay = weights.layout
+    atol = np.r_[full[lay.slice("plate.q")], full[lay.slice("plate.dq")],
+                 full[lay.index("block.z")], full[lay.index("block.vz")],
+                 full[lay.index("block.x")], full[lay.index("block.vx")],
+                 full[lay.slice("contact.force")]]
+    _, _, _, est = solve_full(system, vp, ds, events, HERMITE, HERMITE,
+                              doubling=(atol, solved.rtol, HERMITE_ORDER))
+    norm = np.array([max(modal, other) for _, modal, other, _ in est])
+    names = ["block.z", "block.vz", "block.x", "block.vx"] + [
+        f"contact.force[{k}]" for k in range(vp.K)]
+    print(f"\nHermite step over two output intervals against two steps of one (rtol "
+          f"{solved.rtol:g}, atol_acceleration {solved.atol_acceleration:.3g} m/s^2, the "
+          f"default run's), {len(norm)} pairs without an event:")
+    print(f"  error norm: median {np.median(norm):.2g}, 90 % {np.percentile(norm, 90):.2g}, "
+          f"largest {norm.max():.2g}; {int(np.sum(norm > 1))} pairs above 1")
+    for k in np.argsort(norm)[::-1][:5]:
+        t0, modal, other, which = est[k]
+        print(f"  t = {t0:.5f} s: modes (RMS) {modal:.2g}, {names[which]} {other:.2g}")
 
 
 if __name__ == "__main__":
