@@ -113,22 +113,49 @@ def test_many_modes_to_100_khz():
 
 # ---- velocity ------------------------------------------------------------------------------
 
+def _sliding(velocity, method, **extra):
+    """Constant sliding at ``velocity`` [m/s] (prescribed), plate modes to 5 kHz, 4 ms."""
+    return _run(**{"solver.method": method, "excitation.kind": "prescribed",
+                   "excitation.velocity": velocity,
+                   "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
+                   "output.duration": 0.004, "plate.max_frequency": 5000.0, **extra})
+
+
+@pytest.fixture(scope="module")
+def tight_sliding():
+    """The runs of :func:`_sliding` at rtol 1e-8 by adaptive-modal, one per velocity, made
+    once for both methods.
+
+    Each method's default run is compared with it: for adaptive-modal that is the same
+    solver at a tighter tolerance (as before), for IDA an independent integrator of the same
+    DAE (exact modal propagation with step doubling) at a tighter tolerance, where it used to
+    be IDA's own run at rtol 1e-8: the check is now agreement with a converged solution by
+    another method, not only with the same method's tighter run. The two tight runs agree to
+    1e-5 dB in every band checked here (measured), and adaptive-modal's costs 0.3 s (0.3 m/s)
+    and 0.5 s (1 m/s) against IDA's 4.2 s and 9.6 s."""
+    runs = {}
+
+    def get(velocity):
+        if velocity not in runs:
+            runs[velocity] = _sliding(velocity, "adaptive-modal", **{
+                "solver.rtol": 1e-8, "solver.atol_acceleration": 1e-10})
+        return runs[velocity]
+
+    return get
+
+
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("velocity", [0.3, 1.0])
-def test_high_sliding_velocity(velocity, method):
+def test_high_sliding_velocity(velocity, method, tight_sliding):
     """Constant sliding at 0.3 and 1 m/s (prescribed): lift-offs and touch-downs alternate per
-    contact, and the run is stable under a tighter tolerance."""
-    over = {"solver.method": method, "excitation.kind": "prescribed",
-            "excitation.velocity": velocity,
-            "excitation.amplitude": 0.0, "excitation.target_rms_velocity": "none",
-            "output.duration": 0.004, "plate.max_frequency": 5000.0}
-    r = _run(**over)
+    contact, and the run agrees with a run at a tighter tolerance (:func:`tight_sliding`)."""
+    r = _sliding(velocity, method)
     _invariants(r, max_events=20_000)
     for k in range(r.summary["model"]["contacts"]):
         kinds = r.events[r.events["contact"] == k].sort_values("time")["kind"].tolist()
         kinds = [x for x in kinds if x in ("lift_off", "touch_down")]
         assert all(a != b for a, b in zip(kinds, kinds[1:], strict=False)), k
-    tight = _run(**over, **{"solver.rtol": 1e-8, "solver.atol_acceleration": 1e-10})
+    tight = tight_sliding(velocity)
     for v in ("plate_vertical_acceleration", "block_vertical_acceleration"):
         fc, d = band_level_errors(r.dataset[v].values, tight.dataset[v].values, 1e5)
         assert max_abs_db(fc, d, 1000.0, 5000.0) < 1.0, v
