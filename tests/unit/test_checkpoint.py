@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+from terminal import sigint_as_on_a_terminal
 
 import roughvib
 from roughvib.analysis.compare import band_level_errors, max_abs_db, relative_rms_error
@@ -201,16 +202,6 @@ def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 
 
-def _sigint_as_on_a_terminal():
-    """In the child before exec: SIGINT at its default, as for a command run in the foreground.
-
-    A process started in the background by a non-interactive shell (``pytest ... &``, some CI
-    runners) inherits SIGINT ignored, and Python then leaves it ignored (the Unix convention
-    for background jobs, which roughvib keeps); the tests of Ctrl-C must not depend on how the
-    test run itself was started."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def _wait_for(path, proc, timeout=240.0):
     t0 = time.monotonic()
     while not path.exists():
@@ -244,7 +235,7 @@ def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, s
     killed = tmp_path / "killed"
     proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
                             text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-                            preexec_fn=_sigint_as_on_a_terminal)
+                            preexec_fn=sigint_as_on_a_terminal)
     _wait_for(killed / CHECKPOINT_NAME, proc)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
@@ -348,7 +339,7 @@ def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):
     proc = subprocess.Popen(_cli("--out", str(out), "--set", "output.duration=20.0",
                                  "--set", "plate.max_frequency=5000", "--quiet"),
                             stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_sigint_as_on_a_terminal)
+                            preexec_fn=sigint_as_on_a_terminal)
     # stderr is a pipe, so the progress comes as whole lines (at a tenth of the run, at most
     # one every 5 s): the first one says the integration runs, and the interrupt lands there,
     # however slow the machine (a fixed sleep could land in the imports, before any handler

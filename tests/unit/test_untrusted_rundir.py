@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
+from terminal import sigint_as_on_a_terminal
 
 import roughvib
 from roughvib.cli import main
@@ -430,7 +431,7 @@ def test_a_sweep_stopped_by_a_signal_exits_with_one_line(tmp_path, signum, code,
     proc = subprocess.Popen([sys.executable, "-m", "roughvib", "sweep", str(spec), "--out",
                              str(out), "--workers", "1", "--no-progress"], cwd=tmp_path,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=sigint_as_on_a_terminal)
     try:
         deadline = time.monotonic() + 240
         cases = out / "cases"
