@@ -22,8 +22,7 @@ _saved = {}
 
 #: folders below the start directory that tests may legitimately change: interpreter and
 #: numba caches next to the sources, pytest's own cache, build output of the docs
-_VOLATILE_DIRS = frozenset({"__pycache__", ".pytest_cache", ".git", "_build", ".ruff_cache",
-                            ".hypothesis"})
+_VOLATILE_DIRS = frozenset({"__pycache__", ".pytest_cache", ".git", "_build", ".ruff_cache"})
 
 
 def _snapshot(root: Path) -> dict[str, tuple[int, int]]:
@@ -48,7 +47,11 @@ def pytest_configure(config):
     os.environ["ROUGHVIB_CACHE_DIR"] = _saved["tmp"]
     _saved["start"] = Path.cwd()
     _saved["before"] = _snapshot(_saved["start"])
-    try:  # hypothesis keeps its example database in the current directory unless told
+    # hypothesis keeps its caches (constants, unicode data) and example database in
+    # ./.hypothesis unless told: its storage goes to the session's temporary directory
+    _saved["hypothesis"] = os.environ.get("HYPOTHESIS_STORAGE_DIRECTORY")
+    os.environ["HYPOTHESIS_STORAGE_DIRECTORY"] = str(Path(_saved["tmp"], "hypothesis"))
+    try:  # and keeps no example database at all
         from hypothesis import settings
 
         settings.register_profile("roughvib", database=None)
@@ -72,10 +75,11 @@ def pytest_sessionfinish(session, exitstatus):
 
 
 def pytest_unconfigure(config):
-    if _saved.get("dir") is None:
-        os.environ.pop("ROUGHVIB_CACHE_DIR", None)
-    else:
-        os.environ["ROUGHVIB_CACHE_DIR"] = _saved["dir"]
+    for var, key in (("ROUGHVIB_CACHE_DIR", "dir"), ("HYPOTHESIS_STORAGE_DIRECTORY", "hypothesis")):
+        if _saved.get(key) is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = _saved[key]
     if _saved.get("tmp"):
         shutil.rmtree(_saved["tmp"], ignore_errors=True)
 
