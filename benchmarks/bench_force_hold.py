@@ -40,6 +40,11 @@ tangential motion by the trapezoidal rule (today's) or by its fourth-order Hermi
 a1') / 12``). The friction law's regime (branch, latch) is switched at the converged run's
 event times, which the steps meet exactly: the events' location is not what is measured here.
 
+Last, how step doubling would judge the fourth-order step (:func:`doubling_estimates`): along
+the Hermite run, at every pair of output intervals without an event, one step over the pair
+against the two steps of one, the estimate measured in ``adaptive-modal``'s weights at the
+tolerances of a default run of the scene (made here, its pilot included).
+
 The time of the eigendecomposition is reported with one BLAS thread (on a 2-core machine a
 threaded OpenBLAS took 20 times longer for it). The loops are numpy, not compiled: their CPU
 times compare accuracy, not speed.
