@@ -147,21 +147,32 @@ def vertical_problem(system) -> Vertical:
                     system.cdamp, np.diag(1.0 / system.stiff) + system.cres)
 
 
+def roughness_at(system, x: float, v: float) -> tuple[np.ndarray, np.ndarray]:
+    """Profile height at the contacts [m] and its rate [m/s] for the block at x moving at v."""
+    fp = system.fp
+    vals = [profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX], s + x)
+            for s in system.contact_s]
+    return np.array([p[0] for p in vals]), np.array([p[1] for p in vals]) * v
+
+
+def start(system) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The run's start: its regime array (packed), state ``y`` (static equilibrium, made
+    consistent) and the vertical part as displacements ``[q (R), z]`` and velocities
+    ``[dq (R), vz]``."""
+    reg, rf = system.new_regime_arrays()
+    _, y, _ = start_state(system, reg, rf, None, 0, 0)
+    lay = system.layout
+    return (reg, y, np.r_[y[lay.slice("plate.q")], y[lay.index("block.z")]],
+            np.r_[y[lay.slice("plate.dq")], y[lay.index("block.vz")]])
+
+
 def prescribed_input(system, ds, sub: int) -> Input:
     """Roughness input and its rate at ``sub`` points per output interval of run ``ds``."""
     t = ds["time"].values
     spline = CubicSpline(t, ds["block_tangential_displacement"].values)
     ts = np.linspace(t[0], t[-1], (len(t) - 1) * sub + 1)
-    x, v = spline(ts), spline(ts, 1)
-    fp = system.fp
-    u = np.empty((len(ts), system.n_contacts))
-    du = np.empty_like(u)
-    for k, s in enumerate(system.contact_s):
-        for i, xi in enumerate(x):
-            hgt, slope, _ = profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX], s + xi)
-            u[i, k] = hgt
-            du[i, k] = slope * v[i]
-    return Input(u, du)
+    pairs = [roughness_at(system, x, v) for x, v in zip(spline(ts), spline(ts, 1), strict=True)]
+    return Input(np.array([u for u, _ in pairs]), np.array([du for _, du in pairs]))
 
 
 def outputs(vp: Vertical, q, dq, vz, force) -> tuple[float, float]:
@@ -359,15 +370,9 @@ def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str, doubling=
     t0_amp, omega = fp[kn.FP_T0], fp[kn.FP_OMEGA]
     r2, mass, v_h = fp[kn.FP_R2], fp[kn.FP_MASS], fp[kn.FP_VH]
     law = (fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
-    reg, rf = system.new_regime_arrays()
-    _, y, _ = start_state(system, reg, rf, None, 0, 0)
+    reg, y, xv, vv = start(system)
     lay = system.layout
     st = {"branch": float(reg[kn.REG_B]), "latch": float(reg[kn.REG_S])}
-
-    def rough(x, v):
-        vals = [profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX], s + x)
-                for s in system.contact_s]
-        return np.array([p[0] for p in vals]), np.array([p[1] for p in vals]) * v
 
     def accel(t, v, normal):
         mu, _ = feldmann_mu(v + st["latch"] * v_h, st["branch"], *law)
@@ -378,11 +383,9 @@ def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str, doubling=
         return (-t0_amp * omega * math.sin(omega * t) - dmu * a * normal - mu * dnormal
                 - r2 * a) / mass
 
-    xv = np.r_[y[lay.slice("plate.q")], y[lay.index("block.z")]]
-    vv = np.r_[y[lay.slice("plate.dq")], y[lay.index("block.vz")]]
     st["a"] = osc.modal(xv, vv)
     st["x"], st["v"] = y[lay.index("block.x")], y[lay.index("block.vx")]
-    u, du = rough(st["x"], st["v"])
+    u, du = roughness_at(system, st["x"], st["v"])
     cx, cv = osc.compression(xv, vv)
     st["F"] = np.linalg.solve(vp.compliance, cx + u)
     st["dF"] = np.linalg.solve(vp.compliance, cv + du) if hold == HERMITE else np.zeros(K)
@@ -401,11 +404,11 @@ def solve_full(system, vp: Vertical, ds, events, hold: str, rule: str, doubling=
         def end(v1):
             x1 = x0 + 0.5 * h * (v0 + v1)
             for _ in range(FIXED_POINT_ITERATIONS if rule == HERMITE else 1):
-                f1, d1 = osc.end_forces(h, *free, *rough(x1, v1))
+                f1, d1 = osc.end_forces(h, *free, *roughness_at(system, x1, v1))
                 if rule == HERMITE:
                     x1 = x0 + 0.5 * h * (v0 + v1) + h * h / 12.0 * (
                         a0 - accel(t1, v1, f1.sum()))
-            f1, d1 = osc.end_forces(h, *free, *rough(x1, v1))
+            f1, d1 = osc.end_forces(h, *free, *roughness_at(system, x1, v1))
             return x1, f1, d1
 
         def residual(v1):
@@ -529,11 +532,8 @@ def main(argv=None) -> None:
         raise SystemExit(f"{args.scene}: contact.friction_moment = true is not modelled here")
     system = assemble(scene, force_amplitude=float(ds.attrs["force_amplitude"]))
     vp = vertical_problem(system)
-    reg, rf = system.new_regime_arrays()
-    _, y, _ = start_state(system, reg, rf, None, 0, 0)
-    lay = system.layout
-    start = np.r_[y[lay.slice("plate.q")], y[lay.index("block.z")],
-                  y[lay.slice("plate.dq")], y[lay.index("block.vz")]]
+    _, _, x0, v0 = start(system)
+    state0 = np.r_[x0, v0]
     t = ds["time"].values
     dt = t[1] - t[0]
     win = analysis_window(t, scene.period, scene.output.transient)
@@ -551,10 +551,10 @@ def main(argv=None) -> None:
         inp = prescribed_input(system, ds, sub)
         cpu = time.process_time()
         if kind == "modes":
-            out, forces = solve_modes(vp, start, inp, dt / sub, hold)
+            out, forces = solve_modes(vp, state0, inp, dt / sub, hold)
             eig = None
         else:
-            out, forces, eig = solve_coupled(vp, start, inp, dt / sub, hold)
+            out, forces, eig = solve_coupled(vp, state0, inp, dt / sub, hold)
         cpu = time.process_time() - cpu
         out, forces = out[::sub], forces[::sub]
         cells = band_cells(out, ds, win, dt)
