@@ -28,6 +28,11 @@ import math
 import numpy as np
 from numba import njit
 
+from roughvib.model import kernels as kn
+from roughvib.model.krylov import lu_factor, lu_solve
+from roughvib.physics.friction import feldmann_mu
+from roughvib.physics.surface.interp import profile_eval
+
 __all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "hermite_maps"]
 
 #: positions of the hold's four data in the step maps' ``H[r, HOLD_*, :]``
@@ -138,3 +143,261 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
             H[r, HOLD_DU0, i] = w1 - 2.0 * w2k / h + w3 / (h * h)
             H[r, HOLD_U1, i] = 3.0 * w2k / (h * h) - 2.0 * w3 / (h * h * h)
             H[r, HOLD_DU1, i] = -w2k / h + w3 / (h * h)
+
+
+# --- the whole step (Feldmann law, force-driven block, no friction moment) -----------------
+
+#: rows of a slot's per-mode maps ``Pm`` (shape (N_PMAP, R)): the free propagator and the
+#: four hold maps, each on q and q'
+PM_QQ, PM_QD, PM_DQ, PM_DD = 0, 1, 2, 3
+PM_U0Q, PM_U0D, PM_DU0Q, PM_DU0D = 4, 5, 6, 7
+PM_U1Q, PM_U1D, PM_DU1Q, PM_DU1D = 8, 9, 10, 11
+N_PMAP = 12
+#: the end-value maps in contact coordinates ``Cc`` (shape (N_CMAP, K, K)): displacement and
+#: velocity of the plate at contact k per unit end force / end force rate at contact j
+#: (the residual compliance included where it acts: on the displacement per force and the
+#: velocity per force rate)
+CM_WF, CM_WD, CM_VF, CM_VD = 0, 1, 2, 3
+N_CMAP = 4
+#: Newton of the Hermite step
+HERMITE_NEWTON_MAX = 30
+FD_REL = 1e-7         # relative step of the finite-difference Jacobian
+NEWTON_TOL_REL = 1e-6  # Newton update, in units of the tolerance weights
+
+
+@njit(cache=True)
+def hermite_slot(h, omega2, cdamp, phi, cres, M, Pm, Cc):
+    """Fill a step length's maps: per mode ``Pm`` (N_PMAP, R), at the contacts ``Cc``
+    (N_CMAP, K, K); ``M`` the modal mass [kg] (mode shapes phi per sqrt of it)."""
+    R = omega2.size
+    K = cres.shape[0]
+    Phi = np.zeros((R, 2, 2))
+    H = np.zeros((R, N_HOLD, 2))
+    hermite_maps(omega2, cdamp, h, Phi, H)
+    for r in range(R):
+        Pm[PM_QQ, r] = Phi[r, MODE_Q, MODE_Q]
+        Pm[PM_QD, r] = Phi[r, MODE_Q, MODE_DQ]
+        Pm[PM_DQ, r] = Phi[r, MODE_DQ, MODE_Q]
+        Pm[PM_DD, r] = Phi[r, MODE_DQ, MODE_DQ]
+        Pm[PM_U0Q, r] = H[r, HOLD_U0, MODE_Q]
+        Pm[PM_U0D, r] = H[r, HOLD_U0, MODE_DQ]
+        Pm[PM_DU0Q, r] = H[r, HOLD_DU0, MODE_Q]
+        Pm[PM_DU0D, r] = H[r, HOLD_DU0, MODE_DQ]
+        Pm[PM_U1Q, r] = H[r, HOLD_U1, MODE_Q]
+        Pm[PM_U1D, r] = H[r, HOLD_U1, MODE_DQ]
+        Pm[PM_DU1Q, r] = H[r, HOLD_DU1, MODE_Q]
+        Pm[PM_DU1D, r] = H[r, HOLD_DU1, MODE_DQ]
+    for k in range(K):
+        for j in range(K):
+            Cc[CM_WF, k, j] = cres[k, j]
+            Cc[CM_WD, k, j] = 0.0
+            Cc[CM_VF, k, j] = 0.0
+            Cc[CM_VD, k, j] = cres[k, j]
+            for r in range(R):
+                pp = phi[r, k] * phi[r, j] / M
+                Cc[CM_WF, k, j] += pp * Pm[PM_U1Q, r]
+                Cc[CM_WD, k, j] += pp * Pm[PM_DU1Q, r]
+                Cc[CM_VF, k, j] += pp * Pm[PM_U1D, r]
+                Cc[CM_VD, k, j] += pp * Pm[PM_DU1D, r]
+
+
+@njit(cache=True)
+def tangential_rates(t, v, fsum, dfsum, off, fp, reg):
+    """Tangential acceleration [m/s^2] and its rate [m/s^3] of the Feldmann law's block at
+    velocity ``v`` under normal force ``fsum`` changing at ``dfsum`` [N/s]."""
+    m = fp[kn.FP_MASS]
+    r2 = fp[kn.FP_R2]
+    w = fp[kn.FP_OMEGA]
+    mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
+                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    a = (fp[kn.FP_T0] * math.cos(w * t) - mu * fsum - r2 * v) / m
+    j = (-fp[kn.FP_T0] * w * math.sin(w * t) - dmu * a * fsum - mu * dfsum - r2 * a) / m
+    return a, j
+
+
+@njit(cache=True)
+def vertical_rates(vz, fsum, dfsum, fp):
+    """The block's vertical acceleration [m/s^2] and its rate [m/s^3]."""
+    m = fp[kn.FP_MASS]
+    rho = fp[kn.FP_R1] / m
+    a = fp[kn.FP_GRAV] - rho * vz - fsum / m
+    return a, -rho * a - dfsum / m
+
+
+@njit(cache=True)
+def _block_end(h, z0, vz0, az0, jz0, S1, dS1, fp):
+    """The block's vertical (z1, vz1) by the Obreschkoff (2,2) rule for normal force S1 and
+    its rate dS1 at the end (linear in them: solved in closed form)."""
+    m = fp[kn.FP_MASS]
+    rho = fp[kn.FP_R1] / m
+    g = fp[kn.FP_GRAV]
+    h2 = h * h / 12.0
+    vz1 = ((vz0 + 0.5 * h * (az0 + g - S1 / m) + h2 * (jz0 + rho * g - rho * S1 / m + dS1 / m))
+           / (1.0 + 0.5 * h * rho + h2 * rho * rho))
+    az1 = g - rho * vz1 - S1 / m
+    z1 = z0 + 0.5 * h * (vz0 + vz1) + h2 * (az0 - az1)
+    return z1, vz1
+
+
+@njit(cache=True)
+def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
+              spos, prof, reg):
+    """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``;
+    returns x1."""
+    iz, ivz, ix, ivx = off[kn.OFF_IZ], off[kn.OFF_IVZ], off[kn.OFF_IX], off[kn.OFF_IVX]
+    x0, v0 = y0[ix], y0[ivx]
+    v1 = unk[2 * nc]
+    S1 = 0.0
+    dS1 = 0.0
+    for a in range(nc):
+        S1 += unk[a]
+        dS1 += unk[nc + a]
+    a1, j1 = tangential_rates(t1, v1, S1, dS1, off, fp, reg)
+    x1 = x0 + 0.5 * h * (v0 + v1) + h * h / 12.0 * (a0 - a1)
+    z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
+    for a in range(nc):
+        k = idx[a]
+        hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+        w = wq[k]
+        wdot = wd[k]
+        for c in range(nc):
+            j = idx[c]
+            w += Cc[CM_WF, k, j] * unk[c] + Cc[CM_WD, k, j] * unk[nc + c]
+            wdot += Cc[CM_VF, k, j] * unk[c] + Cc[CM_VD, k, j] * unk[nc + c]
+        res[a] = unk[a] / stiff[k] - (z1 - w + hh)
+        res[nc + a] = unk[nc + a] / stiff[k] - (vz1 - wdot + dh * v1)
+    res[2 * nc] = v1 - v0 - 0.5 * h * (a0 + a1) - h * h / 12.0 * (j0 - j1)
+    return x1
+
+
+@njit(cache=True)
+def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, phi, stiff, spos, prof, reg, wts):
+    """One step of Hermite holds from (y0, dF0) to (y1, dF1); False if Newton fails.
+
+    The modes exact under the Hermite hold of their force (``Pm``, ``Cc`` of
+    :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
+    Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
+    at the end. Unknowns: the closed contacts' forces and force rates and the tangential
+    velocity, by Newton with a finite-difference Jacobian. Scope of this version: the Feldmann
+    law, a force-driven block, no friction moment; the energy integrals are not advanced.
+    ``dF0``/``dF1`` (K,): contact force rates [N/s] (0 on open contacts).
+    """
+    iq, idq, iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
+    M = fp[kn.FP_MMODAL]
+    t1 = t0 + h
+    idx = np.empty(K, dtype=np.int64)
+    nc = 0
+    S0 = 0.0
+    dS0 = 0.0
+    for k in range(K):
+        S0 += y0[iF + k]
+        dS0 += dF0[k]
+        if reg[kn.REG_CLOSED + k] == 1:
+            idx[nc] = k
+            nc += 1
+    a0, j0 = tangential_rates(t0, y0[ivx], S0, dS0, off, fp, reg)
+    az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
+    # the modes' free response (start data only) and the plate at the contacts from it
+    u0 = np.zeros(R)
+    du0 = np.zeros(R)
+    for r in range(R):
+        for k in range(K):
+            u0[r] += phi[r, k] * y0[iF + k] / M
+            du0[r] += phi[r, k] * dF0[k] / M
+    sq = np.empty(R)
+    sdq = np.empty(R)
+    for r in range(R):
+        q, dq = y0[iq + r], y0[idq + r]
+        sq[r] = (Pm[PM_QQ, r] * q + Pm[PM_QD, r] * dq + Pm[PM_U0Q, r] * u0[r]
+                 + Pm[PM_DU0Q, r] * du0[r])
+        sdq[r] = (Pm[PM_DQ, r] * q + Pm[PM_DD, r] * dq + Pm[PM_U0D, r] * u0[r]
+                  + Pm[PM_DU0D, r] * du0[r])
+    wq = np.zeros(K)
+    wd = np.zeros(K)
+    for k in range(K):
+        for r in range(R):
+            wq[k] += phi[r, k] * sq[r]
+            wd[k] += phi[r, k] * sdq[r]
+    n = 2 * nc + 1
+    unk = np.empty(n)
+    for a in range(nc):
+        unk[a] = y0[iF + idx[a]]
+        unk[nc + a] = dF0[idx[a]]
+    unk[2 * nc] = y0[ivx] + h * a0
+    scale = np.empty(n)
+    for a in range(nc):
+        scale[a] = wts[iF + idx[a]]
+        scale[nc + a] = wts[iF + idx[a]] / h
+    scale[2 * nc] = wts[ivx]
+    res = np.empty(n)
+    res2 = np.empty(n)
+    jac = np.empty((n, n))
+    piv = np.empty(n, dtype=np.int64)
+    ok = False
+    for _it in range(HERMITE_NEWTON_MAX):
+        _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
+                  spos, prof, reg)
+        if _it > 0:  # chord iterations: the first Jacobian serves the step (nearly linear)
+            for a in range(n):
+                res[a] = -res[a]
+            lu_solve(jac, piv, res)
+            worst = 0.0
+            for c in range(n):
+                unk[c] += res[c]
+                e = abs(res[c]) / scale[c]
+                if e > worst:
+                    worst = e
+            if worst <= NEWTON_TOL_REL:
+                ok = True
+                break
+            continue
+        for c in range(n):
+            save = unk[c]
+            d = FD_REL * (abs(save) + scale[c] / NEWTON_TOL_REL)
+            unk[c] = save + d
+            _residual(t1, h, unk, res2, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp,
+                      stiff, spos, prof, reg)
+            unk[c] = save
+            for a in range(n):
+                jac[a, c] = (res2[a] - res[a]) / d
+        for a in range(n):
+            res[a] = -res[a]
+        lu_factor(jac, piv)
+        lu_solve(jac, piv, res)
+        worst = 0.0
+        for c in range(n):
+            unk[c] += res[c]
+            e = abs(res[c]) / scale[c]
+            if e > worst:
+                worst = e
+        if worst <= NEWTON_TOL_REL:
+            ok = True
+            break
+    if not ok:
+        return False
+    x1 = _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
+                   spos, prof, reg)
+    S1 = 0.0
+    dS1 = 0.0
+    for k in range(K):
+        y1[iF + k] = 0.0
+        dF1[k] = 0.0
+    for a in range(nc):
+        y1[iF + idx[a]] = unk[a]
+        dF1[idx[a]] = unk[nc + a]
+        S1 += unk[a]
+        dS1 += unk[nc + a]
+    for r in range(R):
+        u1 = 0.0
+        du1 = 0.0
+        for k in range(K):
+            u1 += phi[r, k] * y1[iF + k] / M
+            du1 += phi[r, k] * dF1[k] / M
+        y1[iq + r] = sq[r] + Pm[PM_U1Q, r] * u1 + Pm[PM_DU1Q, r] * du1
+        y1[idq + r] = sdq[r] + Pm[PM_U1D, r] * u1 + Pm[PM_DU1D, r] * du1
+    z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
+    y1[iz] = z1
+    y1[ivz] = vz1
+    y1[ix] = x1
+    y1[ivx] = unk[2 * nc]
+    return True
