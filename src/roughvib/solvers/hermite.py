@@ -271,7 +271,63 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
 
 
 @njit(cache=True)
-def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, phi, stiff, spos, prof, reg, wts):
+def powers_and_rates(t, y, dF, off, fp, omega2, cdamp, phi, spos, prof, reg, P, Pd):
+    """The six energy powers ``P`` [W] (order of ``ENERGY_TERMS``) of a consistent state and
+    their time derivatives ``Pd`` [W/s], for the Hermite quadrature of the energy integrals
+    (Feldmann law, force-driven block, no friction moment)."""
+    iq, idq, _iz, ivz, _ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
+    M = fp[kn.FP_MMODAL]
+    r1 = fp[kn.FP_R1]
+    r2 = fp[kn.FP_R2]
+    w = fp[kn.FP_OMEGA]
+    v = y[ivx]
+    x = y[off[kn.OFF_IX]]
+    vz = y[ivz]
+    S = 0.0
+    dS = 0.0
+    for k in range(K):
+        S += y[iF + k]
+        dS += dF[k]
+    a, _ = tangential_rates(t, v, S, dS, off, fp, reg)
+    az, _ = vertical_rates(vz, S, dS, fp)
+    mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
+                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    texc = fp[kn.FP_T0] * math.cos(w * t)
+    dtexc = -fp[kn.FP_T0] * w * math.sin(w * t)
+    P[kn.E_EXCITATION] = texc * v
+    Pd[kn.E_EXCITATION] = dtexc * v + texc * a
+    P[kn.E_FRICTION] = mu * S * v
+    Pd[kn.E_FRICTION] = (dmu * a * S + mu * dS) * v + mu * S * a
+    P[kn.E_TANGENTIAL_DAMPING] = r2 * v * v
+    Pd[kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
+    P[kn.E_VERTICAL_DAMPING] = r1 * vz * vz
+    Pd[kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
+    pd = 0.0
+    pdd = 0.0
+    for r in range(R):
+        u = 0.0
+        for k in range(K):
+            u += phi[r, k] * y[iF + k]
+        dq = y[idq + r]
+        ddq = u / M - cdamp[r] * dq - omega2[r] * y[iq + r]
+        pd += cdamp[r] * dq * dq
+        pdd += cdamp[r] * dq * ddq
+    P[kn.E_PLATE_DAMPING] = M * pd
+    Pd[kn.E_PLATE_DAMPING] = 2.0 * M * pdd
+    pr = 0.0
+    prd = 0.0
+    for k in range(K):
+        _, dh, d2h = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
+        F = y[iF + k]
+        pr += F * dh * v
+        prd += dF[k] * dh * v + F * d2h * v * v + F * dh * a
+    P[kn.E_ROUGHNESS] = pr
+    Pd[kn.E_ROUGHNESS] = prd
+
+
+@njit(cache=True)
+def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, omega2, cdamp, phi, stiff, spos, prof,
+                 reg, wts):
     """One step of Hermite holds from (y0, dF0) to (y1, dF1); False if Newton fails.
 
     The modes exact under the Hermite hold of their force (``Pm``, ``Cc`` of
@@ -279,7 +335,8 @@ def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, phi, stiff, spos, pro
     Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
     at the end. Unknowns: the closed contacts' forces and force rates and the tangential
     velocity, by Newton with a finite-difference Jacobian. Scope of this version: the Feldmann
-    law, a force-driven block, no friction moment; the energy integrals are not advanced.
+    law, a force-driven block, no friction moment; the energy integrals by the Hermite quadrature
+    (:func:`powers_and_rates`).
     ``dF0``/``dF1`` (K,): contact force rates [N/s] (0 on open contacts).
     """
     iq, idq, iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
@@ -400,4 +457,15 @@ def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, phi, stiff, spos, pro
     y1[ivz] = vz1
     y1[ix] = x1
     y1[ivx] = unk[2 * nc]
+    # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
+    p0 = np.empty(kn.N_ENERGY)
+    pd0 = np.empty(kn.N_ENERGY)
+    p1 = np.empty(kn.N_ENERGY)
+    pd1 = np.empty(kn.N_ENERGY)
+    powers_and_rates(t0, y0, dF0, off, fp, omega2, cdamp, phi, spos, prof, reg, p0, pd0)
+    powers_and_rates(t1, y1, dF1, off, fp, omega2, cdamp, phi, spos, prof, reg, p1, pd1)
+    iE = off[kn.OFF_IE]
+    for i in range(kn.N_ENERGY):
+        y1[iE + i] = (y0[iE + i] + 0.5 * h * (p0[i] + p1[i])
+                      + h * h / 12.0 * (pd0[i] - pd1[i]))
     return True
