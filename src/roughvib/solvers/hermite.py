@@ -270,50 +270,69 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
     return x1
 
 
+#: layout of the step's carried data ``c`` (length N_CARRY + 2 R): the powers and their
+#: rates, then the modal force u = phi F / M and its rate at the state (R each)
+C_POWER = 0
+C_POWER_RATE = C_POWER + kn.N_ENERGY
+N_CARRY = C_POWER_RATE + kn.N_ENERGY
+#: scratch of hermite_step: float length >= 2 R + 10 K + 4 + (2 K + 1)^2, int length >= 3 K + 1
+
+
 @njit(cache=True)
-def powers_and_rates(t, y, dF, off, fp, omega2, cdamp, phi, spos, prof, reg, P, Pd):
-    """The six energy powers ``P`` [W] (order of ``ENERGY_TERMS``) of a consistent state and
-    their time derivatives ``Pd`` [W/s], for the Hermite quadrature of the energy integrals
-    (Feldmann law, force-driven block, no friction moment)."""
-    iq, idq, _iz, ivz, _ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
+def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_force=True):
+    """Fill ``c`` with what a step needs of its start state (and the next step of its end):
+    the six energy powers [W] (order of ``ENERGY_TERMS``), their rates [W/s], the modal force
+    [m/s^2] and its rate [m/s^3] (Feldmann law, force-driven block, no friction moment).
+    ``with_force=False``: the modal force and rate in ``c`` are already those of ``y``."""
+    iq, idq, _iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
     M = fp[kn.FP_MMODAL]
     r1 = fp[kn.FP_R1]
     r2 = fp[kn.FP_R2]
     w = fp[kn.FP_OMEGA]
-    v = y[ivx]
-    x = y[off[kn.OFF_IX]]
-    vz = y[ivz]
+    u = c[N_CARRY:N_CARRY + R]
+    du = c[N_CARRY + R:N_CARRY + 2 * R]
     S = 0.0
     dS = 0.0
     for k in range(K):
         S += y[iF + k]
         dS += dF[k]
+    if with_force:
+        for r in range(R):
+            u[r] = 0.0
+            du[r] = 0.0
+        for k in range(K):
+            f = y[iF + k] / M
+            df = dF[k] / M
+            row = phiT[k]
+            for r in range(R):
+                u[r] += row[r] * f
+                du[r] += row[r] * df
+    v = y[ivx]
+    x = y[ix]
+    vz = y[ivz]
     a, _ = tangential_rates(t, v, S, dS, off, fp, reg)
     az, _ = vertical_rates(vz, S, dS, fp)
     mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
                           fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     texc = fp[kn.FP_T0] * math.cos(w * t)
     dtexc = -fp[kn.FP_T0] * w * math.sin(w * t)
-    P[kn.E_EXCITATION] = texc * v
-    Pd[kn.E_EXCITATION] = dtexc * v + texc * a
-    P[kn.E_FRICTION] = mu * S * v
-    Pd[kn.E_FRICTION] = (dmu * a * S + mu * dS) * v + mu * S * a
-    P[kn.E_TANGENTIAL_DAMPING] = r2 * v * v
-    Pd[kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
-    P[kn.E_VERTICAL_DAMPING] = r1 * vz * vz
-    Pd[kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
+    c[C_POWER + kn.E_EXCITATION] = texc * v
+    c[C_POWER_RATE + kn.E_EXCITATION] = dtexc * v + texc * a
+    c[C_POWER + kn.E_FRICTION] = mu * S * v
+    c[C_POWER_RATE + kn.E_FRICTION] = (dmu * a * S + mu * dS) * v + mu * S * a
+    c[C_POWER + kn.E_TANGENTIAL_DAMPING] = r2 * v * v
+    c[C_POWER_RATE + kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
+    c[C_POWER + kn.E_VERTICAL_DAMPING] = r1 * vz * vz
+    c[C_POWER_RATE + kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
     pd = 0.0
     pdd = 0.0
     for r in range(R):
-        u = 0.0
-        for k in range(K):
-            u += phi[r, k] * y[iF + k]
         dq = y[idq + r]
-        ddq = u / M - cdamp[r] * dq - omega2[r] * y[iq + r]
-        pd += cdamp[r] * dq * dq
-        pdd += cdamp[r] * dq * ddq
-    P[kn.E_PLATE_DAMPING] = M * pd
-    Pd[kn.E_PLATE_DAMPING] = 2.0 * M * pdd
+        cdq = cdamp[r] * dq
+        pd += cdq * dq
+        pdd += cdq * (u[r] - cdq - omega2[r] * y[iq + r])
+    c[C_POWER + kn.E_PLATE_DAMPING] = M * pd
+    c[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
     pr = 0.0
     prd = 0.0
     for k in range(K):
@@ -321,28 +340,28 @@ def powers_and_rates(t, y, dF, off, fp, omega2, cdamp, phi, spos, prof, reg, P, 
         F = y[iF + k]
         pr += F * dh * v
         prd += dF[k] * dh * v + F * d2h * v * v + F * dh * a
-    P[kn.E_ROUGHNESS] = pr
-    Pd[kn.E_ROUGHNESS] = prd
+    c[C_POWER + kn.E_ROUGHNESS] = pr
+    c[C_POWER_RATE + kn.E_ROUGHNESS] = prd
 
 
 @njit(cache=True)
-def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, omega2, cdamp, phi, stiff, spos, prof,
-                 reg, wts):
-    """One step of Hermite holds from (y0, dF0) to (y1, dF1); False if Newton fails.
+def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp, phiT, stiff,
+                 spos, prof, reg, wts, ws, iws):
+    """One step of Hermite holds from (y0, dF0, c0) to (y1, dF1, c1); False if Newton fails.
 
     The modes exact under the Hermite hold of their force (``Pm``, ``Cc`` of
     :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
     Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
     at the end. Unknowns: the closed contacts' forces and force rates and the tangential
-    velocity, by Newton with a finite-difference Jacobian. Scope of this version: the Feldmann
-    law, a force-driven block, no friction moment; the energy integrals by the Hermite quadrature
-    (:func:`powers_and_rates`).
-    ``dF0``/``dF1`` (K,): contact force rates [N/s] (0 on open contacts).
+    velocity, by Newton with a finite-difference Jacobian (chord iterations after the first).
+    The energy integrals by the Hermite quadrature of the powers. ``dF`` (K,): contact force
+    rates [N/s] (0 on open contacts); ``c``: :func:`carried` of the state (c1 is filled);
+    ``ws``, ``iws``: float and int scratch (lengths above). Scope of this version: the
+    Feldmann law, a force-driven block, no friction moment.
     """
-    iq, idq, iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
-    M = fp[kn.FP_MMODAL]
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     t1 = t0 + h
-    idx = np.empty(K, dtype=np.int64)
+    idx = iws[:K]
     nc = 0
     S0 = 0.0
     dS0 = 0.0
@@ -354,77 +373,60 @@ def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, omega2, cdamp, phi, s
             nc += 1
     a0, j0 = tangential_rates(t0, y0[ivx], S0, dS0, off, fp, reg)
     az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
-    # the modes' free response (start data only) and the plate at the contacts from it
-    u0 = np.zeros(R)
-    du0 = np.zeros(R)
+    u0 = c0[N_CARRY:N_CARRY + R]
+    du0 = c0[N_CARRY + R:N_CARRY + 2 * R]
+    sq = ws[0:R]
+    sdq = ws[R:2 * R]
+    pqq, pqd, pdq, pdd = Pm[PM_QQ], Pm[PM_QD], Pm[PM_DQ], Pm[PM_DD]
+    u0q, u0d, du0q, du0d = Pm[PM_U0Q], Pm[PM_U0D], Pm[PM_DU0Q], Pm[PM_DU0D]
+    q0 = y0[iq:iq + R]
+    dq0 = y0[idq:idq + R]
     for r in range(R):
-        for k in range(K):
-            u0[r] += phi[r, k] * y0[iF + k] / M
-            du0[r] += phi[r, k] * dF0[k] / M
-    sq = np.empty(R)
-    sdq = np.empty(R)
-    for r in range(R):
-        q, dq = y0[iq + r], y0[idq + r]
-        sq[r] = (Pm[PM_QQ, r] * q + Pm[PM_QD, r] * dq + Pm[PM_U0Q, r] * u0[r]
-                 + Pm[PM_DU0Q, r] * du0[r])
-        sdq[r] = (Pm[PM_DQ, r] * q + Pm[PM_DD, r] * dq + Pm[PM_U0D, r] * u0[r]
-                  + Pm[PM_DU0D, r] * du0[r])
-    wq = np.zeros(K)
-    wd = np.zeros(K)
+        sq[r] = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
+        sdq[r] = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
+    base = 2 * R
+    wq = ws[base:base + K]
+    wd = ws[base + K:base + 2 * K]
     for k in range(K):
-        for r in range(R):
-            wq[k] += phi[r, k] * sq[r]
-            wd[k] += phi[r, k] * sdq[r]
+        wq[k] = kn.vdot(phiT[k], sq)
+        wd[k] = kn.vdot(phiT[k], sdq)
     n = 2 * nc + 1
-    unk = np.empty(n)
+    base += 2 * K
+    unk = ws[base:base + n]
+    scale = ws[base + n:base + 2 * n]
+    res = ws[base + 2 * n:base + 3 * n]
+    res2 = ws[base + 3 * n:base + 4 * n]
+    jac = ws[base + 4 * n:base + 4 * n + n * n].reshape((n, n))
+    piv = iws[K:K + n]
     for a in range(nc):
         unk[a] = y0[iF + idx[a]]
         unk[nc + a] = dF0[idx[a]]
-    unk[2 * nc] = y0[ivx] + h * a0
-    scale = np.empty(n)
-    for a in range(nc):
         scale[a] = wts[iF + idx[a]]
         scale[nc + a] = wts[iF + idx[a]] / h
+    unk[2 * nc] = y0[ivx] + h * a0
     scale[2 * nc] = wts[ivx]
-    res = np.empty(n)
-    res2 = np.empty(n)
-    jac = np.empty((n, n))
-    piv = np.empty(n, dtype=np.int64)
     ok = False
-    for _it in range(HERMITE_NEWTON_MAX):
+    for it in range(HERMITE_NEWTON_MAX):
         _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
                   spos, prof, reg)
-        if _it > 0:  # chord iterations: the first Jacobian serves the step (nearly linear)
-            for a in range(n):
-                res[a] = -res[a]
-            lu_solve(jac, piv, res)
-            worst = 0.0
-            for c in range(n):
-                unk[c] += res[c]
-                e = abs(res[c]) / scale[c]
-                if e > worst:
-                    worst = e
-            if worst <= NEWTON_TOL_REL:
-                ok = True
-                break
-            continue
-        for c in range(n):
-            save = unk[c]
-            d = FD_REL * (abs(save) + scale[c] / NEWTON_TOL_REL)
-            unk[c] = save + d
-            _residual(t1, h, unk, res2, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp,
-                      stiff, spos, prof, reg)
-            unk[c] = save
-            for a in range(n):
-                jac[a, c] = (res2[a] - res[a]) / d
+        if it == 0:  # the Jacobian once per step (chord iterations: the step is near linear)
+            for col in range(n):
+                save = unk[col]
+                d = FD_REL * (abs(save) + scale[col] / NEWTON_TOL_REL)
+                unk[col] = save + d
+                _residual(t1, h, unk, res2, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off,
+                          fp, stiff, spos, prof, reg)
+                unk[col] = save
+                for a in range(n):
+                    jac[a, col] = (res2[a] - res[a]) / d
+            lu_factor(jac, piv)
         for a in range(n):
             res[a] = -res[a]
-        lu_factor(jac, piv)
         lu_solve(jac, piv, res)
         worst = 0.0
-        for c in range(n):
-            unk[c] += res[c]
-            e = abs(res[c]) / scale[c]
+        for col in range(n):
+            unk[col] += res[col]
+            e = abs(res[col]) / scale[col]
             if e > worst:
                 worst = e
         if worst <= NEWTON_TOL_REL:
@@ -444,28 +446,32 @@ def hermite_step(t0, h, y0, dF0, y1, dF1, Pm, Cc, off, fp, omega2, cdamp, phi, s
         dF1[idx[a]] = unk[nc + a]
         S1 += unk[a]
         dS1 += unk[nc + a]
-    for r in range(R):
-        u1 = 0.0
-        du1 = 0.0
-        for k in range(K):
-            u1 += phi[r, k] * y1[iF + k] / M
-            du1 += phi[r, k] * dF1[k] / M
-        y1[iq + r] = sq[r] + Pm[PM_U1Q, r] * u1 + Pm[PM_DU1Q, r] * du1
-        y1[idq + r] = sdq[r] + Pm[PM_U1D, r] * u1 + Pm[PM_DU1D, r] * du1
     z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
     y1[iz] = z1
     y1[ivz] = vz1
     y1[ix] = x1
     y1[ivx] = unk[2 * nc]
+    # the end's modal force and rate first (carried), then the modes with them
+    u1 = c1[N_CARRY:N_CARRY + R]
+    du1 = c1[N_CARRY + R:N_CARRY + 2 * R]
+    M = fp[kn.FP_MMODAL]
+    for r in range(R):
+        u1[r] = 0.0
+        du1[r] = 0.0
+    for k in range(K):
+        f = y1[iF + k] / M
+        df = dF1[k] / M
+        row = phiT[k]
+        for r in range(R):
+            u1[r] += row[r] * f
+            du1[r] += row[r] * df
+    u1q, u1d, du1q, du1d = Pm[PM_U1Q], Pm[PM_U1D], Pm[PM_DU1Q], Pm[PM_DU1D]
+    for r in range(R):
+        y1[iq + r] = sq[r] + u1q[r] * u1[r] + du1q[r] * du1[r]
+        y1[idq + r] = sdq[r] + u1d[r] * u1[r] + du1d[r] * du1[r]
+    carried(t1, y1, dF1, c1, off, fp, omega2, cdamp, phiT, spos, prof, reg, False)
     # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
-    p0 = np.empty(kn.N_ENERGY)
-    pd0 = np.empty(kn.N_ENERGY)
-    p1 = np.empty(kn.N_ENERGY)
-    pd1 = np.empty(kn.N_ENERGY)
-    powers_and_rates(t0, y0, dF0, off, fp, omega2, cdamp, phi, spos, prof, reg, p0, pd0)
-    powers_and_rates(t1, y1, dF1, off, fp, omega2, cdamp, phi, spos, prof, reg, p1, pd1)
-    iE = off[kn.OFF_IE]
     for i in range(kn.N_ENERGY):
-        y1[iE + i] = (y0[iE + i] + 0.5 * h * (p0[i] + p1[i])
-                      + h * h / 12.0 * (pd0[i] - pd1[i]))
+        y1[iE + i] = (y0[iE + i] + 0.5 * h * (c0[C_POWER + i] + c1[C_POWER + i])
+                      + h * h / 12.0 * (c0[C_POWER_RATE + i] - c1[C_POWER_RATE + i]))
     return True
