@@ -1,0 +1,105 @@
+"""The whole Hermite step (roughvib.solvers.hermite.hermite_step, in work): fourth order in
+the step, and the energy audit closes, on the paper scene's start (contact closed, block
+stuck and breaking away: the Feldmann law's steep rise)."""
+
+import numpy as np
+import pytest
+
+from roughvib.model import kernels as kn
+from roughvib.model.layout import ENERGY_TERMS
+from roughvib.model.system import assemble
+from roughvib.physics.surface.interp import profile_eval
+from roughvib.scene import load_scene
+from roughvib.solvers import hermite as hm
+from roughvib.solvers.checkpoint import start_state
+from roughvib.solvers.ida import _atol_vector
+
+SPAN = 1e-4     # s, from the start: integrated with steps of SPAN / n
+REF_STEPS = 256
+
+
+@pytest.fixture(scope="module")
+def paper():
+    system = assemble(load_scene("paper"), force_amplitude=0.9153599563724701)
+    reg, rf = system.new_regime_arrays()
+    _, y, _ = start_state(system, reg, rf, None, 0, 0)
+    return system, reg, y
+
+
+def _force_rate(system, y):
+    """dF of a consistent state: (1/s + C) dF = vz - phi^T dq + h'(s + x) v."""
+    lay = system.layout
+    fp = system.fp
+    x, v = y[lay.index("block.x")], y[lay.index("block.vx")]
+    rate = np.array([y[lay.index("block.vz")] - system.phi[:, k] @ y[lay.slice("plate.dq")]
+                     + profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX],
+                                    system.contact_s[k] + x)[1] * v
+                     for k in range(system.n_contacts)])
+    return np.linalg.solve(np.diag(1 / system.stiff) + system.cres, rate)
+
+
+def _integrate(paper, n):
+    system, reg0, y0 = paper
+    reg = reg0.copy()
+    R, K = system.n_modes, system.n_contacts
+    h = SPAN / n
+    Pm = np.zeros((hm.N_PMAP, R))
+    Cc = np.zeros((hm.N_CMAP, K, K))
+    hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
+                    system.fp[kn.FP_MMODAL], Pm, Cc)
+    phiT = np.ascontiguousarray(system.phi.T)
+    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    y, dF = y0.copy(), _force_rate(system, y0)
+    c = np.zeros(hm.N_CARRY + 2 * R)
+    args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
+    hm.carried(0.0, y, dF, c, *args, system.contact_s, system.prof, reg)
+    y1, dF1, c1 = y.copy(), dF.copy(), c.copy()
+    ws = np.zeros(2 * R + 10 * K + 4 + (2 * K + 1) ** 2)
+    iws = np.zeros(3 * K + 1, dtype=np.int64)
+    for i in range(n):
+        assert hm.hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
+                               system.contact_s, system.prof, reg, wts, ws, iws)
+        y, y1, dF, dF1, c, c1 = y1, y, dF1, dF, c1, c
+    return y
+
+
+def test_the_hermite_step_is_fourth_order(paper):
+    """Errors against a run of REF_STEPS steps fall 16-fold per halving of the step (the
+    ratios are printed on failure), in the contact force, the tangential velocity and the
+    plate (RMS over the modal velocities). The block breaks away from stick here, where the
+    Feldmann law's steep rise makes the tangential motion stiff (time constant about 1e-5 s),
+    so the steps are 1.25e-5 s and below."""
+    system = paper[0]
+    lay = system.layout
+    ref = _integrate(paper, REF_STEPS)
+    errs = []
+    for n in (8, 16, 32):
+        y = _integrate(paper, n)
+        errs.append([abs(y[lay.index("contact.force")] - ref[lay.index("contact.force")]),
+                     abs(y[lay.index("block.vx")] - ref[lay.index("block.vx")]),
+                     np.sqrt(np.mean((y[lay.slice("plate.dq")]
+                                      - ref[lay.slice("plate.dq")]) ** 2))])
+    errs = np.array(errs)
+    ratios = errs[:-1] / errs[1:]
+    assert np.all(ratios > 16 / 1.6) and np.all(ratios < 16 * 1.6), ratios
+
+
+def _audit(paper, n):
+    """Relative residual of the energy audit after n steps over SPAN."""
+    system, _, y0 = paper
+    y = _integrate(paper, n)
+    lay = system.layout
+    terms = {name: y[lay.index(f"energy.{name}")] for name in ENERGY_TERMS}
+    delta = system.stored_energy(y) - system.stored_energy(y0)
+    residual = (terms["excitation_work"] + terms["roughness_work"] - terms["friction_dissipation"]
+                - terms["tangential_damping"] - terms["vertical_damping"]
+                - terms["plate_damping"] - delta)
+    return residual / (sum(abs(v) for v in terms.values()) + abs(delta))
+
+
+def test_the_energy_audit_closes_at_fourth_order(paper):
+    """Work in = energy stored + dissipated: the audit's residual falls 16-fold per halving of
+    the step (the powers' Hermite quadrature and the states are both fourth order)."""
+    res = np.array([abs(_audit(paper, n)) for n in (8, 16, 32)])
+    ratios = res[:-1] / res[1:]
+    assert np.all(ratios > 16 / 1.6) and np.all(ratios < 16 * 1.6), (res, ratios)
