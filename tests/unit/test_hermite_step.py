@@ -55,7 +55,7 @@ def _integrate(paper, n):
     hm.carried(0.0, y, dF, c, *args, system.contact_s, system.prof, reg)
     y1, dF1, c1 = y.copy(), dF.copy(), c.copy()
     ws = np.zeros(2 * R + 10 * K + 4 + (2 * K + 1) ** 2)
-    iws = np.zeros(3 * K + 1, dtype=np.int64)
+    iws = np.zeros(3 * K + 2, dtype=np.int64)
     for i in range(n):
         assert hm.hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
                                system.contact_s, system.prof, reg, wts, ws, iws)

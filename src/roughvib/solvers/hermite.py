@@ -275,7 +275,11 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
 C_POWER = 0
 C_POWER_RATE = C_POWER + kn.N_ENERGY
 N_CARRY = C_POWER_RATE + kn.N_ENERGY
-#: scratch of hermite_step: float length >= 2 R + 10 K + 4 + (2 K + 1)^2, int length >= 3 K + 1
+#: scratch of hermite_step: float length >= 2 R + 10 K + 4 + (2 K + 1)^2, int length >= 3 K + 2;
+#: the Newton matrix stays in the float scratch from step to step, valid while
+#: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
+IWS_JAC_VALID = -1
+CHORD_MAX = 4   # chord iterations with one Jacobian before it is formed again
 
 
 @njit(cache=True)
@@ -406,10 +410,12 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     unk[2 * nc] = y0[ivx] + h * a0
     scale[2 * nc] = wts[ivx]
     ok = False
-    for it in range(HERMITE_NEWTON_MAX):
+    fresh = iws[IWS_JAC_VALID] == 0  # a Jacobian kept from an earlier step is reused
+    since = 0                        # chord iterations with the current Jacobian
+    for _it in range(HERMITE_NEWTON_MAX):
         _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
                   spos, prof, reg)
-        if it == 0:  # the Jacobian once per step (chord iterations: the step is near linear)
+        if fresh or since >= CHORD_MAX:
             for col in range(n):
                 save = unk[col]
                 d = FD_REL * (abs(save) + scale[col] / NEWTON_TOL_REL)
@@ -420,9 +426,13 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
                 for a in range(n):
                     jac[a, col] = (res2[a] - res[a]) / d
             lu_factor(jac, piv)
+            iws[IWS_JAC_VALID] = 1
+            fresh = False
+            since = 0
         for a in range(n):
             res[a] = -res[a]
         lu_solve(jac, piv, res)
+        since += 1
         worst = 0.0
         for col in range(n):
             unk[col] += res[col]
