@@ -64,6 +64,7 @@ from roughvib.model.system import System
 from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers import hermite as hm
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -728,8 +729,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
 
 
 @njit(cache=True)
-def _err_norm(ya, yb, y0, atol, rtol, n_modal):
-    """Step-doubling estimate (ya - yb) / 3 in tolerance weights: RMS over the modes, max
+def _err_norm(ya, yb, y0, atol, rtol, n_modal, div):
+    """Step-doubling estimate (ya - yb) / div in tolerance weights (div = 2^p - 1 for a
+    method of order p: 3 for the trapezoidal step, 15 for the Hermite step): RMS over the modes, max
     over everything else.
 
     The weights are IDA's (``rtol |y| + atol_i``). The first ``n_modal`` states (plate.q,
@@ -744,12 +746,12 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
     """
     n = ya.size
     worst = 0.0
-    acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal)
+    acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div)
     if not acc < 1e300:  # NaN or inf in a mode: the step is rejected as non-finite
         return 1e300
     for i in range(n_modal, n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
-        e = abs(ya[i] - yb[i]) / (3.0 * w)
+        e = abs(ya[i] - yb[i]) / (div * w)
         if not e < 1e300:  # NaN or inf anywhere: the step is rejected as non-finite
             return 1e300
         if e > worst:
@@ -762,8 +764,8 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
 
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH, error_model="numpy")
-def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
-    """sum over the first n_modal states of ((ya - yb) / (3 w))^2, w = rtol max(|y0|, |yb|)
+def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div):
+    """sum over the first n_modal states of ((ya - yb) / (div w))^2, w = rtol max(|y0|, |yb|)
     + atol, summed in whatever order vectorises; NaN or inf in any term makes it so.
 
     Written so that the loop vectorises: the larger magnitude by a conditional expression
@@ -775,7 +777,7 @@ def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
         a = abs(y0[i])
         b = abs(yb[i])
         w = rtol * (a if a > b else b) + atol[i]
-        e = (ya[i] - yb[i]) / (3.0 * w)
+        e = (ya[i] - yb[i]) / (div * w)
         acc += e * e
     return acc
 
@@ -948,7 +950,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             ist[I_LEV] = lev + 1
             continue
         # plate.q and plate.dq come first in the layout (StateLayout): 2 R modal states
-        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R])
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R], 3.0)
         if err > 1.0:
             ist[I_REJECT] += 1
             fac = SAFETY * err ** (-1.0 / 3.0)
@@ -1112,6 +1114,378 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 ist[I_LEV] -= 1
 
 
+# --- the Hermite step's loop (Feldmann law, force-driven block, no friction moment) ---------
+
+#: the Hermite loop's step maps: ``Pm`` (N_SLOTS, N_PMAP, R) and ``Cc`` (N_SLOTS, N_CMAP, K, K)
+#: of :func:`roughvib.solvers.hermite.hermite_slot` per cache slot, ``hslot`` (N_SLOTS,) the
+#: step of each slot (0: empty). Slot s holds the step ``2 h_max / 2^s``: slot 0 is the pair of
+#: two output intervals
+HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot"])
+#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers``, ``DF`` (N_DBUF, K)
+#: the contact force rates [N/s] and ``C`` (N_DBUF, n_carry) the carried data
+#: (:func:`roughvib.solvers.hermite.carried`) of the first six, ``G``, ``armed``, ``fired``
+HermiteBuffers = collections.namedtuple("HermiteBuffers", ["Y", "DF", "C", "G", "armed", "fired"])
+#: the Hermite step's scratch: ``ws`` float, ``iws`` int64 (the Newton matrix it keeps between
+#: steps lives there), ``hjac`` (1,) the step that matrix was formed for; ``jac`` (K, K),
+#: ``ipiv`` (K,) and ``rhs`` (2 K,) for :func:`force_rates`
+HermiteScratch = collections.namedtuple("HermiteScratch",
+                                        ["ws", "iws", "hjac", "jac", "ipiv", "rhs", "work"])
+#: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
+HERMITE_ORDER = 4
+HERMITE_FIRST_LEVEL = 9  # the first pair: 2 h_max / 2^9, the same first step as the old loop
+
+
+def hermite_applies(system: System) -> bool:
+    """Whether the Hermite step covers the scene: the Feldmann law (not set-valued), a
+    force-driven block, no friction moment."""
+    off = system.off
+    return bool(off[kn.OFF_IX] >= 0 and not kn.set_valued(off) and not kn.moment_on(off))
+
+
+def new_hermite_maps(R: int, K: int) -> HermiteMaps:
+    """An empty Hermite map cache for R modes and K contacts."""
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    return HermiteMaps(np.zeros((N_SLOTS, *pm_shape)), np.zeros((N_SLOTS, *cc_shape)),
+                       np.zeros(N_SLOTS))
+
+
+def new_hermite_scratch(work: np.ndarray, R: int, K: int) -> HermiteScratch:
+    """The Hermite step's scratch for R modes and K contacts, with the kernels' ``work``."""
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    return HermiteScratch(np.zeros(n_ws), np.zeros(n_iws, dtype=np.int64), np.zeros(1),
+                          np.zeros((max(K, 1), max(K, 1))), np.zeros(max(K, 1), dtype=np.int64),
+                          np.zeros(2 * max(K, 1)), work)
+
+
+@njit(cache=True)
+def force_rates(y, dF, off, fp, phiT, stiff, cres, spos, prof, reg, hs):
+    """The contact force rates dF (K,) [N/s] of a consistent state: the contact relation's
+    rate on the closed contacts, ``(1/k_c + C) dF = vz - phi^T q' + h'(s + x) vx`` (C the
+    residual compliance), 0 on the open ones. ``hs``: ``HermiteScratch``."""
+    _iq, idq, _iz, ivz, ix, ivx, _iF, _iE, R, K = kn.state_offsets(off)
+    jac, piv, rhs = hs.jac, hs.ipiv, hs.rhs
+    idx = rhs[K:2 * K]
+    x = y[ix]
+    v = y[ivx]
+    nc = 0
+    for k in range(K):
+        dF[k] = 0.0
+        if reg[kn.REG_CLOSED + k] == 1:
+            idx[nc] = k
+            nc += 1
+    if nc == 0:
+        return
+    for a in range(nc):
+        k = int(idx[a])
+        _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
+        rhs[a] = y[ivz] - kn.vdot(phiT[k], y[idq:idq + R]) + dh * v
+        for c in range(nc):
+            jac[a, c] = cres[k, int(idx[c])]
+        jac[a, a] += 1.0 / stiff[k]
+    lu_factor(jac[:nc, :nc], piv[:nc])
+    lu_solve(jac[:nc, :nc], piv[:nc], rhs[:nc])
+    for a in range(nc):
+        dF[int(idx[a])] = rhs[a]
+
+
+@njit(cache=True)
+def _hermite_fill(slot, h, omega2, cdamp, phi, cres, M, hp, ist):
+    """The Hermite maps of step h into cache slot ``slot`` of ``hp``."""
+    hm.hermite_slot(h, omega2, cdamp, phi, cres, M, hp.Pm[slot], hp.Cc[slot])
+    hp.hslot[slot] = h
+    ist[I_MAPS] += 1
+
+
+@njit(cache=True)
+def _hstep(t0, h, y0, dF0, c0, y1, dF1, c1, slot, hp, wts, off, fp, omega2, cdamp, phiT, stiff,
+           spos, prof, reg, hs, ist):
+    """:func:`roughvib.solvers.hermite.hermite_step` with the maps of ``slot``; the Newton
+    matrix it keeps is formed anew when the step length changes."""
+    if hs.hjac[0] != h:
+        hs.iws[hm.IWS_JAC_VALID] = 0
+        hs.hjac[0] = h
+    ist[I_STEP_EVALS] += 1
+    return hm.hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, hp.Pm[slot], hp.Cc[slot], off, fp,
+                           omega2, cdamp, phiT, stiff, spos, prof, reg, wts, hs.ws, hs.iws)
+
+
+@njit(cache=True)
+def _crossed(armed, g):
+    """Whether an armed margin is not positive in g."""
+    for i in range(g.size):
+        if armed[i] == 1 and not g[i] > 0.0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, rtol, off, fp,
+                  omega2, cdamp, phi, phiT, stiff, cres, spos, prof, reg, rf, hs):
+    """Locate the earliest crossing of an armed margin in the step of length L from
+    (tb, yb0) (margins gb0), whose end state ``ye`` (at ``t_end``) has margins ``buf.G[G_END]``
+    (ge): the Illinois method on the margin of re-taken Hermite steps, to ``ROOT_TOL``.
+    Leaves the state at the root in ``buf.Y[B_NOW]`` and its time in ``tt``, marks the roots
+    that crossed in ``buf.fired``; returns ``ADV_EVENT`` (or ``ADV_NEWTON``)."""
+    Y, DF, C, G, armed, fired = buf
+    y, yt, ybest, wts = Y[B_NOW], Y[B_TRIAL], Y[B_BEST], Y[B_WTS]
+    ft, fbest = DF[B_TRIAL], DF[B_BEST]
+    ct, cbest = C[B_TRIAL], C[B_BEST]
+    ge, gt = G[G_END], G[G_TRIAL]
+    M = fp[kn.FP_MMODAL]
+    work = hs.work
+    nstate = y.size
+    for i in range(nstate):
+        wts[i] = rtol * abs(yb0[i]) + atol[i]
+    theta_best = 1.0
+    have_best = False
+    for i in range(ge.size):
+        if armed[i] == 0 or ge[i] > 0.0 or not gb0[i] > 0.0:
+            continue
+        if have_best:
+            if gt[i] > 0.0:  # still open at the earliest root so far: later
+                continue
+            hi = theta_best
+            ghi = gt[i]
+        else:
+            hi = 1.0
+            ghi = ge[i]
+        lo = 0.0
+        glo = gb0[i]
+        side = 0
+        for _it in range(200):
+            if (hi - lo) * L <= ROOT_TOL:
+                break
+            th = (lo * ghi - hi * glo) / (ghi - glo)
+            w_ = hi - lo
+            if not (lo + 1e-3 * w_ < th < hi - 1e-3 * w_):
+                th = 0.5 * (lo + hi)
+            hs_ = th * L
+            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            ist[I_ROOT_EVALS] += 1
+            if not _hstep(tb, hs_, yb0, fb0, cb0, yt, ft, ct, SLOT_ROOT, hp, wts, off, fp,
+                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                tt[T_NOW] = tb
+                return ADV_NEWTON
+            kn.events(tb + hs_, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
+            g = gt[i]
+            if g > 0.0:
+                lo, glo = th, g
+                if side == 1:
+                    ghi *= 0.5
+                side = 1
+            else:
+                hi, ghi = th, g
+                if side == -1:
+                    glo *= 0.5
+                side = -1
+        if hi == 1.0:
+            for j in range(nstate):
+                ybest[j] = ye[j]
+        else:
+            hs_ = hi * L
+            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            if not _hstep(tb, hs_, yb0, fb0, cb0, ybest, fbest, cbest, SLOT_ROOT, hp, wts, off,
+                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                tt[T_NOW] = tb
+                return ADV_NEWTON
+        theta_best = hi
+        have_best = True
+        kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
+    for i in range(ge.size):
+        fired[i] = 1 if armed[i] == 1 and gt[i] <= 0.0 else 0
+    for j in range(nstate):
+        y[j] = ybest[j]
+    tt[T_NOW] = t_end if theta_best == 1.0 else tb + theta_best * L
+    return ADV_EVENT
+
+
+@njit(cache=True)
+def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, off, fp, omega2,
+                     cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
+                     track_latch, fresh, max_steps, cp_stride):
+    """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
+    arguments and return codes, with ``buf`` a ``HermiteBuffers``, ``hp`` a ``HermiteMaps``
+    and ``hs`` a ``HermiteScratch``.
+
+    Step doubling over a pair: one Hermite step of length 2 hk against two of hk, which are
+    kept (fourth order: the estimate is their difference / 15, no extrapolation). At the top
+    level a pair spans two output intervals, the mid point an output time; below, a pair lies
+    within one output interval, aligned to dyadic fractions of it as in ``_advance``. The
+    margins are checked at the mid and at the end, each half step accepted in turn (the mid
+    point's output and latch update before the second half's margins), and a crossing is
+    located by re-taken Hermite steps (``_hermite_root``).
+    """
+    Y, DF, C, G, armed, fired = buf
+    hslot = hp.hslot
+    work = hs.work
+    y, ya, ym, yb, wts = Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_WTS]
+    f, fa, fm, fb = DF[B_NOW], DF[B_FULL], DF[B_HALF], DF[B_END]
+    c, ca, cm, cb = C[B_NOW], C[B_FULL], C[B_HALF], C[B_END]
+    g0, gm, gb = G[G_START], G[G_HALF], G[G_END]
+    n = grid.size
+    M = fp[kn.FP_MMODAL]
+    n_ev = g0.size
+    t = tt[T_NOW]
+    model = (off, fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist)
+    if fresh:
+        force_rates(y, f, off, fp, phiT, stiff, cres, spos, prof, reg, hs)
+        hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
+        hs.iws[hm.IWS_JAC_VALID] = 0
+    k = ist[I_K]
+    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
+        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                          cres, spos, prof, reg, rf, work, track_latch)
+        k += 1
+        ist[I_IVL] = 0
+    ist[I_K] = k
+    if k >= n:
+        return ADV_DONE
+    if fresh:
+        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+        for i in range(n_ev):
+            armed[i] = 1 if g0[i] > 0.0 else 0
+    nstate = y.size
+    h_top = 2.0 * h_max
+    root_args = (hp, tt, ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos,
+                 prof, reg, rf, hs)
+    while True:
+        k = ist[I_K]
+        if k >= n:
+            return ADV_DONE
+        if k >= k_stop:
+            return ADV_CHUNK
+        lev = ist[I_LEV]
+        if lev >= NLEV - 1:
+            tt[T_NOW] = t
+            return ADV_MIN_STEP
+        ist[I_IVL] += 1
+        if ist[I_IVL] > max_steps:
+            tt[T_NOW] = t
+            return ADV_STALL
+        base = grid[k - 1]
+        rel = t - base
+        span = grid[k] - base
+        hl = h_top / 2.0 ** lev
+        two = False  # the pair spans this output interval and the next
+        if hl > span * (1.0 + 1e-9):
+            # not over a checkpoint row (cp_stride > 0): its state is written at the row, so
+            # that runs with and without checkpoints take the same steps
+            if rel <= 1e-9 * span and k + 1 < n and (cp_stride == 0 or k % cp_stride != 0):
+                two = True
+            else:
+                lev = lev + 1
+                hl = h_top / 2.0 ** lev
+        if two:
+            last = True
+            s_full = lev
+            s_half = lev + 1
+            target = span
+        else:
+            nxt = math.floor(rel / hl + 1e-7) + 1.0
+            target = nxt * hl
+            if target - rel < 0.01 * hl:
+                target += hl
+            last = target >= span * (1.0 - 1e-9)
+            if last:
+                target = span
+            s_full = lev
+            s_half = lev + 1
+            if abs(target - rel - hl) > 1e-7 * hl:
+                s_full = SLOT_FLY
+                s_half = SLOT_FLY2
+                _hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
+                _hermite_fill(s_half, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
+                              ist)
+        if s_full < SLOT_FLY:
+            if hslot[s_full] <= 0.0:
+                _hermite_fill(s_full, hl, omega2, cdamp, phi, cres, M, hp, ist)
+            if hslot[s_half] <= 0.0:
+                _hermite_fill(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, hp, ist)
+        h = hslot[s_full]
+        hh = hslot[s_half]
+        if two:
+            t_mid = grid[k]
+            t_new = grid[k + 1]
+        else:
+            t_mid = t + hh
+            t_new = base + target if not last else grid[k]
+        for i in range(nstate):
+            wts[i] = rtol * abs(y[i]) + atol[i]
+        # the two half steps (kept), then the full step (for the error estimate)
+        ok = _hstep(t, hh, y, f, c, ym, fm, cm, s_half, hp, wts, *model)
+        ok = ok and _hstep(t_mid, hh, ym, fm, cm, yb, fb, cb, s_half, hp, wts, *model)
+        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model)
+        if not ok:
+            ist[I_NEWTON_FAIL] += 1
+            ist[I_REJECT] += 1
+            ist[I_LEV] = lev + 1
+            continue
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R],
+                        2.0 ** HERMITE_ORDER - 1.0)
+        if err > 1.0:
+            ist[I_REJECT] += 1
+            fac = SAFETY * err ** (-1.0 / (HERMITE_ORDER + 1.0))
+            drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
+            ist[I_LEV] = lev + max(1, drop)
+            if err >= 1e300:
+                tt[T_NOW] = t
+                return ADV_NONFINITE
+            continue
+        ist[I_STEPS] += 1
+        ist[I_LEV] = lev
+        # the first half: its crossings, then (at an output time) its output
+        kn.events(t_mid, ym, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
+        if _crossed(armed, gm):
+            for i in range(n_ev):
+                gb[i] = gm[i]
+            return _hermite_root(t, hh, t_mid, y, f, c, g0, ym, buf, *root_args)
+        for i in range(n_ev):
+            if gm[i] > 0.0:
+                armed[i] = 1
+        if two:
+            _latch_and_output(t_mid, ym, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                              cres, spos, prof, reg, rf, work, track_latch)
+            ist[I_K] = k + 1
+            ist[I_IVL] = 0
+            if track_latch:
+                il = off[kn.OFF_K] + kn.ROOT_LATCH
+                gm[il] = kn.latch_margin(ym, off, fp, reg, rf)
+                if gm[il] > 0.0:
+                    armed[il] = 1
+        # the second half
+        kn.events(t_new, yb, gb, off, fp, phi, cres, spos, prof, reg, rf, work)
+        if _crossed(armed, gb):
+            return _hermite_root(t_mid, hh, t_new, ym, fm, cm, gm, yb, buf, *root_args)
+        for j in range(nstate):
+            y[j] = yb[j]
+        for j in range(f.size):
+            f[j] = fb[j]
+        for j in range(c.size):
+            c[j] = cb[j]
+        for i in range(n_ev):
+            g0[i] = gb[i]
+            if gb[i] > 0.0:
+                armed[i] = 1
+        t = t_new
+        tt[T_NOW] = t
+        if last:
+            kk = ist[I_K]
+            _latch_and_output(t, y, outs, kk, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                              cres, spos, prof, reg, rf, work, track_latch)
+            ist[I_K] = kk + 1
+            ist[I_IVL] = 0
+            if track_latch:
+                il = off[kn.OFF_K] + kn.ROOT_LATCH
+                g0[il] = kn.latch_margin(y, off, fp, reg, rf)
+                if g0[il] > 0.0:
+                    armed[il] = 1
+        # step size: up one level when the error is small and the time is on that level
+        if err * 2.0 ** (HERMITE_ORDER + 1) <= SAFETY ** (HERMITE_ORDER + 1) and lev > 0:
+            up = h_top / 2.0 ** (lev - 1)
+            if lev == 1 or _is_multiple(t - grid[ist[I_K] - 1], up) or last:
+                ist[I_LEV] = lev - 1
+
+
 def _check_scene(system: System) -> None:
     scene = system.scene
     law = scene.friction.law
@@ -1186,9 +1560,17 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    prop = new_propagators(R, K, bool(kn.moment_on(off)))
-    buf = Buffers(Y, D, U, G, armed, fired)
-    scratch = new_scratch(work, R, K)
+    hermite = hermite_applies(system)
+    if hermite:  # the fourth-order Hermite step (_advance_hermite)
+        DF = np.zeros((N_DBUF, K))
+        C = np.zeros((N_DBUF, hm.carry_size(R, K)))
+        maps = new_hermite_maps(R, K)
+        buf = HermiteBuffers(Y, DF, C, G, armed, fired)
+        scratch = new_hermite_scratch(work, R, K)
+    else:
+        maps = new_propagators(R, K, bool(kn.moment_on(off)))
+        buf = Buffers(Y, D, U, G, armed, fired)
+        scratch = new_scratch(work, R, K)
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
@@ -1201,7 +1583,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     if resume is None:
         kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
-        ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
+        # the first step h_max / 256 (the Hermite loop's levels count pairs of 2 h_max)
+        ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else 8
         book = EventBook(system, regime, reg, rf)
         book.log_initial_phase(0.0, y)
         fresh = True
@@ -1210,8 +1593,15 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         outs[:resume.k] = resume.outputs
         ist[:] = loop["ist"]
         tt[T_NOW] = resume.t
-        D[B_NOW] = loop["d"]
-        U[B_NOW] = loop["u"]
+        if hermite:
+            DF[B_NOW] = loop["dF"]
+            C[B_NOW] = loop["c"]
+            scratch.ws[:] = loop["ws"]
+            scratch.iws[:] = loop["iws"]
+            scratch.hjac[:] = loop["hjac"]
+        else:
+            D[B_NOW] = loop["d"]
+            U[B_NOW] = loop["u"]
         G[G_START] = loop["g"]
         armed[:] = loop["armed"]
         prev = dict(resume.stats)
@@ -1229,6 +1619,18 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
 
+    def loop_state() -> dict:
+        # everything the step loop carries (and the Hermite step's kept Newton matrix), so
+        # that a resumed run is bit-identical
+        state = {"recent": list(book.recent), "ist": ist.copy(), "g": G[G_START].copy(),
+                 "armed": armed.copy()}
+        if hermite:
+            state.update(dF=DF[B_NOW].copy(), c=C[B_NOW].copy(), ws=scratch.ws.copy(),
+                         iws=scratch.iws.copy(), hjac=scratch.hjac.copy())
+        else:
+            state.update(d=D[B_NOW].copy(), u=U[B_NOW].copy())
+        return state
+
     def write_cp() -> None:
         k = int(ist[I_K])
         st = dict(book.stats)
@@ -1238,8 +1640,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             scene_toml=scene_toml, t=float(tt[T_NOW]), k=k, y=y.copy(), y_initial=y_initial,
             outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
             regime=copy.deepcopy(regime), events=list(book.events), stats=st,
-            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[B_NOW].copy(),
-                  "u": U[B_NOW].copy(), "g": G[G_START].copy(), "armed": armed.copy()},
+            loop=loop_state(),
             force_amplitude=float(system.force_amplitude),
             base_dir=str(Path(scene.base_dir).resolve()),
             inputs=input_fingerprint(scene_toml, system.profile.stats)))
@@ -1250,9 +1651,15 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
                 k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
                              + cp_stride + 1)
-            code = _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, scfg.rtol, outs, off,
-                            fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg,
-                            rf, scratch, track_latch, fresh, budget)
+            if hermite:
+                code = _advance_hermite(tt, ist, k_stop, grid, h_max, buf, maps, atol,
+                                        scfg.rtol, outs, off, fpa, omega2, cdamp, phi, phiT,
+                                        phi_obs, stiff, cres, spos, prof, reg, rf, scratch,
+                                        track_latch, fresh, budget, cp_stride)
+            else:
+                code = _advance(tt, ist, k_stop, grid, h_max, buf, maps, atol, scfg.rtol, outs,
+                                off, fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
+                                prof, reg, rf, scratch, track_latch, fresh, budget)
             fresh = False
             regime.v_ext = float(rf[kn.RF_VEXT])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])

@@ -69,18 +69,25 @@ def _monomial_series(w2, c, h, W):
         a = h * v1 / (n + 1.0)
         b = h * (-w2 * v0 - c * v1) / (n + 1.0)
         v0, v1 = a, b
+        # the sums start at v_0 = e2 (and |v0| / h is v's first component's scale): the
+        # remaining terms are below 1e-18 of the leading ones once v is (|A h| <= 2 + c h:
+        # v_n falls by omega h / n per term from there on)
+        if abs(v0) < 1e-18 * h and abs(v1) < 1e-18:
+            break
     scale = h
+    fact = 1.0  # k!
     for k in range(N_MONOMIALS):
-        scale_k = scale * math.gamma(k + 1.0)
+        scale_k = scale * fact
         W[k, MODE_Q] *= scale_k
         W[k, MODE_DQ] *= scale_k
         scale *= h
+        fact *= k + 1.0
 
 
 @njit(cache=True)
-def _monomial_particular(w2, c, h, P00, P01, P10, P11, W):
-    """W[k, :] from the polynomial particular solution (omega h above the series limit)."""
-    a = np.zeros(N_MONOMIALS + 2)
+def _monomial_particular(w2, c, h, P00, P01, P10, P11, W, a):
+    """W[k, :] from the polynomial particular solution (omega h above the series limit);
+    ``a``: scratch of length N_MONOMIALS + 2."""
     for k in range(N_MONOMIALS):
         for j in range(N_MONOMIALS + 2):
             a[j] = 0.0
@@ -116,6 +123,7 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
         ``d = (u(0), u'(0), u(h), u'(h))`` in the order ``HOLD_*``.
     """
     W = np.zeros((N_MONOMIALS, 2))
+    a = np.zeros(N_MONOMIALS + 2)
     R = omega2.size
     for r in range(R):
         w2 = omega2[r]
@@ -132,7 +140,7 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
         if math.sqrt(w2) * h <= HERMITE_SERIES_LIMIT:
             _monomial_series(w2, c, h, W)
         else:
-            _monomial_particular(w2, c, h, p00, p01, p10, p11, W)
+            _monomial_particular(w2, c, h, p00, p01, p10, p11, W, a)
         Phi[r, MODE_Q, MODE_Q] = p00
         Phi[r, MODE_Q, MODE_DQ] = p01
         Phi[r, MODE_DQ, MODE_Q] = p10
@@ -485,3 +493,19 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         y1[iE + i] = (y0[iE + i] + 0.5 * h * (c0[C_POWER + i] + c1[C_POWER + i])
                       + h * h / 12.0 * (c0[C_POWER_RATE + i] - c1[C_POWER_RATE + i]))
     return True
+
+
+def slot_shapes(R: int, K: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """Shapes of one step length's maps for R modes and K contacts: ``Pm`` and ``Cc`` of
+    :func:`hermite_slot`."""
+    return (N_PMAP, R), (N_CMAP, K, K)
+
+
+def carry_size(R: int, K: int) -> int:
+    """Length of the carried data ``c`` of :func:`carried` for R modes and K contacts."""
+    return N_CARRY + 2 * R
+
+
+def scratch_sizes(R: int, K: int) -> tuple[int, int]:
+    """Lengths of :func:`hermite_step`'s float and int scratch for R modes and K contacts."""
+    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 2
