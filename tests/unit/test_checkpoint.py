@@ -287,6 +287,20 @@ def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_pa
     assert a.summary["solver"]["steps"] == c.summary["solver"]["steps"]
 
 
+def test_hermite_loop_checkpoints_at_an_odd_row_count_end_a_pair(tmp_path):
+    """The Hermite step's loop steps over pairs of output intervals that start on even rows:
+    an interval of an odd number of rows (1001) is rounded up to an even one (1002), so that a
+    checkpoint ends a pair, and the runs with, without and resumed are bit-identical."""
+    scene = roughvib.load_scene("paper", {**FAST, "solver.method": "adaptive-modal",
+                                          "output.duration": 0.03,
+                                          "output.checkpoint_interval": 0.01001})
+    a = simulate(scene, checkpoint_dir=tmp_path)
+    assert a.ok and a.summary["solver"]["checkpoints"] == 2
+    assert read_checkpoint(tmp_path).k == 2 * 1002 + 1
+    _assert_identical(a, resume(tmp_path))
+    _assert_as_without_checkpoints(a, scene)
+
+
 def test_adaptive_modal_resumes_a_coulomb_stick_phase_identically(tmp_path):
     """The set-valued law's regime (stick, the friction force that holds the block) is part of
     the checkpoint: resumed in the middle of a stick phase, the run is bit-identical to one

@@ -1133,6 +1133,7 @@ HermiteScratch = collections.namedtuple("HermiteScratch",
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
 HERMITE_FIRST_LEVEL = 9  # the first pair: 2 h_max / 2^9, the same first step as the old loop
+PAIR_ROWS = 2  # output intervals of the top level's pair
 
 
 def hermite_applies(system: System) -> bool:
@@ -1302,7 +1303,7 @@ def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, 
 @njit(cache=True)
 def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, off, fp, omega2,
                      cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
-                     track_latch, fresh, max_steps, cp_stride):
+                     track_latch, fresh, max_steps):
     """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
     arguments and return codes, with ``buf`` a ``HermiteBuffers``, ``hp`` a ``HermiteMaps``
     and ``hs`` a ``HermiteScratch``.
@@ -1368,9 +1369,9 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
         hl = h_top / 2.0 ** lev
         two = False  # the pair spans this output interval and the next
         if hl > span * (1.0 + 1e-9):
-            # not over a checkpoint row (cp_stride > 0): its state is written at the row, so
-            # that runs with and without checkpoints take the same steps
-            if rel <= 1e-9 * span and k + 1 < n and (cp_stride == 0 or k % cp_stride != 0):
+            # pairs start on even rows, so that the rows they step over do not depend on
+            # where the loop stopped (chunks, checkpoints: their rows are even) or an event
+            if rel <= 1e-9 * span and k + 1 < n and (k - 1) % PAIR_ROWS == 0:
                 two = True
             else:
                 lev = lev + 1
@@ -1503,7 +1504,8 @@ def _check_scene(system: System) -> None:
 
 def solve_adaptive_modal(system: System, *, progress: bool | None = None,
                          checkpoint_dir: str | os.PathLike | None = None,
-                         resume: Checkpoint | None = None) -> RawSolution:
+                         resume: Checkpoint | None = None,
+                         hermite: bool | None = None) -> RawSolution:
     """Integrate with the adaptive exact-modal scheme (see the module docstring).
 
     Parameters
@@ -1519,6 +1521,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         runs, are bit-identical.
     resume : Checkpoint, optional
         Continue from this checkpoint (of the same scene) instead of starting at t = 0.
+    hermite : bool, optional
+        Step with the fourth-order Hermite step (``_advance_hermite``) or the second-order
+        trapezoidal one (``_advance``); default: the Hermite step where it applies
+        (:func:`hermite_applies`). True where it does not apply is an error.
 
     Returns
     -------
@@ -1560,7 +1566,11 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    hermite = hermite_applies(system)
+    if hermite is None:
+        hermite = hermite_applies(system)
+    elif hermite and not hermite_applies(system):
+        raise ValueError("the Hermite step covers the Feldmann law with a force-driven block "
+                         "and no friction moment only")
     if hermite:  # the fourth-order Hermite step (_advance_hermite)
         DF = np.zeros((N_DBUF, K))
         C = np.zeros((N_DBUF, hm.carry_size(R, K)))
@@ -1576,6 +1586,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     cp_interval = out_cfg.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
+    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a pair (even rows)
+        cp_stride += PAIR_ROWS - cp_stride % PAIR_ROWS
     scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
     budget = step_budget(out_cfg.step)
 
@@ -1655,7 +1667,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
                 code = _advance_hermite(tt, ist, k_stop, grid, h_max, buf, maps, atol,
                                         scfg.rtol, outs, off, fpa, omega2, cdamp, phi, phiT,
                                         phi_obs, stiff, cres, spos, prof, reg, rf, scratch,
-                                        track_latch, fresh, budget, cp_stride)
+                                        track_latch, fresh, budget)
             else:
                 code = _advance(tt, ist, k_stop, grid, h_max, buf, maps, atol, scfg.rtol, outs,
                                 off, fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,

@@ -45,6 +45,10 @@ N_HOLD = 4
 MODE_Q = 0
 MODE_DQ = 1
 N_MONOMIALS = 4        # tau^0 .. tau^3
+#: rows of the monomial responses W (N_MONOMIALS, 2): the response to tau^k is row k
+W_1, W_T, W_T2, W_T3 = 0, 1, 2, 3
+#: the particular solution's coefficients a_j of tau^j: p(0) = a[A_CONST], p'(0) = a[A_LIN]
+A_CONST, A_LIN = 0, 1
 #: omega h up to which the maps come from the power series. The particular solution above it
 #: subtracts terms of size k! / w^(2(k+1))-ish that are (omega h)^-(2(k+1)) k! times the
 #: result's h^(k+1) scale relative: at omega h = 2 at most 6 / 2^8 of a digit's worth for k=3
@@ -102,8 +106,8 @@ def _monomial_particular(w2, c, h, P00, P01, P10, P11, W, a):
             ph = ph * h + a[j]
         for j in range(k, 0, -1):
             dph = dph * h + j * a[j]
-        W[k, MODE_Q] = ph - (P00 * a[0] + P01 * a[1])
-        W[k, MODE_DQ] = dph - (P10 * a[0] + P11 * a[1])
+        W[k, MODE_Q] = ph - (P00 * a[A_CONST] + P01 * a[A_LIN])
+        W[k, MODE_DQ] = dph - (P10 * a[A_CONST] + P11 * a[A_LIN])
 
 
 @njit(cache=True)
@@ -146,7 +150,7 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
         Phi[r, MODE_DQ, MODE_Q] = p10
         Phi[r, MODE_DQ, MODE_DQ] = p11
         for i in range(2):
-            w0, w1, w2k, w3 = W[0, i], W[1, i], W[2, i], W[3, i]
+            w0, w1, w2k, w3 = W[W_1, i], W[W_T, i], W[W_T2, i], W[W_T3, i]
             H[r, HOLD_U0, i] = w0 - 3.0 * w2k / (h * h) + 2.0 * w3 / (h * h * h)
             H[r, HOLD_DU0, i] = w1 - 2.0 * w2k / h + w3 / (h * h)
             H[r, HOLD_U1, i] = 3.0 * w2k / (h * h) - 2.0 * w3 / (h * h * h)
