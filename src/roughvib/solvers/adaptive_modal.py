@@ -65,6 +65,7 @@ from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers import hermite as hm
+from roughvib.solvers import hermite_dense as hd
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -182,14 +183,17 @@ B_END = 3     # the second half step
 B_TRIAL = 4   # a root-search trial
 B_BEST = 5    # the state at the root
 B_WTS = 6     # tolerance weights (Y only)
-N_YBUF = 7
+B_DENSE = 7   # a state inside a step (the Hermite loop's dense output; Y and DF only)
+N_YBUF = 8
 N_DBUF = 6
 # rows of the margin buffer G: step start, half step, step end, latest trial
 G_START = 0
 G_HALF = 1
 G_END = 2
 G_TRIAL = 3
-N_GBUF = 4
+G_DENSE = 4   # the Hermite loop: at a dense output time ...
+G_LOW = 5     # ... and at the last point accepted (a root search's lower bracket)
+N_GBUF = 6
 T_NOW = 0      # the one entry of the time box ``tt``
 FIRST_ROW = 0  # the output row of t = 0
 
@@ -1135,13 +1139,15 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
 
 # --- the Hermite step's loop (Feldmann law, force-driven block, no friction moment) ---------
 
-#: the Hermite loop's step maps: ``Pm`` (N_SLOTS, N_PMAP, R) and ``Cc`` (N_SLOTS, N_CMAP, K, K)
-#: of :func:`roughvib.solvers.hermite.hermite_slot` per cache slot, ``hslot`` (N_SLOTS,) the
-#: step of each slot (0: empty). Slot s holds the step ``2 h_max / 2^s``: slot 0 is the pair of
-#: two output intervals
-HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot"])
-#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers``, ``DF`` (N_DBUF, K)
-#: the contact force rates [N/s] and ``C`` (N_DBUF, n_carry) the carried data
+#: the Hermite loop's step maps: ``Pm`` and ``Cc`` (N_SLOTS, ...) of
+#: :func:`roughvib.solvers.hermite.hermite_slot` per cache slot, ``hslot`` (N_SLOTS,) the
+#: step of each slot (0: empty). Slot s holds the step ``h_top / 2^s``: slot 0 is the top
+#: level's pair (``PAIR_ROWS`` output intervals). ``Pd`` (N_SLOTS, N_DMAP, R) the dense maps
+#: (:func:`roughvib.solvers.hermite_dense.dense_maps`) of a slot's step at the first output
+#: time inside it, ``hdense`` (N_SLOTS,) the step they were computed for (0: none)
+HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot", "Pd", "hdense"])
+#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers``, ``DF`` (N_YBUF, K)
+#: their contact force rates [N/s] and ``C`` (N_DBUF, n_carry) the carried data
 #: (:func:`roughvib.solvers.hermite.carried`) of the first six, ``G``, ``armed``, ``fired``
 HermiteBuffers = collections.namedtuple("HermiteBuffers", ["Y", "DF", "C", "G", "armed", "fired"])
 #: the Hermite step's scratch: ``ws`` float, ``iws`` int64 (the Newton matrix it keeps between
@@ -1152,7 +1158,7 @@ HermiteScratch = collections.namedtuple("HermiteScratch",
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
 HERMITE_FIRST_LEVEL = 9  # the first pair: 2 h_max / 2^9, the same first step as the old loop
-PAIR_ROWS = 2  # output intervals of the top level's pair
+PAIR_ROWS = 4  # output intervals of the top level's pair
 
 
 def hermite_applies(system: System) -> bool:
@@ -1166,7 +1172,7 @@ def new_hermite_maps(R: int, K: int) -> HermiteMaps:
     """An empty Hermite map cache for R modes and K contacts."""
     pm_shape, cc_shape = hm.slot_shapes(R, K)
     return HermiteMaps(np.zeros((N_SLOTS, *pm_shape)), np.zeros((N_SLOTS, *cc_shape)),
-                       np.zeros(N_SLOTS))
+                       np.zeros(N_SLOTS), np.zeros((N_SLOTS, hd.N_DMAP, R)), np.zeros(N_SLOTS))
 
 
 def new_hermite_scratch(work: np.ndarray, R: int, K: int) -> HermiteScratch:
@@ -1239,27 +1245,30 @@ def _crossed(armed, g):
 
 
 @njit(cache=True)
-def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, rtol, off, fp,
-                  omega2, cdamp, phi, phiT, stiff, cres, spos, prof, reg, rf, hs):
-    """Locate the earliest crossing of an armed margin in the step of length L from
-    (tb, yb0) (margins gb0), whose end state ``ye`` (at ``t_end``) has margins ``buf.G[G_END]``
-    (ge): the Illinois method on the margin of re-taken Hermite steps, to ``ROOT_TOL``.
-    Leaves the state at the root in ``buf.Y[B_NOW]`` and its time in ``tt``, marks the roots
-    that crossed in ``buf.fired``; returns ``ADV_EVENT`` (or ``ADV_NEWTON``)."""
+def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye, buf, hp, tt,
+                  ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos, prof,
+                  reg, rf, hs):
+    """Locate the earliest crossing of an armed margin between the fractions ``th_lo`` and
+    ``th_hi`` of the step of length L [s] from (tb, yb0): ``glo_at`` are the margins at
+    ``th_lo`` (all armed ones positive), ``ghi_at`` those at ``th_hi`` (the state ``ye``, at
+    ``t_end``). The Illinois method on the margin of Hermite steps re-taken from the step's
+    start, to ``ROOT_TOL``. Leaves the state at the root in ``buf.Y[B_NOW]`` and its time in
+    ``tt``, marks the roots that crossed in ``buf.fired``; returns ``ADV_EVENT`` (or
+    ``ADV_NEWTON``)."""
     Y, DF, C, G, armed, fired = buf
     y, yt, ybest, wts = Y[B_NOW], Y[B_TRIAL], Y[B_BEST], Y[B_WTS]
     ft, fbest = DF[B_TRIAL], DF[B_BEST]
     ct, cbest = C[B_TRIAL], C[B_BEST]
-    ge, gt = G[G_END], G[G_TRIAL]
+    gt = G[G_TRIAL]
     M = fp[kn.FP_MMODAL]
     work = hs.work
     nstate = y.size
     for i in range(nstate):
         wts[i] = rtol * abs(yb0[i]) + atol[i]
-    theta_best = 1.0
+    theta_best = th_hi
     have_best = False
-    for i in range(ge.size):
-        if armed[i] == 0 or ge[i] > 0.0 or not gb0[i] > 0.0:
+    for i in range(ghi_at.size):
+        if armed[i] == 0 or ghi_at[i] > 0.0 or not glo_at[i] > 0.0:
             continue
         if have_best:
             if gt[i] > 0.0:  # still open at the earliest root so far: later
@@ -1267,10 +1276,10 @@ def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, 
             hi = theta_best
             ghi = gt[i]
         else:
-            hi = 1.0
-            ghi = ge[i]
-        lo = 0.0
-        glo = gb0[i]
+            hi = th_hi
+            ghi = ghi_at[i]
+        lo = th_lo
+        glo = glo_at[i]
         side = 0
         for _it in range(200):
             if (hi - lo) * L <= ROOT_TOL:
@@ -1295,7 +1304,7 @@ def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, 
                 if side == -1:
                     glo *= 0.5
                 side = -1
-        if hi == 1.0:
+        if hi == th_hi:
             for j in range(nstate):
                 ybest[j] = ye[j]
         else:
@@ -1308,12 +1317,35 @@ def _hermite_root(tb, L, t_end, yb0, fb0, cb0, gb0, ye, buf, hp, tt, ist, atol, 
         theta_best = hi
         have_best = True
         kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
-    for i in range(ge.size):
+    for i in range(ghi_at.size):
         fired[i] = 1 if armed[i] == 1 and gt[i] <= 0.0 else 0
     for j in range(nstate):
         y[j] = ybest[j]
-    tt[T_NOW] = t_end if theta_best == 1.0 else tb + theta_best * L
+    tt[T_NOW] = t_end if theta_best == th_hi else tb + theta_best * L
     return ADV_EVENT
+
+
+@njit(cache=True)
+def _accept_point(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
+                  spos, prof, reg, rf, work, track_latch, ist, output):
+    """Arm the margins g (of the state y at time t) that are positive and, at an output time
+    (``output``), write the next output row and update the latch and its margin in g."""
+    for i in range(g.size):
+        if g[i] > 0.0:
+            armed[i] = 1
+    if not output:
+        return
+    k = ist[I_K]
+    _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+                      prof, reg, rf, work, track_latch)
+    ist[I_K] = k + 1
+    ist[I_IVL] = 0
+    if track_latch:
+        # the Feldmann latch's margin depends on the extremum just updated
+        il = off[kn.OFF_K] + kn.ROOT_LATCH
+        g[il] = kn.latch_margin(y, off, fp, reg, rf)
+        if g[il] > 0.0:
+            armed[il] = 1
 
 
 @njit(cache=True)
@@ -1326,24 +1358,31 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
 
     Step doubling over a pair: one Hermite step of length 2 hk against two of hk, which are
     kept (fourth order: the estimate is their difference / 15, no extrapolation). At the top
-    level a pair spans two output intervals, the mid point an output time; below, a pair lies
-    within one output interval, aligned to dyadic fractions of it as in ``_advance``. The
-    margins are checked at the mid and at the end, each half step accepted in turn (the mid
-    point's output and latch update before the second half's margins), and a crossing is
-    located by re-taken Hermite steps (``_hermite_root``).
+    level a pair spans ``PAIR_ROWS`` output intervals and starts on a row divisible by that
+    number; each half then spans ``PAIR_ROWS / 2`` intervals, the output times inside a half
+    written from its dense state (:mod:`roughvib.solvers.hermite_dense`). One level down a pair
+    spans two intervals (its mid an output time), and below, a pair lies within one output
+    interval, aligned to dyadic fractions of it as in ``_advance``. The margins are checked
+    at every output time and half-step end in turn, each accepted (armed, written, latch
+    updated) before the next is looked at, and a crossing is located by Hermite steps re-taken
+    from the start of its half (``_hermite_root``), bracketed by the last point accepted.
     """
     Y, DF, C, G, armed, fired = buf
     hslot = hp.hslot
     work = hs.work
-    y, ya, ym, yb, wts = Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_WTS]
-    f, fa, fm, fb = DF[B_NOW], DF[B_FULL], DF[B_HALF], DF[B_END]
+    y, ya, ym, yb, yd, wts = Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_DENSE], Y[B_WTS]
+    f, fa, fm, fb, fd = DF[B_NOW], DF[B_FULL], DF[B_HALF], DF[B_END], DF[B_DENSE]
     c, ca, cm, cb = C[B_NOW], C[B_FULL], C[B_HALF], C[B_END]
-    g0, gm, gb = G[G_START], G[G_HALF], G[G_END]
+    g0, gm, gb, gd, gl = G[G_START], G[G_HALF], G[G_END], G[G_DENSE], G[G_LOW]
     n = grid.size
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
     t = tt[T_NOW]
     model = (off, fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist)
+    root_args = (hp, tt, ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos,
+                 prof, reg, rf, hs)
+    point_args = (outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
+                  work, track_latch, ist)
     if fresh:
         force_rates(y, f, off, fp, phiT, stiff, cres, spos, prof, reg, hs)
         hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
@@ -1362,9 +1401,10 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
         for i in range(n_ev):
             armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
-    h_top = 2.0 * h_max
-    root_args = (hp, tt, ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos,
-                 prof, reg, rf, hs)
+    span = grid[1] - grid[0]
+    # the top level's pair: PAIR_ROWS output intervals when the largest step is the output
+    # step, else two largest steps within an interval
+    h_top = PAIR_ROWS * h_max if h_max >= span * (1.0 - 1e-9) else 2.0 * h_max
     while True:
         k = ist[I_K]
         if k >= n:
@@ -1383,20 +1423,21 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
         rel = t - base
         span = grid[k] - base
         hl = h_top / 2.0 ** lev
-        two = False  # the pair spans this output interval and the next
-        if hl > span * (1.0 + 1e-9):
-            # pairs start on even rows, so that the rows they step over do not depend on
-            # where the loop stopped (chunks, checkpoints: their rows are even) or an event
-            if rel <= 1e-9 * span and k + 1 < n and (k - 1) % PAIR_ROWS == 0:
-                two = True
-            else:
-                lev = lev + 1
-                hl = h_top / 2.0 ** lev
-        if two:
+        # a pair over several output intervals starts on a row divisible by their number
+        # (so that the rows it steps over do not depend on where the loop stopped: chunks,
+        # checkpoints, events) and ends within the grid; otherwise one level down
+        rows = 0
+        while hl > span * (1.0 + 1e-9):
+            r_ = int(round(hl / span))
+            if rel <= 1e-9 * span and (k - 1) % r_ == 0 and k - 1 + r_ < n:
+                rows = r_
+                break
+            lev += 1
+            hl *= 0.5
+        s_full = lev
+        s_half = lev + 1
+        if rows > 0:
             last = True
-            s_full = lev
-            s_half = lev + 1
-            target = span
         else:
             nxt = math.floor(rel / hl + 1e-7) + 1.0
             target = nxt * hl
@@ -1405,8 +1446,6 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
             last = target >= span * (1.0 - 1e-9)
             if last:
                 target = span
-            s_full = lev
-            s_half = lev + 1
             if abs(target - rel - hl) > 1e-7 * hl:
                 s_full = SLOT_FLY
                 s_half = SLOT_FLY2
@@ -1420,12 +1459,17 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
                 _hermite_fill(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, hp, ist)
         h = hslot[s_full]
         hh = hslot[s_half]
-        if two:
-            t_mid = grid[k]
-            t_new = grid[k + 1]
+        half_rows = rows // 2
+        if rows > 0:
+            t_mid = grid[k - 1 + half_rows]
+            t_new = grid[k - 1 + rows]
         else:
             t_mid = t + hh
             t_new = base + target if not last else grid[k]
+        if half_rows > 1 and hp.hdense[s_half] != hh:  # output times inside the halves
+            hd.dense_maps(omega2, cdamp, hh, hh / half_rows, hp.Pd[s_half])
+            hp.hdense[s_half] = hh
+            ist[I_MAPS] += 1
         for i in range(nstate):
             wts[i] = rtol * abs(y[i]) + atol[i]
         # the two half steps (kept), then the full step (for the error estimate)
@@ -1450,29 +1494,39 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
             continue
         ist[I_STEPS] += 1
         ist[I_LEV] = lev
-        # the first half: its crossings, then (at an output time) its output
-        kn.events(t_mid, ym, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
-        if _crossed(armed, gm):
+        # the points of the pair in time order: in each half its inner output times (dense
+        # states), then its end; each checked for crossings, then accepted
+        for half in range(2):
+            if half == 0:
+                ts, ys_, fs_, cs_, gs_ = t, y, f, c, g0
+                te, ye, ge = t_mid, ym, gm
+                fe, ce = fm, cm
+            else:
+                ts, ys_, fs_, cs_, gs_ = t_mid, ym, fm, cm, gm
+                te, ye, ge = t_new, yb, gb
+                fe, ce = fb, cb
             for i in range(n_ev):
-                gb[i] = gm[i]
-            return _hermite_root(t, hh, t_mid, y, f, c, g0, ym, buf, *root_args)
-        for i in range(n_ev):
-            if gm[i] > 0.0:
-                armed[i] = 1
-        if two:
-            _latch_and_output(t_mid, ym, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
-                              cres, spos, prof, reg, rf, work, track_latch)
-            ist[I_K] = k + 1
-            ist[I_IVL] = 0
-            if track_latch:
-                il = off[kn.OFF_K] + kn.ROOT_LATCH
-                gm[il] = kn.latch_margin(ym, off, fp, reg, rf)
-                if gm[il] > 0.0:
-                    armed[il] = 1
-        # the second half
-        kn.events(t_new, yb, gb, off, fp, phi, cres, spos, prof, reg, rf, work)
-        if _crossed(armed, gb):
-            return _hermite_root(t_mid, hh, t_new, ym, fm, cm, gm, yb, buf, *root_args)
+                gl[i] = gs_[i]
+            th_lo = 0.0
+            for j in range(1, half_rows):
+                th = j / half_rows
+                td = grid[ist[I_K]]
+                hd.dense_state(th, hh, ts, ys_, fs_, cs_, ye, fe, ce, hp.Pd[s_half], yd, fd,
+                               off, fp, phiT, reg)
+                kn.events(td, yd, gd, off, fp, phi, cres, spos, prof, reg, rf, work)
+                if _crossed(armed, gd):
+                    return _hermite_root(ts, hh, th_lo, th, td, ys_, fs_, cs_, gl, gd, yd,
+                                         buf, *root_args)
+                _accept_point(td, yd, gd, armed, *point_args, True)
+                th_lo = th
+                for i in range(n_ev):
+                    gl[i] = gd[i]
+            kn.events(te, ye, ge, off, fp, phi, cres, spos, prof, reg, rf, work)
+            if _crossed(armed, ge):
+                return _hermite_root(ts, hh, th_lo, 1.0, te, ys_, fs_, cs_, gl, ge, ye, buf,
+                                     *root_args)
+            at_output = rows > 0 or (half == 1 and last)
+            _accept_point(te, ye, ge, armed, *point_args, at_output)
         for j in range(nstate):
             y[j] = yb[j]
         for j in range(f.size):
@@ -1481,25 +1535,12 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
             c[j] = cb[j]
         for i in range(n_ev):
             g0[i] = gb[i]
-            if gb[i] > 0.0:
-                armed[i] = 1
         t = t_new
         tt[T_NOW] = t
-        if last:
-            kk = ist[I_K]
-            _latch_and_output(t, y, outs, kk, off, fp, omega2, cdamp, phi, phi_obs, stiff,
-                              cres, spos, prof, reg, rf, work, track_latch)
-            ist[I_K] = kk + 1
-            ist[I_IVL] = 0
-            if track_latch:
-                il = off[kn.OFF_K] + kn.ROOT_LATCH
-                g0[il] = kn.latch_margin(y, off, fp, reg, rf)
-                if g0[il] > 0.0:
-                    armed[il] = 1
         # step size: up one level when the error is small and the time is on that level
         if err * 2.0 ** (HERMITE_ORDER + 1) <= SAFETY ** (HERMITE_ORDER + 1) and lev > 0:
             up = h_top / 2.0 ** (lev - 1)
-            if lev == 1 or _is_multiple(t - grid[ist[I_K] - 1], up) or last:
+            if up > span * (1.0 + 1e-9) or _is_multiple(t - grid[ist[I_K] - 1], up) or last:
                 ist[I_LEV] = lev - 1
 
 
@@ -1588,7 +1629,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         raise ValueError("the Hermite step covers the Feldmann law with a force-driven block "
                          "and no friction moment only")
     if hermite:  # the fourth-order Hermite step (_advance_hermite)
-        DF = np.zeros((N_DBUF, K))
+        DF = np.zeros((N_YBUF, K))
         C = np.zeros((N_DBUF, hm.carry_size(R, K)))
         maps = new_hermite_maps(R, K)
         buf = HermiteBuffers(Y, DF, C, G, armed, fired)
