@@ -1157,8 +1157,18 @@ HermiteScratch = collections.namedtuple("HermiteScratch",
                                         ["ws", "iws", "hjac", "jac", "ipiv", "rhs", "work"])
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
-HERMITE_FIRST_LEVEL = 9  # the first pair: 2 h_max / 2^9, the same first step as the old loop
+HERMITE_FIRST_LEVEL = 10  # the first pair: h_top / 2^10 (4e-5 s / 1024 at a 1e-5 s output step)
 PAIR_ROWS = 4  # output intervals of the top level's pair
+
+
+def hermite_top_pair(output_step: float, max_step: float) -> float:
+    """The Hermite loop's top-level pair [s]: twice its largest step, which is
+    ``PAIR_ROWS / 2`` output steps, halved until it is within ``max_step`` (0: no limit)."""
+    half = output_step * PAIR_ROWS / 2
+    if max_step > 0:
+        while half > max_step * (1 + 1e-12):
+            half *= 0.5
+    return 2.0 * half
 
 
 def hermite_applies(system: System) -> bool:
@@ -1349,12 +1359,13 @@ def _accept_point(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, st
 
 
 @njit(cache=True)
-def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, off, fp, omega2,
+def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
                      cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
                      track_latch, fresh, max_steps):
     """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
-    arguments and return codes, with ``buf`` a ``HermiteBuffers``, ``hp`` a ``HermiteMaps``
-    and ``hs`` a ``HermiteScratch``.
+    arguments and return codes, with ``h_top`` the top level's pair (twice the largest step:
+    :func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,
+    ``hp`` a ``HermiteMaps`` and ``hs`` a ``HermiteScratch``.
 
     Step doubling over a pair: one Hermite step of length 2 hk against two of hk, which are
     kept (fourth order: the estimate is their difference / 15, no extrapolation). At the top
@@ -1401,10 +1412,6 @@ def _advance_hermite(tt, ist, k_stop, grid, h_max, buf, hp, atol, rtol, outs, of
         for i in range(n_ev):
             armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
-    span = grid[1] - grid[0]
-    # the top level's pair: PAIR_ROWS output intervals when the largest step is the output
-    # step, else two largest steps within an interval
-    h_top = PAIR_ROWS * h_max if h_max >= span * (1.0 - 1e-9) else 2.0 * h_max
     while True:
         k = ist[I_K]
         if k >= n:
@@ -1604,6 +1611,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         while h_max > scfg.max_step * (1 + 1e-12):
             h_max *= 0.5
 
+    h_top = hermite_top_pair(out_cfg.step, scfg.max_step)
     reg, rf = system.new_regime_arrays()
     regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
     check_tolerances(system, y_initial)
@@ -1643,7 +1651,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     cp_interval = out_cfg.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
-    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a pair (even rows)
+    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a pair
         cp_stride += PAIR_ROWS - cp_stride % PAIR_ROWS
     scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
     budget = step_budget(out_cfg.step)
@@ -1652,7 +1660,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     if resume is None:
         kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
-        # the first step h_max / 256 (the Hermite loop's levels count pairs of 2 h_max)
+        # the first step h_max / 256 (the Hermite loop: its first pair about as long)
         ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else 8
         book = EventBook(system, regime, reg, rf)
         book.log_initial_phase(0.0, y)
@@ -1721,7 +1729,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
                 k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
                              + cp_stride + 1)
             if hermite:
-                code = _advance_hermite(tt, ist, k_stop, grid, h_max, buf, maps, atol,
+                code = _advance_hermite(tt, ist, k_stop, grid, h_top, buf, maps, atol,
                                         scfg.rtol, outs, off, fpa, omega2, cdamp, phi, phiT,
                                         phi_obs, stiff, cres, spos, prof, reg, rf, scratch,
                                         track_latch, fresh, budget)
@@ -1779,7 +1787,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         "restarts": int(book.stats.get("restarts", 0)),
         "wall_time": wall_before + time.perf_counter() - wall0,
         "cpu_time": cpu_before + time.process_time() - cpu0,
-        "events_total": len(book.events), "largest_step": h_max,
+        "events_total": len(book.events),
+        "largest_step": 0.5 * h_top if hermite else h_max,
     })
     k_done = int(ist[I_K])
     return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
