@@ -33,7 +33,8 @@ from roughvib.model.krylov import lu_factor, lu_solve
 from roughvib.physics.friction import feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 
-__all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "hermite_maps"]
+__all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "carried", "carry_size",
+           "hermite_maps", "hermite_slot", "hermite_step", "scratch_sizes", "slot_shapes"]
 
 #: positions of the hold's four data in the step maps' ``H[r, HOLD_*, :]``
 HOLD_U0 = 0    #: u(0)
@@ -280,6 +281,21 @@ N_CARRY = C_POWER_RATE + kn.N_ENERGY
 #: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
 IWS_JAC_VALID = -1
 CHORD_MAX = 4   # chord iterations with one Jacobian before it is formed again
+
+
+def slot_shapes(R, K):
+    """Shapes of a step length's maps for :func:`hermite_slot`: ``(pm_shape, cc_shape)``."""
+    return (N_PMAP, R), (N_CMAP, K, K)
+
+
+def carry_size(R, K):
+    """Length of the carried data ``c`` of :func:`carried` / :func:`hermite_step`."""
+    return N_CARRY + 2 * R
+
+
+def scratch_sizes(R, K):
+    """Lengths ``(n_ws, n_iws)`` of :func:`hermite_step`'s float and int scratch."""
+    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 2
 
 
 @njit(cache=True)
