@@ -43,19 +43,21 @@ def _integrate(paper, n):
     reg = reg0.copy()
     R, K = system.n_modes, system.n_contacts
     h = SPAN / n
-    Pm = np.zeros((hm.N_PMAP, R))
-    Cc = np.zeros((hm.N_CMAP, K, K))
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm = np.zeros(pm_shape)
+    Cc = np.zeros(cc_shape)
     hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
                     system.fp[kn.FP_MMODAL], Pm, Cc)
     phiT = np.ascontiguousarray(system.phi.T)
     wts = _atol_vector(system) + 1e-5 * np.abs(y0)
     y, dF = y0.copy(), _force_rate(system, y0)
-    c = np.zeros(hm.N_CARRY + 2 * R)
+    c = np.zeros(hm.carry_size(R, K))
     args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
     hm.carried(0.0, y, dF, c, *args, system.contact_s, system.prof, reg)
     y1, dF1, c1 = y.copy(), dF.copy(), c.copy()
-    ws = np.zeros(2 * R + 10 * K + 4 + (2 * K + 1) ** 2)
-    iws = np.zeros(3 * K + 2, dtype=np.int64)
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    ws = np.zeros(n_ws)
+    iws = np.zeros(n_iws, dtype=np.int64)
     for i in range(n):
         assert hm.hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
                                system.contact_s, system.prof, reg, wts, ws, iws)

@@ -30,7 +30,7 @@ from numba import njit
 
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
-from roughvib.physics.friction import feldmann_mu
+from roughvib.physics.friction import feldmann_mu, feldmann_mu_d2
 from roughvib.physics.surface.interp import profile_eval
 
 __all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "carried", "carry_size",
@@ -162,7 +162,6 @@ CM_WF, CM_WD, CM_VF, CM_VD = 0, 1, 2, 3
 N_CMAP = 4
 #: Newton of the Hermite step
 HERMITE_NEWTON_MAX = 30
-FD_REL = 1e-7         # relative step of the finite-difference Jacobian
 NEWTON_TOL_REL = 1e-6  # Newton update, in units of the tolerance weights
 
 
@@ -242,23 +241,45 @@ def _block_end(h, z0, vz0, az0, jz0, S1, dS1, fp):
 
 @njit(cache=True)
 def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-              spos, prof, reg):
-    """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``;
-    returns x1."""
+              spos, prof, reg, jac, with_jac):
+    """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``, and with
+    ``with_jac`` their Jacobian in ``jac`` (n, n); returns x1."""
     iz, ivz, ix, ivx = off[kn.OFF_IZ], off[kn.OFF_IVZ], off[kn.OFF_IX], off[kn.OFF_IVX]
     x0, v0 = y0[ix], y0[ivx]
+    m = fp[kn.FP_MASS]
+    r2 = fp[kn.FP_R2]
+    w = fp[kn.FP_OMEGA]
     v1 = unk[2 * nc]
     S1 = 0.0
     dS1 = 0.0
     for a in range(nc):
         S1 += unk[a]
         dS1 += unk[nc + a]
-    a1, j1 = tangential_rates(t1, v1, S1, dS1, off, fp, reg)
-    x1 = x0 + 0.5 * h * (v0 + v1) + h * h / 12.0 * (a0 - a1)
+    mu, dmu, d2mu = feldmann_mu_d2(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                                   fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1],
+                                   fp[kn.FP_A2])
+    a1 = (fp[kn.FP_T0] * math.cos(w * t1) - mu * S1 - r2 * v1) / m
+    j1 = (-fp[kn.FP_T0] * w * math.sin(w * t1) - dmu * a1 * S1 - mu * dS1 - r2 * a1) / m
+    h12 = h * h / 12.0
+    x1 = x0 + 0.5 * h * (v0 + v1) + h12 * (a0 - a1)
     z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
+    # derivatives: of a1, j1, x1 in v1 and in each F_c (not in the rates: a1's is 0, j1's -mu/m)
+    a_v = (-dmu * S1 - r2) / m
+    a_f = -mu / m
+    j_v = (-d2mu * a1 * S1 - dmu * a_v * S1 - dmu * dS1 - r2 * a_v) / m
+    j_f = (-dmu * (a_f * S1 + a1) - r2 * a_f) / m
+    x_v = 0.5 * h - h12 * a_v
+    x_f = -h12 * a_f
+    # of the block's end (linear in S1, dS1)
+    rho = fp[kn.FP_R1] / m
+    den = 1.0 + 0.5 * h * rho + h12 * rho * rho
+    vz_s = (-0.5 * h / m - h12 * rho / m) / den
+    vz_d = h12 / m / den
+    z_s = 0.5 * h * vz_s + h12 * (rho * vz_s + 1.0 / m)
+    z_d = 0.5 * h * vz_d + h12 * rho * vz_d
     for a in range(nc):
         k = idx[a]
-        hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+        hh, dh, d2h = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
         w = wq[k]
         wdot = wd[k]
         for c in range(nc):
@@ -267,7 +288,23 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
             wdot += Cc[CM_VF, k, j] * unk[c] + Cc[CM_VD, k, j] * unk[nc + c]
         res[a] = unk[a] / stiff[k] - (z1 - w + hh)
         res[nc + a] = unk[nc + a] / stiff[k] - (vz1 - wdot + dh * v1)
-    res[2 * nc] = v1 - v0 - 0.5 * h * (a0 + a1) - h * h / 12.0 * (j0 - j1)
+        if with_jac:
+            for c in range(nc):
+                j = idx[c]
+                jac[a, c] = Cc[CM_WF, k, j] - z_s - dh * x_f
+                jac[a, nc + c] = Cc[CM_WD, k, j] - z_d
+                jac[nc + a, c] = Cc[CM_VF, k, j] - vz_s - d2h * x_f * v1
+                jac[nc + a, nc + c] = Cc[CM_VD, k, j] - vz_d
+            jac[a, a] += 1.0 / stiff[k]
+            jac[nc + a, nc + a] += 1.0 / stiff[k]
+            jac[a, 2 * nc] = -dh * x_v
+            jac[nc + a, 2 * nc] = -(d2h * x_v * v1 + dh)
+    res[2 * nc] = v1 - v0 - 0.5 * h * (a0 + a1) - h12 * (j0 - j1)
+    if with_jac:
+        for c in range(nc):
+            jac[2 * nc, c] = -0.5 * h * a_f + h12 * j_f
+            jac[2 * nc, nc + c] = -h12 * mu / m
+        jac[2 * nc, 2 * nc] = 1.0 - 0.5 * h * a_v + h12 * j_v
     return x1
 
 
@@ -276,10 +313,12 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
 C_POWER = 0
 C_POWER_RATE = C_POWER + kn.N_ENERGY
 N_CARRY = C_POWER_RATE + kn.N_ENERGY
-#: scratch of hermite_step: float length >= 2 R + 10 K + 4 + (2 K + 1)^2, int length >= 3 K + 2;
-#: the Newton matrix stays in the float scratch from step to step, valid while
+#: scratch of hermite_step: lengths by :func:`scratch_sizes`; the Newton matrix stays in the
+#: float scratch from step to step, valid while
 #: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
 IWS_JAC_VALID = -1
+IWS_ITERS = -2        # Newton iterations of the last step (a statistic for the caller)
+IWS_JACS = -3         # Newton matrices formed in the last step
 CHORD_MAX = 4   # chord iterations with one Jacobian before it is formed again
 
 
@@ -295,7 +334,7 @@ def carry_size(R, K):
 
 def scratch_sizes(R, K):
     """Lengths ``(n_ws, n_iws)`` of :func:`hermite_step`'s float and int scratch."""
-    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 2
+    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 4
 
 
 @njit(cache=True)
@@ -373,7 +412,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
     Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
     at the end. Unknowns: the closed contacts' forces and force rates and the tangential
-    velocity, by Newton with a finite-difference Jacobian (chord iterations after the first).
+    velocity, by Newton with the analytic Jacobian, kept from step to step while valid (chord
+    iterations, formed again after ``CHORD_MAX`` of them).
     The energy integrals by the Hermite quadrature of the powers. ``dF`` (K,): contact force
     rates [N/s] (0 on open contacts); ``c``: :func:`carried` of the state (c1 is filled);
     ``ws``, ``iws``: float and int scratch (lengths above). Scope of this version: the
@@ -415,7 +455,6 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     unk = ws[base:base + n]
     scale = ws[base + n:base + 2 * n]
     res = ws[base + 2 * n:base + 3 * n]
-    res2 = ws[base + 3 * n:base + 4 * n]
     jac = ws[base + 4 * n:base + 4 * n + n * n].reshape((n, n))
     piv = iws[K:K + n]
     for a in range(nc):
@@ -428,21 +467,17 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     ok = False
     fresh = iws[IWS_JAC_VALID] == 0  # a Jacobian kept from an earlier step is reused
     since = 0                        # chord iterations with the current Jacobian
+    iws[IWS_ITERS] = 0
+    iws[IWS_JACS] = 0
     for _it in range(HERMITE_NEWTON_MAX):
+        iws[IWS_ITERS] += 1
+        form = fresh or since >= CHORD_MAX
         _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-                  spos, prof, reg)
-        if fresh or since >= CHORD_MAX:
-            for col in range(n):
-                save = unk[col]
-                d = FD_REL * (abs(save) + scale[col] / NEWTON_TOL_REL)
-                unk[col] = save + d
-                _residual(t1, h, unk, res2, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off,
-                          fp, stiff, spos, prof, reg)
-                unk[col] = save
-                for a in range(n):
-                    jac[a, col] = (res2[a] - res[a]) / d
+                  spos, prof, reg, jac, form)
+        if form:
             lu_factor(jac, piv)
             iws[IWS_JAC_VALID] = 1
+            iws[IWS_JACS] += 1
             fresh = False
             since = 0
         for a in range(n):
@@ -461,7 +496,7 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     if not ok:
         return False
     x1 = _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-                   spos, prof, reg)
+                   spos, prof, reg, jac, False)
     S1 = 0.0
     dS1 = 0.0
     for k in range(K):
