@@ -337,6 +337,111 @@ def scratch_sizes(R, K):
     return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 4
 
 
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _free_pass(Pm, q0, dq0, u0, du0, phiT, sq, sdq, wq, wd):
+    """The free response and the start's hold of every mode (sq, sdq), and their plate
+    displacement and velocity at the contacts (wq, wd): one pass over the modes for one
+    contact."""
+    R = q0.size
+    K = phiT.shape[0]
+    pqq, pqd, pdq, pdd = Pm[PM_QQ], Pm[PM_QD], Pm[PM_DQ], Pm[PM_DD]
+    u0q, u0d, du0q, du0d = Pm[PM_U0Q], Pm[PM_U0D], Pm[PM_DU0Q], Pm[PM_DU0D]
+    if K == 1:
+        row = phiT[0]
+        aq = 0.0
+        ad = 0.0
+        for r in range(R):
+            a = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
+            b = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
+            sq[r] = a
+            sdq[r] = b
+            aq += row[r] * a
+            ad += row[r] * b
+        wq[0] = aq
+        wd[0] = ad
+        return
+    for r in range(R):
+        sq[r] = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
+        sdq[r] = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
+    for k in range(K):
+        row = phiT[k]
+        aq = 0.0
+        ad = 0.0
+        for r in range(R):
+            aq += row[r] * sq[r]
+            ad += row[r] * sdq[r]
+        wq[k] = aq
+        wd[k] = ad
+
+
+@njit(cache=True)
+def _modal_force(phiT, F, dF, M, u, du):
+    """u = phi F / M, du = phi dF / M [m/s^2, m/s^3] (R,) of the contact forces F, rates dF."""
+    R = u.size
+    for r in range(R):
+        u[r] = 0.0
+        du[r] = 0.0
+    for k in range(phiT.shape[0]):
+        f = F[k] / M
+        df = dF[k] / M
+        row = phiT[k]
+        for r in range(R):
+            u[r] += row[r] * f
+            du[r] += row[r] * df
+
+
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _end_pass(Pm, sq, sdq, phiT, F, dF, M, u, du, q, dq, omega2, cdamp, formed):
+    """The end's modal force and rate (u, du; already there when ``formed``), the modes at the
+    end (q, dq) and the plate-damping power's sums ``(sum c dq^2, sum c dq (u - c dq - w^2 q))``:
+    one pass over the modes for one contact."""
+    R = sq.size
+    K = phiT.shape[0]
+    u1q, u1d, du1q, du1d = Pm[PM_U1Q], Pm[PM_U1D], Pm[PM_DU1Q], Pm[PM_DU1D]
+    pd = 0.0
+    pdd = 0.0
+    if K == 1 and not formed:
+        row = phiT[0]
+        f = F[0] / M
+        df = dF[0] / M
+        for r in range(R):
+            ur = row[r] * f
+            dur = row[r] * df
+            u[r] = ur
+            du[r] = dur
+            qr = sq[r] + u1q[r] * ur + du1q[r] * dur
+            dqr = sdq[r] + u1d[r] * ur + du1d[r] * dur
+            q[r] = qr
+            dq[r] = dqr
+            cdq = cdamp[r] * dqr
+            pd += cdq * dqr
+            pdd += cdq * (ur - cdq - omega2[r] * qr)
+        return pd, pdd
+    if not formed:
+        _modal_force(phiT, F, dF, M, u, du)
+    for r in range(R):
+        qr = sq[r] + u1q[r] * u[r] + du1q[r] * du[r]
+        dqr = sdq[r] + u1d[r] * u[r] + du1d[r] * du[r]
+        q[r] = qr
+        dq[r] = dqr
+        cdq = cdamp[r] * dqr
+        pd += cdq * dqr
+        pdd += cdq * (u[r] - cdq - omega2[r] * qr)
+    return pd, pdd
+
+
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _plate_damping_sums(dq, q, u, omega2, cdamp):
+    """``(sum c dq^2, sum c dq (u - c dq - w^2 q))`` over the modes."""
+    pd = 0.0
+    pdd = 0.0
+    for r in range(dq.size):
+        cdq = cdamp[r] * dq[r]
+        pd += cdq * dq[r]
+        pdd += cdq * (u[r] - cdq - omega2[r] * q[r])
+    return pd, pdd
+
+
 @njit(cache=True)
 def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_force=True):
     """Fill ``c`` with what a step needs of its start state (and the next step of its end):
@@ -356,16 +461,7 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
         S += y[iF + k]
         dS += dF[k]
     if with_force:
-        for r in range(R):
-            u[r] = 0.0
-            du[r] = 0.0
-        for k in range(K):
-            f = y[iF + k] / M
-            df = dF[k] / M
-            row = phiT[k]
-            for r in range(R):
-                u[r] += row[r] * f
-                du[r] += row[r] * df
+        _modal_force(phiT, y[iF:iF + K], dF, M, u, du)
     v = y[ivx]
     x = y[ix]
     vz = y[ivz]
@@ -383,13 +479,7 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     c[C_POWER_RATE + kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
     c[C_POWER + kn.E_VERTICAL_DAMPING] = r1 * vz * vz
     c[C_POWER_RATE + kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
-    pd = 0.0
-    pdd = 0.0
-    for r in range(R):
-        dq = y[idq + r]
-        cdq = cdamp[r] * dq
-        pd += cdq * dq
-        pdd += cdq * (u[r] - cdq - omega2[r] * y[iq + r])
+    pd, pdd = _plate_damping_sums(y[idq:idq + R], y[iq:iq + R], u, omega2, cdamp)
     c[C_POWER + kn.E_PLATE_DAMPING] = M * pd
     c[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
     pr = 0.0
@@ -437,19 +527,10 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     du0 = c0[N_CARRY + R:N_CARRY + 2 * R]
     sq = ws[0:R]
     sdq = ws[R:2 * R]
-    pqq, pqd, pdq, pdd = Pm[PM_QQ], Pm[PM_QD], Pm[PM_DQ], Pm[PM_DD]
-    u0q, u0d, du0q, du0d = Pm[PM_U0Q], Pm[PM_U0D], Pm[PM_DU0Q], Pm[PM_DU0D]
-    q0 = y0[iq:iq + R]
-    dq0 = y0[idq:idq + R]
-    for r in range(R):
-        sq[r] = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
-        sdq[r] = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
     base = 2 * R
     wq = ws[base:base + K]
     wd = ws[base + K:base + 2 * K]
-    for k in range(K):
-        wq[k] = kn.vdot(phiT[k], sq)
-        wd[k] = kn.vdot(phiT[k], sdq)
+    _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], u0, du0, phiT, sq, sdq, wq, wd)
     n = 2 * nc + 1
     base += 2 * K
     unk = ws[base:base + n]
@@ -516,20 +597,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     u1 = c1[N_CARRY:N_CARRY + R]
     du1 = c1[N_CARRY + R:N_CARRY + 2 * R]
     M = fp[kn.FP_MMODAL]
-    for r in range(R):
-        u1[r] = 0.0
-        du1[r] = 0.0
-    for k in range(K):
-        f = y1[iF + k] / M
-        df = dF1[k] / M
-        row = phiT[k]
-        for r in range(R):
-            u1[r] += row[r] * f
-            du1[r] += row[r] * df
-    u1q, u1d, du1q, du1d = Pm[PM_U1Q], Pm[PM_U1D], Pm[PM_DU1Q], Pm[PM_DU1D]
-    for r in range(R):
-        y1[iq + r] = sq[r] + u1q[r] * u1[r] + du1q[r] * du1[r]
-        y1[idq + r] = sdq[r] + u1d[r] * u1[r] + du1d[r] * du1[r]
+    _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, u1, du1, y1[iq:iq + R],
+              y1[idq:idq + R], omega2, cdamp, False)
     carried(t1, y1, dF1, c1, off, fp, omega2, cdamp, phiT, spos, prof, reg, False)
     # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
     for i in range(kn.N_ENERGY):
