@@ -105,3 +105,32 @@ def test_the_energy_audit_closes_at_fourth_order(paper):
     res = np.array([abs(_audit(paper, n)) for n in (8, 16, 32)])
     ratios = res[:-1] / res[1:]
     assert np.all(ratios > 16 / 1.6) and np.all(ratios < 16 * 1.6), (res, ratios)
+
+
+def test_the_step_carries_what_carried_gives_of_its_end(paper):
+    """The step fills its end's carried data (powers, their rates, tangential acceleration and
+    jerk, modal force and rate) from its own work; carried() of the end state computes them
+    afresh: they agree to round-off."""
+    system, reg, y0 = paper
+    R, K = system.n_modes, system.n_contacts
+    h = SPAN / 8
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm, Cc = np.zeros(pm_shape), np.zeros(cc_shape)
+    hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
+                    system.fp[kn.FP_MMODAL], Pm, Cc)
+    phiT = np.ascontiguousarray(system.phi.T)
+    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
+    dF0 = _force_rate(system, y0)
+    c0 = np.zeros(hm.carry_size(R, K))
+    hm.carried(0.0, y0, dF0, c0, *args, system.contact_s, system.prof, reg)
+    y1, dF1, c1 = y0.copy(), dF0.copy(), np.zeros_like(c0)
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    assert hm.hermite_step(0.0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, *args, system.stiff,
+                           system.contact_s, system.prof, reg, wts, np.zeros(n_ws),
+                           np.zeros(n_iws, dtype=np.int64))
+    fresh = np.zeros_like(c1)
+    hm.carried(h, y1, dF1, fresh, *args, system.contact_s, system.prof, reg)
+    np.testing.assert_allclose(c1[:hm.N_CARRY], fresh[:hm.N_CARRY], rtol=1e-11, atol=0)
+    big = np.max(np.abs(fresh[hm.N_CARRY:]))
+    np.testing.assert_allclose(c1[hm.N_CARRY:], fresh[hm.N_CARRY:], rtol=0, atol=1e-14 * big)

@@ -240,15 +240,16 @@ def _block_end(h, z0, vz0, az0, jz0, S1, dS1, fp):
 
 
 @njit(cache=True)
-def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-              spos, prof, reg, jac, with_jac):
+def _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp,
+              stiff, spos, prof, reg, jac, with_jac, dhs):
     """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``, and with
-    ``with_jac`` their Jacobian in ``jac`` (n, n); returns x1."""
+    ``with_jac`` their Jacobian in ``jac`` (n, n), at the end's excitation force ``texc1`` and
+    its rate; the profile's slope and curvature at the closed contacts in ``dhs`` (2, K).
+    Returns x1 and the tangential a1, j1, mu, dmu at v1."""
     iz, ivz, ix, ivx = off[kn.OFF_IZ], off[kn.OFF_IVZ], off[kn.OFF_IX], off[kn.OFF_IVX]
     x0, v0 = y0[ix], y0[ivx]
     m = fp[kn.FP_MASS]
     r2 = fp[kn.FP_R2]
-    w = fp[kn.FP_OMEGA]
     v1 = unk[2 * nc]
     S1 = 0.0
     dS1 = 0.0
@@ -258,8 +259,7 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
     mu, dmu, d2mu = feldmann_mu_d2(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
                                    fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1],
                                    fp[kn.FP_A2])
-    a1 = (fp[kn.FP_T0] * math.cos(w * t1) - mu * S1 - r2 * v1) / m
-    j1 = (-fp[kn.FP_T0] * w * math.sin(w * t1) - dmu * a1 * S1 - mu * dS1 - r2 * a1) / m
+    a1, j1 = _tangential(texc1, dtexc1, v1, mu, dmu, S1, dS1, fp)
     h12 = h * h / 12.0
     x1 = x0 + 0.5 * h * (v0 + v1) + h12 * (a0 - a1)
     z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
@@ -280,6 +280,8 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
     for a in range(nc):
         k = idx[a]
         hh, dh, d2h = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+        dhs[0, k] = dh
+        dhs[1, k] = d2h
         w = wq[k]
         wdot = wd[k]
         for c in range(nc):
@@ -305,14 +307,17 @@ def _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, f
             jac[2 * nc, c] = -0.5 * h * a_f + h12 * j_f
             jac[2 * nc, nc + c] = -h12 * mu / m
         jac[2 * nc, 2 * nc] = 1.0 - 0.5 * h * a_v + h12 * j_v
-    return x1
+    return x1, a1, j1, mu, dmu
 
 
-#: layout of the step's carried data ``c`` (length N_CARRY + 2 R): the powers and their
-#: rates, then the modal force u = phi F / M and its rate at the state (R each)
+#: layout of the step's carried data ``c`` (length :func:`carry_size`): the powers and their
+#: rates, the block's tangential acceleration and its rate, then the modal force
+#: u = phi F / M and its rate at the state (R each)
 C_POWER = 0
 C_POWER_RATE = C_POWER + kn.N_ENERGY
-N_CARRY = C_POWER_RATE + kn.N_ENERGY
+C_ACC = C_POWER_RATE + kn.N_ENERGY    # tangential acceleration [m/s^2]
+C_JERK = C_ACC + 1                    # its rate [m/s^3]
+N_CARRY = C_JERK + 1
 #: scratch of hermite_step: lengths by :func:`scratch_sizes`; the Newton matrix stays in the
 #: float scratch from step to step, valid while
 #: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
@@ -334,7 +339,7 @@ def carry_size(R, K):
 
 def scratch_sizes(R, K):
     """Lengths ``(n_ws, n_iws)`` of :func:`hermite_step`'s float and int scratch."""
-    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 4
+    return 2 * R + 4 * K + 3 * (2 * K + 1) + (2 * K + 1) ** 2, 3 * K + 4
 
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH)
@@ -443,15 +448,43 @@ def _plate_damping_sums(dq, q, u, omega2, cdamp):
 
 
 @njit(cache=True)
+def _tangential(texc, dtexc, v, mu, dmu, fsum, dfsum, fp):
+    """:func:`tangential_rates` from the excitation force ``texc`` [N], its rate ``dtexc``
+    [N/s] and the law's ``mu``, ``dmu`` at v."""
+    m = fp[kn.FP_MASS]
+    r2 = fp[kn.FP_R2]
+    a = (texc - mu * fsum - r2 * v) / m
+    j = (dtexc - dmu * a * fsum - mu * dfsum - r2 * a) / m
+    return a, j
+
+
+@njit(cache=True)
+def _block_powers(c, texc, dtexc, v, a, mu, dmu, S, dS, vz, az, fp):
+    """The block's four powers and their rates into ``c`` (excitation, friction, tangential
+    and vertical damping)."""
+    r1 = fp[kn.FP_R1]
+    r2 = fp[kn.FP_R2]
+    c[C_POWER + kn.E_EXCITATION] = texc * v
+    c[C_POWER_RATE + kn.E_EXCITATION] = dtexc * v + texc * a
+    c[C_POWER + kn.E_FRICTION] = mu * S * v
+    c[C_POWER_RATE + kn.E_FRICTION] = (dmu * a * S + mu * dS) * v + mu * S * a
+    c[C_POWER + kn.E_TANGENTIAL_DAMPING] = r2 * v * v
+    c[C_POWER_RATE + kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
+    c[C_POWER + kn.E_VERTICAL_DAMPING] = r1 * vz * vz
+    c[C_POWER_RATE + kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
+
+
+@njit(cache=True)
 def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_force=True):
     """Fill ``c`` with what a step needs of its start state (and the next step of its end):
-    the six energy powers [W] (order of ``ENERGY_TERMS``), their rates [W/s], the modal force
-    [m/s^2] and its rate [m/s^3] (Feldmann law, force-driven block, no friction moment).
+    the six energy powers [W] (order of ``ENERGY_TERMS``), their rates [W/s], the block's
+    tangential acceleration [m/s^2] and its rate [m/s^3], the modal force [m/s^2] and its rate
+    [m/s^3] (Feldmann law, force-driven block, no friction moment). A step fills its end's;
+    the caller calls this for a state it made or changed otherwise, and after a change of the
+    regime (the powers and the acceleration depend on it).
     ``with_force=False``: the modal force and rate in ``c`` are already those of ``y``."""
     iq, idq, _iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
     M = fp[kn.FP_MMODAL]
-    r1 = fp[kn.FP_R1]
-    r2 = fp[kn.FP_R2]
     w = fp[kn.FP_OMEGA]
     u = c[N_CARRY:N_CARRY + R]
     du = c[N_CARRY + R:N_CARRY + 2 * R]
@@ -465,20 +498,15 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     v = y[ivx]
     x = y[ix]
     vz = y[ivz]
-    a, _ = tangential_rates(t, v, S, dS, off, fp, reg)
-    az, _ = vertical_rates(vz, S, dS, fp)
     mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
                           fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     texc = fp[kn.FP_T0] * math.cos(w * t)
     dtexc = -fp[kn.FP_T0] * w * math.sin(w * t)
-    c[C_POWER + kn.E_EXCITATION] = texc * v
-    c[C_POWER_RATE + kn.E_EXCITATION] = dtexc * v + texc * a
-    c[C_POWER + kn.E_FRICTION] = mu * S * v
-    c[C_POWER_RATE + kn.E_FRICTION] = (dmu * a * S + mu * dS) * v + mu * S * a
-    c[C_POWER + kn.E_TANGENTIAL_DAMPING] = r2 * v * v
-    c[C_POWER_RATE + kn.E_TANGENTIAL_DAMPING] = 2.0 * r2 * v * a
-    c[C_POWER + kn.E_VERTICAL_DAMPING] = r1 * vz * vz
-    c[C_POWER_RATE + kn.E_VERTICAL_DAMPING] = 2.0 * r1 * vz * az
+    a, j = _tangential(texc, dtexc, v, mu, dmu, S, dS, fp)
+    az, _ = vertical_rates(vz, S, dS, fp)
+    c[C_ACC] = a
+    c[C_JERK] = j
+    _block_powers(c, texc, dtexc, v, a, mu, dmu, S, dS, vz, az, fp)
     pd, pdd = _plate_damping_sums(y[idq:idq + R], y[iq:iq + R], u, omega2, cdamp)
     c[C_POWER + kn.E_PLATE_DAMPING] = M * pd
     c[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
@@ -521,8 +549,12 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         if reg[kn.REG_CLOSED + k] == 1:
             idx[nc] = k
             nc += 1
-    a0, j0 = tangential_rates(t0, y0[ivx], S0, dS0, off, fp, reg)
+    a0 = c0[C_ACC]
+    j0 = c0[C_JERK]
     az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
+    w = fp[kn.FP_OMEGA]
+    texc1 = fp[kn.FP_T0] * math.cos(w * t1)
+    dtexc1 = -fp[kn.FP_T0] * w * math.sin(w * t1)
     u0 = c0[N_CARRY:N_CARRY + R]
     du0 = c0[N_CARRY + R:N_CARRY + 2 * R]
     sq = ws[0:R]
@@ -531,12 +563,14 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     wq = ws[base:base + K]
     wd = ws[base + K:base + 2 * K]
     _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], u0, du0, phiT, sq, sdq, wq, wd)
-    n = 2 * nc + 1
     base += 2 * K
+    dhs = ws[base:base + 2 * K].reshape((2, K))
+    base += 2 * K
+    n = 2 * nc + 1
     unk = ws[base:base + n]
     scale = ws[base + n:base + 2 * n]
     res = ws[base + 2 * n:base + 3 * n]
-    jac = ws[base + 4 * n:base + 4 * n + n * n].reshape((n, n))
+    jac = ws[base + 3 * n:base + 3 * n + n * n].reshape((n, n))
     piv = iws[K:K + n]
     for a in range(nc):
         unk[a] = y0[iF + idx[a]]
@@ -553,8 +587,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     for _it in range(HERMITE_NEWTON_MAX):
         iws[IWS_ITERS] += 1
         form = fresh or since >= CHORD_MAX
-        _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-                  spos, prof, reg, jac, form)
+        _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off,
+                  fp, stiff, spos, prof, reg, jac, form, dhs)
         if form:
             lu_factor(jac, piv)
             iws[IWS_JAC_VALID] = 1
@@ -576,8 +610,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
             break
     if not ok:
         return False
-    x1 = _residual(t1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp, stiff,
-                   spos, prof, reg, jac, False)
+    x1, a1, j1, mu1, dmu1 = _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0,
+                                      jz0, wq, wd, Cc, off, fp, stiff, spos, prof, reg, jac,
+                                      False, dhs)
     S1 = 0.0
     dS1 = 0.0
     for k in range(K):
@@ -589,17 +624,33 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         S1 += unk[a]
         dS1 += unk[nc + a]
     z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
+    v1 = unk[2 * nc]
     y1[iz] = z1
     y1[ivz] = vz1
     y1[ix] = x1
-    y1[ivx] = unk[2 * nc]
-    # the end's modal force and rate first (carried), then the modes with them
-    u1 = c1[N_CARRY:N_CARRY + R]
-    du1 = c1[N_CARRY + R:N_CARRY + 2 * R]
+    y1[ivx] = v1
+    # the end's modal force and rate, the modes and the plate-damping power in one pass
     M = fp[kn.FP_MMODAL]
-    _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, u1, du1, y1[iq:iq + R],
-              y1[idq:idq + R], omega2, cdamp, False)
-    carried(t1, y1, dF1, c1, off, fp, omega2, cdamp, phiT, spos, prof, reg, False)
+    pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[N_CARRY:N_CARRY + R],
+                        c1[N_CARRY + R:N_CARRY + 2 * R], y1[iq:iq + R], y1[idq:idq + R],
+                        omega2, cdamp, False)
+    # the end's carried data from what the step has (as carried() would give them)
+    az1, _ = vertical_rates(vz1, S1, dS1, fp)
+    c1[C_ACC] = a1
+    c1[C_JERK] = j1
+    _block_powers(c1, texc1, dtexc1, v1, a1, mu1, dmu1, S1, dS1, vz1, az1, fp)
+    c1[C_POWER + kn.E_PLATE_DAMPING] = M * pd
+    c1[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
+    pr = 0.0
+    prd = 0.0
+    for a in range(nc):
+        k = idx[a]
+        dh = dhs[0, k]
+        F = unk[a]
+        pr += F * dh * v1
+        prd += unk[nc + a] * dh * v1 + F * dhs[1, k] * v1 * v1 + F * dh * a1
+    c1[C_POWER + kn.E_ROUGHNESS] = pr
+    c1[C_POWER_RATE + kn.E_ROUGHNESS] = prd
     # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
     for i in range(kn.N_ENERGY):
         y1[iE + i] = (y0[iE + i] + 0.5 * h * (c0[C_POWER + i] + c1[C_POWER + i])
