@@ -318,6 +318,8 @@ C_POWER_RATE = C_POWER + kn.N_ENERGY
 C_ACC = C_POWER_RATE + kn.N_ENERGY    # tangential acceleration [m/s^2]
 C_JERK = C_ACC + 1                    # its rate [m/s^3]
 N_CARRY = C_JERK + 1
+#: after N_CARRY: the contact forces' second derivatives [N/s^2] (K; the last step's Hermite
+#: cubic at its end: a predictor only, 0 from carried()), then u and du (R each)
 #: scratch of hermite_step: lengths by :func:`scratch_sizes`; the Newton matrix stays in the
 #: float scratch from step to step, valid while
 #: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
@@ -334,7 +336,7 @@ def slot_shapes(R, K):
 
 def carry_size(R, K):
     """Length of the carried data ``c`` of :func:`carried` / :func:`hermite_step`."""
-    return N_CARRY + 2 * R
+    return N_CARRY + K + 2 * R
 
 
 def scratch_sizes(R, K):
@@ -486,13 +488,15 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     iq, idq, _iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
     M = fp[kn.FP_MMODAL]
     w = fp[kn.FP_OMEGA]
-    u = c[N_CARRY:N_CARRY + R]
-    du = c[N_CARRY + R:N_CARRY + 2 * R]
+    u = c[N_CARRY + K:N_CARRY + K + R]
+    du = c[N_CARRY + K + R:N_CARRY + K + 2 * R]
     S = 0.0
     dS = 0.0
     for k in range(K):
         S += y[iF + k]
         dS += dF[k]
+    for k in range(K):
+        c[N_CARRY + k] = 0.0
     if with_force:
         _modal_force(phiT, y[iF:iF + K], dF, M, u, du)
     v = y[ivx]
@@ -555,8 +559,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     w = fp[kn.FP_OMEGA]
     texc1 = fp[kn.FP_T0] * math.cos(w * t1)
     dtexc1 = -fp[kn.FP_T0] * w * math.sin(w * t1)
-    u0 = c0[N_CARRY:N_CARRY + R]
-    du0 = c0[N_CARRY + R:N_CARRY + 2 * R]
+    u0 = c0[N_CARRY + K:N_CARRY + K + R]
+    du0 = c0[N_CARRY + K + R:N_CARRY + K + 2 * R]
     sq = ws[0:R]
     sdq = ws[R:2 * R]
     base = 2 * R
@@ -573,11 +577,12 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     jac = ws[base + 3 * n:base + 3 * n + n * n].reshape((n, n))
     piv = iws[K:K + n]
     for a in range(nc):
-        unk[a] = y0[iF + idx[a]]
-        unk[nc + a] = dF0[idx[a]]
+        d2F = c0[N_CARRY + idx[a]]
+        unk[a] = y0[iF + idx[a]] + h * (dF0[idx[a]] + 0.5 * h * d2F)
+        unk[nc + a] = dF0[idx[a]] + h * d2F
         scale[a] = wts[iF + idx[a]]
         scale[nc + a] = wts[iF + idx[a]] / h
-    unk[2 * nc] = y0[ivx] + h * a0
+    unk[2 * nc] = y0[ivx] + h * a0 + 0.5 * h * h * j0
     scale[2 * nc] = wts[ivx]
     ok = False
     fresh = iws[IWS_JAC_VALID] == 0  # a Jacobian kept from an earlier step is reused
@@ -618,9 +623,14 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     for k in range(K):
         y1[iF + k] = 0.0
         dF1[k] = 0.0
+        c1[N_CARRY + k] = 0.0
     for a in range(nc):
-        y1[iF + idx[a]] = unk[a]
-        dF1[idx[a]] = unk[nc + a]
+        k = idx[a]
+        y1[iF + k] = unk[a]
+        dF1[k] = unk[nc + a]
+        # the Hermite cubic's second derivative at the end: the next step's predictor
+        c1[N_CARRY + k] = (2.0 * dF0[k] + 4.0 * unk[nc + a]
+                           - 6.0 * (unk[a] - y0[iF + k]) / h) / h
         S1 += unk[a]
         dS1 += unk[nc + a]
     z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
@@ -631,9 +641,10 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     y1[ivx] = v1
     # the end's modal force and rate, the modes and the plate-damping power in one pass
     M = fp[kn.FP_MMODAL]
-    pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[N_CARRY:N_CARRY + R],
-                        c1[N_CARRY + R:N_CARRY + 2 * R], y1[iq:iq + R], y1[idq:idq + R],
-                        omega2, cdamp, False)
+    iu = N_CARRY + K
+    pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
+                        c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp,
+                        False)
     # the end's carried data from what the step has (as carried() would give them)
     az1, _ = vertical_rates(vz1, S1, dS1, fp)
     c1[C_ACC] = a1
