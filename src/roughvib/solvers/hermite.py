@@ -239,15 +239,45 @@ def _block_end(h, z0, vz0, az0, jz0, S1, dS1, fp):
     return z1, vz1
 
 
+#: a step's constants for its residual (``cst`` of :func:`_step_constants`)
+CS_TEXC, CS_DTEXC = 0, 1    # excitation force [N] and its rate [N/s] at the end
+CS_XC, CS_VC = 2, 3         # x1 and the velocity residual's part known at the start
+CS_ZC, CS_VZC = 4, 5        # the block's z1, vz1 for no force at the end ...
+CS_Z_S, CS_Z_D = 6, 7       # ... and their derivatives in the end's total force and rate
+CS_VZ_S, CS_VZ_D = 8, 9
+N_CS = 10
+
+
 @njit(cache=True)
-def _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off, fp,
-              stiff, spos, prof, reg, jac, with_jac, dhs):
+def _step_constants(t1, h, x0, v0, a0, j0, z0, vz0, az0, jz0, fp, cst):
+    """Fill ``cst`` with what the residual needs of the step's start (``CS_*``)."""
+    w = fp[kn.FP_OMEGA]
+    m = fp[kn.FP_MASS]
+    rho = fp[kn.FP_R1] / m
+    h12 = h * h / 12.0
+    cst[CS_TEXC] = fp[kn.FP_T0] * math.cos(w * t1)
+    cst[CS_DTEXC] = -fp[kn.FP_T0] * w * math.sin(w * t1)
+    cst[CS_XC] = x0 + 0.5 * h * v0 + h12 * a0
+    cst[CS_VC] = v0 + 0.5 * h * a0 + h12 * j0
+    z, vz = _block_end(h, z0, vz0, az0, jz0, 0.0, 0.0, fp)
+    cst[CS_ZC] = z
+    cst[CS_VZC] = vz
+    den = 1.0 + 0.5 * h * rho + h12 * rho * rho
+    vz_s = (-0.5 * h / m - h12 * rho / m) / den
+    vz_d = h12 / m / den
+    cst[CS_VZ_S] = vz_s
+    cst[CS_VZ_D] = vz_d
+    cst[CS_Z_S] = 0.5 * h * vz_s + h12 * (rho * vz_s + 1.0 / m)
+    cst[CS_Z_D] = 0.5 * h * vz_d + h12 * rho * vz_d
+
+
+@njit(cache=True)
+def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg, jac, with_jac,
+              dhs):
     """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``, and with
-    ``with_jac`` their Jacobian in ``jac`` (n, n), at the end's excitation force ``texc1`` and
-    its rate; the profile's slope and curvature at the closed contacts in ``dhs`` (2, K).
-    Returns x1 and the tangential a1, j1, mu, dmu at v1."""
-    iz, ivz, ix, ivx = off[kn.OFF_IZ], off[kn.OFF_IVZ], off[kn.OFF_IX], off[kn.OFF_IVX]
-    x0, v0 = y0[ix], y0[ivx]
+    ``with_jac`` their Jacobian in ``jac`` (n, n), for the step's constants ``cst``; the
+    profile's slope and curvature at the closed contacts in ``dhs`` (2, K).
+    Returns x1, z1, vz1 and the tangential a1, j1, mu, dmu at v1."""
     m = fp[kn.FP_MASS]
     r2 = fp[kn.FP_R2]
     v1 = unk[2 * nc]
@@ -259,24 +289,12 @@ def _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd,
     mu, dmu, d2mu = feldmann_mu_d2(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
                                    fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1],
                                    fp[kn.FP_A2])
-    a1, j1 = _tangential(texc1, dtexc1, v1, mu, dmu, S1, dS1, fp)
+    a1, j1 = _tangential(cst[CS_TEXC], cst[CS_DTEXC], v1, mu, dmu, S1, dS1, fp)
     h12 = h * h / 12.0
-    x1 = x0 + 0.5 * h * (v0 + v1) + h12 * (a0 - a1)
-    z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
-    # derivatives: of a1, j1, x1 in v1 and in each F_c (not in the rates: a1's is 0, j1's -mu/m)
-    a_v = (-dmu * S1 - r2) / m
-    a_f = -mu / m
-    j_v = (-d2mu * a1 * S1 - dmu * a_v * S1 - dmu * dS1 - r2 * a_v) / m
-    j_f = (-dmu * (a_f * S1 + a1) - r2 * a_f) / m
-    x_v = 0.5 * h - h12 * a_v
-    x_f = -h12 * a_f
-    # of the block's end (linear in S1, dS1)
-    rho = fp[kn.FP_R1] / m
-    den = 1.0 + 0.5 * h * rho + h12 * rho * rho
-    vz_s = (-0.5 * h / m - h12 * rho / m) / den
-    vz_d = h12 / m / den
-    z_s = 0.5 * h * vz_s + h12 * (rho * vz_s + 1.0 / m)
-    z_d = 0.5 * h * vz_d + h12 * rho * vz_d
+    x1 = cst[CS_XC] + 0.5 * h * v1 - h12 * a1
+    z_s, z_d, vz_s, vz_d = cst[CS_Z_S], cst[CS_Z_D], cst[CS_VZ_S], cst[CS_VZ_D]
+    z1 = cst[CS_ZC] + z_s * S1 + z_d * dS1
+    vz1 = cst[CS_VZC] + vz_s * S1 + vz_d * dS1
     for a in range(nc):
         k = idx[a]
         hh, dh, d2h = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
@@ -290,24 +308,35 @@ def _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd,
             wdot += Cc[CM_VF, k, j] * unk[c] + Cc[CM_VD, k, j] * unk[nc + c]
         res[a] = unk[a] / stiff[k] - (z1 - w + hh)
         res[nc + a] = unk[nc + a] / stiff[k] - (vz1 - wdot + dh * v1)
-        if with_jac:
-            for c in range(nc):
-                j = idx[c]
-                jac[a, c] = Cc[CM_WF, k, j] - z_s - dh * x_f
-                jac[a, nc + c] = Cc[CM_WD, k, j] - z_d
-                jac[nc + a, c] = Cc[CM_VF, k, j] - vz_s - d2h * x_f * v1
-                jac[nc + a, nc + c] = Cc[CM_VD, k, j] - vz_d
-            jac[a, a] += 1.0 / stiff[k]
-            jac[nc + a, nc + a] += 1.0 / stiff[k]
-            jac[a, 2 * nc] = -dh * x_v
-            jac[nc + a, 2 * nc] = -(d2h * x_v * v1 + dh)
-    res[2 * nc] = v1 - v0 - 0.5 * h * (a0 + a1) - h12 * (j0 - j1)
-    if with_jac:
+    res[2 * nc] = v1 - cst[CS_VC] - 0.5 * h * a1 + h12 * j1
+    if not with_jac:
+        return x1, z1, vz1, a1, j1, mu, dmu
+    # derivatives: of a1, j1, x1 in v1 and in each F_c (not in the rates: a1's is 0, j1's -mu/m)
+    a_v = (-dmu * S1 - r2) / m
+    a_f = -mu / m
+    j_v = (-d2mu * a1 * S1 - dmu * a_v * S1 - dmu * dS1 - r2 * a_v) / m
+    j_f = (-dmu * (a_f * S1 + a1) - r2 * a_f) / m
+    x_v = 0.5 * h - h12 * a_v
+    x_f = -h12 * a_f
+    for a in range(nc):
+        k = idx[a]
+        dh = dhs[0, k]
+        d2h = dhs[1, k]
         for c in range(nc):
-            jac[2 * nc, c] = -0.5 * h * a_f + h12 * j_f
-            jac[2 * nc, nc + c] = -h12 * mu / m
-        jac[2 * nc, 2 * nc] = 1.0 - 0.5 * h * a_v + h12 * j_v
-    return x1, a1, j1, mu, dmu
+            j = idx[c]
+            jac[a, c] = Cc[CM_WF, k, j] - z_s - dh * x_f
+            jac[a, nc + c] = Cc[CM_WD, k, j] - z_d
+            jac[nc + a, c] = Cc[CM_VF, k, j] - vz_s - d2h * x_f * v1
+            jac[nc + a, nc + c] = Cc[CM_VD, k, j] - vz_d
+        jac[a, a] += 1.0 / stiff[k]
+        jac[nc + a, nc + a] += 1.0 / stiff[k]
+        jac[a, 2 * nc] = -dh * x_v
+        jac[nc + a, 2 * nc] = -(d2h * x_v * v1 + dh)
+    for c in range(nc):
+        jac[2 * nc, c] = -0.5 * h * a_f + h12 * j_f
+        jac[2 * nc, nc + c] = -h12 * mu / m
+    jac[2 * nc, 2 * nc] = 1.0 - 0.5 * h * a_v + h12 * j_v
+    return x1, z1, vz1, a1, j1, mu, dmu
 
 
 #: layout of the step's carried data ``c`` (length :func:`carry_size`): the powers and their
@@ -341,7 +370,7 @@ def carry_size(R, K):
 
 def scratch_sizes(R, K):
     """Lengths ``(n_ws, n_iws)`` of :func:`hermite_step`'s float and int scratch."""
-    return 2 * R + 4 * K + 3 * (2 * K + 1) + (2 * K + 1) ** 2, 3 * K + 4
+    return 2 * R + 4 * K + N_CS + 3 * (2 * K + 1) + (2 * K + 1) ** 2, 3 * K + 4
 
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH)
@@ -556,9 +585,6 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     a0 = c0[C_ACC]
     j0 = c0[C_JERK]
     az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
-    w = fp[kn.FP_OMEGA]
-    texc1 = fp[kn.FP_T0] * math.cos(w * t1)
-    dtexc1 = -fp[kn.FP_T0] * w * math.sin(w * t1)
     u0 = c0[N_CARRY + K:N_CARRY + K + R]
     du0 = c0[N_CARRY + K + R:N_CARRY + K + 2 * R]
     sq = ws[0:R]
@@ -570,6 +596,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     base += 2 * K
     dhs = ws[base:base + 2 * K].reshape((2, K))
     base += 2 * K
+    cst = ws[base:base + N_CS]
+    _step_constants(t1, h, y0[ix], y0[ivx], a0, j0, y0[iz], y0[ivz], az0, jz0, fp, cst)
+    base += N_CS
     n = 2 * nc + 1
     unk = ws[base:base + n]
     scale = ws[base + n:base + 2 * n]
@@ -592,8 +621,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     for _it in range(HERMITE_NEWTON_MAX):
         iws[IWS_ITERS] += 1
         form = fresh or since >= CHORD_MAX
-        _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0, jz0, wq, wd, Cc, off,
-                  fp, stiff, spos, prof, reg, jac, form, dhs)
+        _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg, jac, form,
+                  dhs)
         if form:
             lu_factor(jac, piv)
             iws[IWS_JAC_VALID] = 1
@@ -615,9 +644,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
             break
     if not ok:
         return False
-    x1, a1, j1, mu1, dmu1 = _residual(texc1, dtexc1, h, unk, res, nc, idx, y0, a0, j0, az0,
-                                      jz0, wq, wd, Cc, off, fp, stiff, spos, prof, reg, jac,
-                                      False, dhs)
+    x1, z1, vz1, a1, j1, mu1, dmu1 = _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff,
+                                               spos, prof, reg, jac, False, dhs)
     S1 = 0.0
     dS1 = 0.0
     for k in range(K):
@@ -633,7 +661,6 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
                            - 6.0 * (unk[a] - y0[iF + k]) / h) / h
         S1 += unk[a]
         dS1 += unk[nc + a]
-    z1, vz1 = _block_end(h, y0[iz], y0[ivz], az0, jz0, S1, dS1, fp)
     v1 = unk[2 * nc]
     y1[iz] = z1
     y1[ivz] = vz1
@@ -649,7 +676,7 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     az1, _ = vertical_rates(vz1, S1, dS1, fp)
     c1[C_ACC] = a1
     c1[C_JERK] = j1
-    _block_powers(c1, texc1, dtexc1, v1, a1, mu1, dmu1, S1, dS1, vz1, az1, fp)
+    _block_powers(c1, cst[CS_TEXC], cst[CS_DTEXC], v1, a1, mu1, dmu1, S1, dS1, vz1, az1, fp)
     c1[C_POWER + kn.E_PLATE_DAMPING] = M * pd
     c1[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
     pr = 0.0
