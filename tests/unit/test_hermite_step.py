@@ -135,3 +135,45 @@ def test_the_step_carries_what_carried_gives_of_its_end(paper):
     iu = hm.N_CARRY + K          # (between: the force's second derivative, a predictor only)
     big = np.max(np.abs(fresh[iu:]))
     np.testing.assert_allclose(c1[iu:], fresh[iu:], rtol=0, atol=1e-14 * big)
+
+
+@pytest.mark.parametrize("v1", [0.0, 1e-4, -0.02])
+def test_the_newton_matrix_is_the_residuals_derivative(paper, v1):
+    """The analytic Jacobian of the step's residual (forces, force rates, tangential velocity)
+    against central differences, on the stick side, in the Feldmann law's steep rise and in
+    sliding; each column relative to its largest entry."""
+    system, reg, y0 = paper
+    R, K = system.n_modes, system.n_contacts
+    h = 1e-5
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm, Cc = np.zeros(pm_shape), np.zeros(cc_shape)
+    hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
+                    system.fp[kn.FP_MMODAL], Pm, Cc)
+    lay = system.layout
+    cst = np.zeros(hm.N_CS)
+    hm._step_constants(h, h, y0[lay.index("block.x")], y0[lay.index("block.vx")], 0.3, 50.0,
+                       y0[lay.index("block.z")], y0[lay.index("block.vz")], 0.1, 3.0,
+                       system.fp, cst)
+    nc = K
+    idx = np.arange(K)
+    wq, wd = np.full(K, 1e-7), np.full(K, 1e-4)
+    unk = np.concatenate([1.01 * y0[lay.slice("contact.force")], np.full(K, 3.0), [v1]])
+    n = unk.size
+    jac, dhs = np.zeros((n, n)), np.zeros((2, K))
+
+    def residual(u, with_jac=False):
+        res = np.zeros(n)
+        hm._residual(cst, h, u, res, nc, idx, wq, wd, Cc, system.fp, system.stiff,
+                     system.contact_s, system.prof, reg, jac, with_jac, dhs)
+        return res
+
+    residual(unk, True)
+    fd = np.zeros((n, n))
+    for col in range(n):
+        d = 1e-6 * max(abs(unk[col]), 1e-3)
+        up, dn = unk.copy(), unk.copy()
+        up[col] += d
+        dn[col] -= d
+        fd[:, col] = (residual(up) - residual(dn)) / (2 * d)
+    np.testing.assert_allclose(jac / np.max(np.abs(fd), axis=0),
+                               fd / np.max(np.abs(fd), axis=0), rtol=0, atol=1e-5)
