@@ -133,8 +133,9 @@ def test_the_step_carries_what_carried_gives_of_its_end(paper):
     hm.carried(h, y1, dF1, fresh, *args, system.contact_s, system.prof, reg)
     np.testing.assert_allclose(c1[:hm.N_CARRY], fresh[:hm.N_CARRY], rtol=1e-11, atol=0)
     iu = hm.N_CARRY + K          # (between: the force's second derivative, a predictor only)
-    big = np.max(np.abs(fresh[iu:]))
-    np.testing.assert_allclose(c1[iu:], fresh[iu:], rtol=0, atol=1e-14 * big)
+    if c1.size > iu:             # the modal force and rate, carried above FOLD_K_MAX contacts
+        big = np.max(np.abs(fresh[iu:]))
+        np.testing.assert_allclose(c1[iu:], fresh[iu:], rtol=0, atol=1e-14 * big)
 
 
 @pytest.mark.parametrize("v1", [0.0, 1e-4, -0.02])

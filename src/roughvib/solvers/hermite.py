@@ -160,6 +160,17 @@ N_PMAP = 12
 #: velocity per force rate)
 CM_WF, CM_WD, CM_VF, CM_VD = 0, 1, 2, 3
 N_CMAP = 4
+#: up to this many contacts the step does not form the modal force: the hold maps of each
+#: contact's force and rate are folded with its mode shape per modal mass (``Pm`` rows
+#: ``N_PMAP + FOLD + PM_U0Q .. PM_DU1D``, FOLD = N_PMAP - PM_U0Q: 8 more rows), and the start
+#: hold's plate motion at the contacts is in ``Cc[CM0_*]`` (like ``CM_*`` for the start's
+#: force and rate); the passes over the modes read fewer rows. Above it, u = phi F / M and
+#: its rate are formed and carried (R each)
+FOLD_K_MAX = 1
+FOLD = N_PMAP - PM_U0Q
+N_PMAP_FOLDED = N_PMAP + FOLD
+CM0_WF, CM0_WD, CM0_VF, CM0_VD = 4, 5, 6, 7
+N_CMAP_FOLDED = 8
 #: Newton of the Hermite step
 HERMITE_NEWTON_MAX = 30
 NEWTON_TOL_REL = 1e-6  # Newton update, in units of the tolerance weights
@@ -167,10 +178,13 @@ NEWTON_TOL_REL = 1e-6  # Newton update, in units of the tolerance weights
 
 @njit(cache=True)
 def hermite_slot(h, omega2, cdamp, phi, cres, M, Pm, Cc):
-    """Fill a step length's maps: per mode ``Pm`` (N_PMAP, R), at the contacts ``Cc``
-    (N_CMAP, K, K); ``M`` the modal mass [kg] (mode shapes phi per sqrt of it)."""
+    """Fill a step length's maps: per mode ``Pm``, at the contacts ``Cc`` (shapes of
+    :func:`slot_shapes`; folded for up to ``FOLD_K_MAX`` contacts); ``phi`` (R, K) the mode
+    shapes at the contacts, ``M`` the modal mass [kg] (mode shapes phi per sqrt of it)."""
     R = omega2.size
     K = cres.shape[0]
+    if K <= FOLD_K_MAX and (Pm.shape[0] < N_PMAP_FOLDED or Cc.shape[0] < N_CMAP_FOLDED):
+        raise ValueError("hermite_slot: Pm and Cc must have the shapes of slot_shapes(R, K)")
     Phi = np.zeros((R, 2, 2))
     H = np.zeros((R, N_HOLD, 2))
     hermite_maps(omega2, cdamp, h, Phi, H)
@@ -199,6 +213,23 @@ def hermite_slot(h, omega2, cdamp, phi, cres, M, Pm, Cc):
                 Cc[CM_WD, k, j] += pp * Pm[PM_DU1Q, r]
                 Cc[CM_VF, k, j] += pp * Pm[PM_U1D, r]
                 Cc[CM_VD, k, j] += pp * Pm[PM_DU1D, r]
+    if K > FOLD_K_MAX:
+        return
+    for row in range(PM_U0Q, N_PMAP):
+        for r in range(R):
+            Pm[row + FOLD, r] = Pm[row, r] * phi[r, 0] / M
+    for k in range(K):
+        for j in range(K):
+            Cc[CM0_WF, k, j] = 0.0
+            Cc[CM0_WD, k, j] = 0.0
+            Cc[CM0_VF, k, j] = 0.0
+            Cc[CM0_VD, k, j] = 0.0
+            for r in range(R):
+                pp = phi[r, k] * phi[r, j] / M
+                Cc[CM0_WF, k, j] += pp * Pm[PM_U0Q, r]
+                Cc[CM0_WD, k, j] += pp * Pm[PM_DU0Q, r]
+                Cc[CM0_VF, k, j] += pp * Pm[PM_U0D, r]
+                Cc[CM0_VD, k, j] += pp * Pm[PM_DU0D, r]
 
 
 @njit(cache=True)
@@ -348,7 +379,8 @@ C_ACC = C_POWER_RATE + kn.N_ENERGY    # tangential acceleration [m/s^2]
 C_JERK = C_ACC + 1                    # its rate [m/s^3]
 N_CARRY = C_JERK + 1
 #: after N_CARRY: the contact forces' second derivatives [N/s^2] (K; the last step's Hermite
-#: cubic at its end: a predictor only, 0 from carried()), then u and du (R each)
+#: cubic at its end: a predictor only, 0 from carried()), then u and du (R each; not for up to
+#: FOLD_K_MAX contacts)
 #: scratch of hermite_step: lengths by :func:`scratch_sizes`; the Newton matrix stays in the
 #: float scratch from step to step, valid while
 #: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
@@ -360,12 +392,14 @@ CHORD_MAX = 4   # chord iterations with one Jacobian before it is formed again
 
 def slot_shapes(R, K):
     """Shapes of a step length's maps for :func:`hermite_slot`: ``(pm_shape, cc_shape)``."""
+    if K <= FOLD_K_MAX:
+        return (N_PMAP_FOLDED, R), (N_CMAP_FOLDED, K, K)
     return (N_PMAP, R), (N_CMAP, K, K)
 
 
 def carry_size(R, K):
     """Length of the carried data ``c`` of :func:`carried` / :func:`hermite_step`."""
-    return N_CARRY + K + 2 * R
+    return N_CARRY + K + (0 if K <= FOLD_K_MAX else 2 * R)
 
 
 def scratch_sizes(R, K):
@@ -408,6 +442,57 @@ def _free_pass(Pm, q0, dq0, u0, du0, phiT, sq, sdq, wq, wd):
             ad += row[r] * sdq[r]
         wq[k] = aq
         wd[k] = ad
+
+
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _free_pass_folded(Pm, q0, dq0, row, fq, fd):
+    """The free response of every mode (fq, fd) and its plate displacement and velocity at
+    the contact of mode shape ``row``: one pass."""
+    pqq, pqd, pdq, pdd = Pm[PM_QQ], Pm[PM_QD], Pm[PM_DQ], Pm[PM_DD]
+    aq = 0.0
+    ad = 0.0
+    for r in range(q0.size):
+        a = pqq[r] * q0[r] + pqd[r] * dq0[r]
+        b = pdq[r] * q0[r] + pdd[r] * dq0[r]
+        fq[r] = a
+        fd[r] = b
+        aq += row[r] * a
+        ad += row[r] * b
+    return aq, ad
+
+
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _end_pass_folded(Pm, fq, fd, row, F0, dF0, F1, dF1, M, q, dq, omega2, cdamp):
+    """The modes at the end (q, dq) from their free response and the folded hold maps of the
+    contact's force and rate at both ends, and the plate-damping sums: one pass."""
+    g0q, g0d = Pm[PM_U0Q + FOLD], Pm[PM_U0D + FOLD]
+    gd0q, gd0d = Pm[PM_DU0Q + FOLD], Pm[PM_DU0D + FOLD]
+    g1q, g1d = Pm[PM_U1Q + FOLD], Pm[PM_U1D + FOLD]
+    gd1q, gd1d = Pm[PM_DU1Q + FOLD], Pm[PM_DU1D + FOLD]
+    f1 = F1 / M
+    pd = 0.0
+    pdd = 0.0
+    for r in range(fq.size):
+        qr = fq[r] + g0q[r] * F0 + gd0q[r] * dF0 + g1q[r] * F1 + gd1q[r] * dF1
+        dqr = fd[r] + g0d[r] * F0 + gd0d[r] * dF0 + g1d[r] * F1 + gd1d[r] * dF1
+        q[r] = qr
+        dq[r] = dqr
+        cdq = cdamp[r] * dqr
+        pd += cdq * dqr
+        pdd += cdq * (row[r] * f1 - cdq - omega2[r] * qr)
+    return pd, pdd
+
+
+@njit(cache=True, fastmath=kn.SUM_FASTMATH)
+def _plate_damping_sums_folded(dq, q, row, f, omega2, cdamp):
+    """:func:`_plate_damping_sums` with the modal force ``row f`` of one contact."""
+    pd = 0.0
+    pdd = 0.0
+    for r in range(dq.size):
+        cdq = cdamp[r] * dq[r]
+        pd += cdq * dq[r]
+        pdd += cdq * (row[r] * f - cdq - omega2[r] * q[r])
+    return pd, pdd
 
 
 @njit(cache=True)
@@ -517,8 +602,6 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     iq, idq, _iz, ivz, ix, ivx, iF, _iE, R, K = kn.state_offsets(off)
     M = fp[kn.FP_MMODAL]
     w = fp[kn.FP_OMEGA]
-    u = c[N_CARRY + K:N_CARRY + K + R]
-    du = c[N_CARRY + K + R:N_CARRY + K + 2 * R]
     S = 0.0
     dS = 0.0
     for k in range(K):
@@ -526,8 +609,10 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
         dS += dF[k]
     for k in range(K):
         c[N_CARRY + k] = 0.0
-    if with_force:
-        _modal_force(phiT, y[iF:iF + K], dF, M, u, du)
+    fold = K <= FOLD_K_MAX
+    if not fold and with_force:
+        iu = N_CARRY + K
+        _modal_force(phiT, y[iF:iF + K], dF, M, c[iu:iu + R], c[iu + R:iu + 2 * R])
     v = y[ivx]
     x = y[ix]
     vz = y[ivz]
@@ -540,7 +625,12 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     c[C_ACC] = a
     c[C_JERK] = j
     _block_powers(c, texc, dtexc, v, a, mu, dmu, S, dS, vz, az, fp)
-    pd, pdd = _plate_damping_sums(y[idq:idq + R], y[iq:iq + R], u, omega2, cdamp)
+    if fold:
+        pd, pdd = _plate_damping_sums_folded(y[idq:idq + R], y[iq:iq + R], phiT[0],
+                                             y[iF] / M, omega2, cdamp)
+    else:
+        pd, pdd = _plate_damping_sums(y[idq:idq + R], y[iq:iq + R],
+                                      c[N_CARRY + K:N_CARRY + K + R], omega2, cdamp)
     c[C_POWER + kn.E_PLATE_DAMPING] = M * pd
     c[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
     pr = 0.0
@@ -585,14 +675,21 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     a0 = c0[C_ACC]
     j0 = c0[C_JERK]
     az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
-    u0 = c0[N_CARRY + K:N_CARRY + K + R]
-    du0 = c0[N_CARRY + K + R:N_CARRY + K + 2 * R]
     sq = ws[0:R]
     sdq = ws[R:2 * R]
     base = 2 * R
     wq = ws[base:base + K]
     wd = ws[base + K:base + 2 * K]
-    _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], u0, du0, phiT, sq, sdq, wq, wd)
+    iu = N_CARRY + K
+    fold = K <= FOLD_K_MAX
+    if fold:
+        # sq, sdq: the free response only; the start's hold is folded into the end pass
+        aq, ad = _free_pass_folded(Pm, y0[iq:iq + R], y0[idq:idq + R], phiT[0], sq, sdq)
+        wq[0] = aq + Cc[CM0_WF, 0, 0] * y0[iF] + Cc[CM0_WD, 0, 0] * dF0[0]
+        wd[0] = ad + Cc[CM0_VF, 0, 0] * y0[iF] + Cc[CM0_VD, 0, 0] * dF0[0]
+    else:
+        _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], c0[iu:iu + R], c0[iu + R:iu + 2 * R],
+                   phiT, sq, sdq, wq, wd)
     base += 2 * K
     dhs = ws[base:base + 2 * K].reshape((2, K))
     base += 2 * K
@@ -668,10 +765,13 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     y1[ivx] = v1
     # the end's modal force and rate, the modes and the plate-damping power in one pass
     M = fp[kn.FP_MMODAL]
-    iu = N_CARRY + K
-    pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
-                        c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp,
-                        False)
+    if fold:
+        pd, pdd = _end_pass_folded(Pm, sq, sdq, phiT[0], y0[iF], dF0[0], y1[iF], dF1[0], M,
+                                   y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp)
+    else:
+        pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
+                            c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2,
+                            cdamp, False)
     # the end's carried data from what the step has (as carried() would give them)
     az1, _ = vertical_rates(vz1, S1, dS1, fp)
     c1[C_ACC] = a1
