@@ -26,6 +26,15 @@ def paper():
     return system, reg, y
 
 
+@pytest.fixture(scope="module")
+def handset():
+    """Ten contact points: the step's general path (no folding of the hold maps)."""
+    system = assemble(load_scene("paper-handset"), force_amplitude=0.9153599563724701)
+    reg, rf = system.new_regime_arrays()
+    _, y, _ = start_state(system, reg, rf, None, 0, 0)
+    return system, reg, y
+
+
 def _force_rate(system, y):
     """dF of a consistent state: (1/s + C) dF = vz - phi^T dq + h'(s + x) v."""
     lay = system.layout
@@ -107,11 +116,13 @@ def test_the_energy_audit_closes_at_fourth_order(paper):
     assert np.all(ratios > 16 / 1.6) and np.all(ratios < 16 * 1.6), (res, ratios)
 
 
-def test_the_step_carries_what_carried_gives_of_its_end(paper):
+@pytest.mark.parametrize("scene", ["paper", "handset"])
+def test_the_step_carries_what_carried_gives_of_its_end(scene, request):
     """The step fills its end's carried data (powers, their rates, tangential acceleration and
     jerk, modal force and rate) from its own work; carried() of the end state computes them
-    afresh: they agree to round-off."""
-    system, reg, y0 = paper
+    afresh: they agree to round-off. With one contact (paper: the hold maps folded with the
+    mode shape) and ten (paper-handset: the modal force formed and carried)."""
+    system, reg, y0 = request.getfixturevalue(scene)
     R, K = system.n_modes, system.n_contacts
     h = SPAN / 8
     pm_shape, cc_shape = hm.slot_shapes(R, K)

@@ -410,30 +410,14 @@ def scratch_sizes(R, K):
 @njit(cache=True, fastmath=kn.SUM_FASTMATH)
 def _free_pass(Pm, q0, dq0, u0, du0, phiT, sq, sdq, wq, wd):
     """The free response and the start's hold of every mode (sq, sdq), and their plate
-    displacement and velocity at the contacts (wq, wd): one pass over the modes for one
-    contact."""
+    displacement and velocity at the contacts (wq, wd)."""
     R = q0.size
-    K = phiT.shape[0]
     pqq, pqd, pdq, pdd = Pm[PM_QQ], Pm[PM_QD], Pm[PM_DQ], Pm[PM_DD]
     u0q, u0d, du0q, du0d = Pm[PM_U0Q], Pm[PM_U0D], Pm[PM_DU0Q], Pm[PM_DU0D]
-    if K == 1:
-        row = phiT[0]
-        aq = 0.0
-        ad = 0.0
-        for r in range(R):
-            a = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
-            b = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
-            sq[r] = a
-            sdq[r] = b
-            aq += row[r] * a
-            ad += row[r] * b
-        wq[0] = aq
-        wd[0] = ad
-        return
     for r in range(R):
         sq[r] = pqq[r] * q0[r] + pqd[r] * dq0[r] + u0q[r] * u0[r] + du0q[r] * du0[r]
         sdq[r] = pdq[r] * q0[r] + pdd[r] * dq0[r] + u0d[r] * u0[r] + du0d[r] * du0[r]
-    for k in range(K):
+    for k in range(phiT.shape[0]):
         row = phiT[k]
         aq = 0.0
         ad = 0.0
@@ -512,35 +496,14 @@ def _modal_force(phiT, F, dF, M, u, du):
 
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH)
-def _end_pass(Pm, sq, sdq, phiT, F, dF, M, u, du, q, dq, omega2, cdamp, formed):
-    """The end's modal force and rate (u, du; already there when ``formed``), the modes at the
-    end (q, dq) and the plate-damping power's sums ``(sum c dq^2, sum c dq (u - c dq - w^2 q))``:
-    one pass over the modes for one contact."""
-    R = sq.size
-    K = phiT.shape[0]
+def _end_pass(Pm, sq, sdq, phiT, F, dF, M, u, du, q, dq, omega2, cdamp):
+    """The end's modal force and rate (u, du), the modes at the end (q, dq) and the
+    plate-damping power's sums ``(sum c dq^2, sum c dq (u - c dq - w^2 q))``."""
     u1q, u1d, du1q, du1d = Pm[PM_U1Q], Pm[PM_U1D], Pm[PM_DU1Q], Pm[PM_DU1D]
+    _modal_force(phiT, F, dF, M, u, du)
     pd = 0.0
     pdd = 0.0
-    if K == 1 and not formed:
-        row = phiT[0]
-        f = F[0] / M
-        df = dF[0] / M
-        for r in range(R):
-            ur = row[r] * f
-            dur = row[r] * df
-            u[r] = ur
-            du[r] = dur
-            qr = sq[r] + u1q[r] * ur + du1q[r] * dur
-            dqr = sdq[r] + u1d[r] * ur + du1d[r] * dur
-            q[r] = qr
-            dq[r] = dqr
-            cdq = cdamp[r] * dqr
-            pd += cdq * dqr
-            pdd += cdq * (ur - cdq - omega2[r] * qr)
-        return pd, pdd
-    if not formed:
-        _modal_force(phiT, F, dF, M, u, du)
-    for r in range(R):
+    for r in range(sq.size):
         qr = sq[r] + u1q[r] * u[r] + du1q[r] * du[r]
         dqr = sdq[r] + u1d[r] * u[r] + du1d[r] * du[r]
         q[r] = qr
@@ -657,8 +620,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     iterations, formed again after ``CHORD_MAX`` of them).
     The energy integrals by the Hermite quadrature of the powers. ``dF`` (K,): contact force
     rates [N/s] (0 on open contacts); ``c``: :func:`carried` of the state (c1 is filled);
-    ``ws``, ``iws``: float and int scratch (lengths above). Scope of this version: the
-    Feldmann law, a force-driven block, no friction moment.
+    ``ws``, ``iws``: float and int scratch (lengths of :func:`scratch_sizes`); ``Pm``,
+    ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: the Feldmann law, a
+    force-driven block, no friction moment.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     t1 = t0 + h
@@ -771,7 +735,7 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     else:
         pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
                             c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2,
-                            cdamp, False)
+                            cdamp)
     # the end's carried data from what the step has (as carried() would give them)
     az1, _ = vertical_rates(vz1, S1, dS1, fp)
     c1[C_ACC] = a1
