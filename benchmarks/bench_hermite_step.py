@@ -2,12 +2,14 @@
 
 Run on demand, not by the tests:
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=src python benchmarks/bench_hermite_step.py [--calls 20000]
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=src python benchmarks/bench_hermite_step.py \
+        [--scene paper] [--calls 5000] [--repeats 30]
 
-The ``paper`` scene (R = 394 modes, K = 1 contact) at its start state (contact closed, block
-breaking away from stick; the force rate consistent with the contact relation), one step of
-the output interval (1e-5 s). Calling a many-argument numba function from Python costs about
-150 us, so the calls are made inside an ``@njit`` loop. Two loops, each timed as the best of
+The ``paper`` scene (R = 393 modes, K = 1 contact; ``paper-handset``: K = 10) at its start
+state (contacts closed, block breaking away from stick; the force rates consistent with the
+contact relation), one step of the output interval (1e-5 s). Calling a many-argument numba
+function from Python costs several times the step itself, so the calls are made inside an
+``@njit`` loop. Two loops, each timed as the best of
 ``--repeats`` (CPU time per call, the machine may be shared):
 
 * ``fixed``: the same step from the same state ``--calls`` times (the Newton matrix kept
@@ -68,15 +70,16 @@ def _march(calls, t0, h, y, dF, c, y1, dF1, c1, Pm, Cc, off, fp, om, cd, phiT, s
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default="paper")
     ap.add_argument("--calls", type=int, default=5000)
     ap.add_argument("--repeats", type=int, default=30)
     args = ap.parse_args()
-    system = assemble(load_scene("paper"), force_amplitude=FORCE_AMPLITUDE)
+    system = assemble(load_scene(args.scene), force_amplitude=FORCE_AMPLITUDE)
     reg, rf = system.new_regime_arrays()
     _, y0, _ = start_state(system, reg, rf, None, 0, 0)
     R, K = system.n_modes, system.n_contacts
     fp = system.fp
-    h = load_scene("paper").output.step
+    h = load_scene(args.scene).output.step
     pm_shape, cc_shape = hm.slot_shapes(R, K)
     Pm, Cc = np.zeros(pm_shape), np.zeros(cc_shape)
     hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
@@ -93,7 +96,8 @@ def main():
     c0 = np.zeros(hm.carry_size(R, K))
     rest = (system.off, fp, system.omega2, system.cdamp, phiT)
     hm.carried(0.0, y0, dF0, c0, *rest, system.contact_s, system.prof, reg)
-    print(f"paper: R = {R}, K = {K}, h = {h:g} s, {args.calls} calls, best of {args.repeats}")
+    print(f"{args.scene}: R = {R}, K = {K}, h = {h:g} s, {args.calls} calls, "
+          f"best of {args.repeats}")
     for name, loop in (("fixed", _fixed), ("march", _march)):
         best = np.inf
         for rep in range(args.repeats + 1):       # the first compiles
