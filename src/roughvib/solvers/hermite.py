@@ -371,19 +371,20 @@ def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg,
 
 
 #: layout of the step's carried data ``c`` (length :func:`carry_size`): the powers and their
-#: rates, the block's tangential acceleration and its rate, then the modal force
-#: u = phi F / M and its rate at the state (R each)
+#: rates, the block's tangential acceleration and its rate, then (after N_CARRY) the contact
+#: forces' second derivatives and, above FOLD_K_MAX contacts, the modal force
+#: u = phi F / M and its rate at the state
 C_POWER = 0
 C_POWER_RATE = C_POWER + kn.N_ENERGY
 C_ACC = C_POWER_RATE + kn.N_ENERGY    # tangential acceleration [m/s^2]
 C_JERK = C_ACC + 1                    # its rate [m/s^3]
 N_CARRY = C_JERK + 1
 #: after N_CARRY: the contact forces' second derivatives [N/s^2] (K; the last step's Hermite
-#: cubic at its end: a predictor only, 0 from carried()), then u and du (R each; not for up to
-#: FOLD_K_MAX contacts)
+#: cubic at its end: Newton's predictor only, 0 from carried()), then u and du (R each; not
+#: for up to FOLD_K_MAX contacts)
 #: scratch of hermite_step: lengths by :func:`scratch_sizes`; the Newton matrix stays in the
-#: float scratch from step to step, valid while
-#: ``iws[IWS_JAC_VALID] == 1`` (the caller sets 0 when h, the regime or the contacts change)
+#: float scratch from step to step, valid while ``iws[IWS_JAC_VALID] == 1`` (the caller sets
+#: 0 when h, the regime or the contacts change)
 IWS_JAC_VALID = -1
 IWS_ITERS = -2        # Newton iterations of the last step (a statistic for the caller)
 IWS_JACS = -3         # Newton matrices formed in the last step
@@ -616,10 +617,12 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
     Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
     at the end. Unknowns: the closed contacts' forces and force rates and the tangential
-    velocity, by Newton with the analytic Jacobian, kept from step to step while valid (chord
-    iterations, formed again after ``CHORD_MAX`` of them).
-    The energy integrals by the Hermite quadrature of the powers. ``dF`` (K,): contact force
-    rates [N/s] (0 on open contacts); ``c``: :func:`carried` of the state (c1 is filled);
+    velocity, by Newton from the Hermite predictor (Taylor terms to the second derivative)
+    with the analytic Jacobian, kept from step to step while valid (chord iterations, formed
+    again after ``CHORD_MAX`` of them). The energy integrals by the Hermite quadrature of the
+    powers. ``dF`` (K,): contact force rates [N/s] (0 on open contacts); ``c``: the carried
+    data of the state (c1 is filled for the next step; :func:`carried` gives them for a state
+    made otherwise or after a change of the regime);
     ``ws``, ``iws``: float and int scratch (lengths of :func:`scratch_sizes`); ``Pm``,
     ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: the Feldmann law, a
     force-driven block, no friction moment.
