@@ -26,6 +26,15 @@ def paper():
     return system, reg, y
 
 
+@pytest.fixture(scope="module")
+def handset():
+    """Ten contact points: the step's general path (no folding of the hold maps)."""
+    system = assemble(load_scene("paper-handset"), force_amplitude=0.9153599563724701)
+    reg, rf = system.new_regime_arrays()
+    _, y, _ = start_state(system, reg, rf, None, 0, 0)
+    return system, reg, y
+
+
 def _force_rate(system, y):
     """dF of a consistent state: (1/s + C) dF = vz - phi^T dq + h'(s + x) v."""
     lay = system.layout
@@ -43,19 +52,21 @@ def _integrate(paper, n):
     reg = reg0.copy()
     R, K = system.n_modes, system.n_contacts
     h = SPAN / n
-    Pm = np.zeros((hm.N_PMAP, R))
-    Cc = np.zeros((hm.N_CMAP, K, K))
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm = np.zeros(pm_shape)
+    Cc = np.zeros(cc_shape)
     hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
                     system.fp[kn.FP_MMODAL], Pm, Cc)
     phiT = np.ascontiguousarray(system.phi.T)
     wts = _atol_vector(system) + 1e-5 * np.abs(y0)
     y, dF = y0.copy(), _force_rate(system, y0)
-    c = np.zeros(hm.N_CARRY + 2 * R)
+    c = np.zeros(hm.carry_size(R, K))
     args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
     hm.carried(0.0, y, dF, c, *args, system.contact_s, system.prof, reg)
     y1, dF1, c1 = y.copy(), dF.copy(), c.copy()
-    ws = np.zeros(2 * R + 10 * K + 4 + (2 * K + 1) ** 2)
-    iws = np.zeros(3 * K + 2, dtype=np.int64)
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    ws = np.zeros(n_ws)
+    iws = np.zeros(n_iws, dtype=np.int64)
     for i in range(n):
         assert hm.hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
                                system.contact_s, system.prof, reg, wts, ws, iws)
@@ -103,3 +114,78 @@ def test_the_energy_audit_closes_at_fourth_order(paper):
     res = np.array([abs(_audit(paper, n)) for n in (8, 16, 32)])
     ratios = res[:-1] / res[1:]
     assert np.all(ratios > 16 / 1.6) and np.all(ratios < 16 * 1.6), (res, ratios)
+
+
+@pytest.mark.parametrize("scene", ["paper", "handset"])
+def test_the_step_carries_what_carried_gives_of_its_end(scene, request):
+    """The step fills its end's carried data (powers, their rates, tangential acceleration and
+    jerk, modal force and rate) from its own work; carried() of the end state computes them
+    afresh: they agree to round-off. With one contact (paper: the hold maps folded with the
+    mode shape) and ten (paper-handset: the modal force formed and carried)."""
+    system, reg, y0 = request.getfixturevalue(scene)
+    R, K = system.n_modes, system.n_contacts
+    h = SPAN / 8
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm, Cc = np.zeros(pm_shape), np.zeros(cc_shape)
+    hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
+                    system.fp[kn.FP_MMODAL], Pm, Cc)
+    phiT = np.ascontiguousarray(system.phi.T)
+    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
+    dF0 = _force_rate(system, y0)
+    c0 = np.zeros(hm.carry_size(R, K))
+    hm.carried(0.0, y0, dF0, c0, *args, system.contact_s, system.prof, reg)
+    y1, dF1, c1 = y0.copy(), dF0.copy(), np.zeros_like(c0)
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    assert hm.hermite_step(0.0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, *args, system.stiff,
+                           system.contact_s, system.prof, reg, wts, np.zeros(n_ws),
+                           np.zeros(n_iws, dtype=np.int64))
+    fresh = np.zeros_like(c1)
+    hm.carried(h, y1, dF1, fresh, *args, system.contact_s, system.prof, reg)
+    np.testing.assert_allclose(c1[:hm.N_CARRY], fresh[:hm.N_CARRY], rtol=1e-11, atol=0)
+    iu = hm.N_CARRY + K          # (between: the force's second derivative, a predictor only)
+    if c1.size > iu:             # the modal force and rate, carried above FOLD_K_MAX contacts
+        big = np.max(np.abs(fresh[iu:]))
+        np.testing.assert_allclose(c1[iu:], fresh[iu:], rtol=0, atol=1e-14 * big)
+
+
+@pytest.mark.parametrize("v1", [0.0, 1e-4, -0.02])
+def test_the_newton_matrix_is_the_residuals_derivative(paper, v1):
+    """The analytic Jacobian of the step's residual (forces, force rates, tangential velocity)
+    against central differences, on the stick side, in the Feldmann law's steep rise and in
+    sliding; each column relative to its largest entry."""
+    system, reg, y0 = paper
+    R, K = system.n_modes, system.n_contacts
+    h = 1e-5
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    Pm, Cc = np.zeros(pm_shape), np.zeros(cc_shape)
+    hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
+                    system.fp[kn.FP_MMODAL], Pm, Cc)
+    lay = system.layout
+    cst = np.zeros(hm.N_CS)
+    hm._step_constants(h, h, y0[lay.index("block.x")], y0[lay.index("block.vx")], 0.3, 50.0,
+                       y0[lay.index("block.z")], y0[lay.index("block.vz")], 0.1, 3.0,
+                       system.fp, cst)
+    nc = K
+    idx = np.arange(K)
+    wq, wd = np.full(K, 1e-7), np.full(K, 1e-4)
+    unk = np.concatenate([1.01 * y0[lay.slice("contact.force")], np.full(K, 3.0), [v1]])
+    n = unk.size
+    jac, dhs = np.zeros((n, n)), np.zeros((2, K))
+
+    def residual(u, with_jac=False):
+        res = np.zeros(n)
+        hm._residual(cst, h, u, res, nc, idx, wq, wd, Cc, system.fp, system.stiff,
+                     system.contact_s, system.prof, reg, jac, with_jac, dhs)
+        return res
+
+    residual(unk, True)
+    fd = np.zeros((n, n))
+    for col in range(n):
+        d = 1e-6 * max(abs(unk[col]), 1e-3)
+        up, dn = unk.copy(), unk.copy()
+        up[col] += d
+        dn[col] -= d
+        fd[:, col] = (residual(up) - residual(dn)) / (2 * d)
+    np.testing.assert_allclose(jac / np.max(np.abs(fd), axis=0),
+                               fd / np.max(np.abs(fd), axis=0), rtol=0, atol=1e-5)
