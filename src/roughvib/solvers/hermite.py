@@ -229,7 +229,7 @@ def hermite_slot(h, omega2, cdamp, phi, cres, M, Pm, Cc):
         return
     for row in range(PM_U0Q, N_PMAP):
         for r in range(R):
-            Pm[row + FOLD, r] = Pm[row, r] * phi[r, 0] / M
+            Pm[row + FOLD, r] = Pm[row, r] * phi[r, ONE] / M
     for k in range(K):
         for j in range(K):
             Cc[CM0_WF, k, j] = 0.0
@@ -341,8 +341,8 @@ def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg,
     for a in range(nc):
         k = idx[a]
         hh, dh, d2h = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
-        dhs[0, k] = dh
-        dhs[1, k] = d2h
+        dhs[DH_SLOPE, k] = dh
+        dhs[DH_CURV, k] = d2h
         w = wq[k]
         wdot = wd[k]
         for c in range(nc):
@@ -363,8 +363,8 @@ def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg,
     x_f = -h12 * a_f
     for a in range(nc):
         k = idx[a]
-        dh = dhs[0, k]
-        d2h = dhs[1, k]
+        dh = dhs[DH_SLOPE, k]
+        d2h = dhs[DH_CURV, k]
         for c in range(nc):
             j = idx[c]
             jac[a, c] = Cc[CM_WF, k, j] - z_s - dh * x_f
@@ -398,6 +398,11 @@ N_CARRY = C_JERK + 1
 #: float scratch from step to step, valid while ``iws[IWS_JAC_VALID] == 1`` (the caller sets
 #: 0 when h, the regime or the contacts change)
 IWS_JAC_VALID = -1
+#: rows of the residual's profile slopes at the contacts (scratch ``dhs``, shape (2, K))
+DH_SLOPE = 0   #: h'(s + x1)
+DH_CURV = 1    #: h''(s + x1)
+#: the contact of the folded path (K = 1)
+ONE = 0
 IWS_ITERS = -2        # Newton iterations of the last step (a statistic for the caller)
 IWS_JACS = -3         # Newton matrices formed in the last step
 CHORD_MAX = 4   # chord iterations with one Jacobian before it is formed again
@@ -602,7 +607,7 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     c[C_JERK] = j
     _block_powers(c, texc, dtexc, v, a, mu, dmu, S, dS, vz, az, fp)
     if fold:
-        pd, pdd = _plate_damping_sums_folded(y[idq:idq + R], y[iq:iq + R], phiT[0],
+        pd, pdd = _plate_damping_sums_folded(y[idq:idq + R], y[iq:iq + R], phiT[ONE],
                                              y[iF] / M, omega2, cdamp)
     else:
         pd, pdd = _plate_damping_sums(y[idq:idq + R], y[iq:iq + R],
@@ -663,9 +668,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     fold = K <= FOLD_K_MAX
     if fold:
         # sq, sdq: the free response only; the start's hold is folded into the end pass
-        aq, ad = _free_pass_folded(Pm, y0[iq:iq + R], y0[idq:idq + R], phiT[0], sq, sdq)
-        wq[0] = aq + Cc[CM0_WF, 0, 0] * y0[iF] + Cc[CM0_WD, 0, 0] * dF0[0]
-        wd[0] = ad + Cc[CM0_VF, 0, 0] * y0[iF] + Cc[CM0_VD, 0, 0] * dF0[0]
+        aq, ad = _free_pass_folded(Pm, y0[iq:iq + R], y0[idq:idq + R], phiT[ONE], sq, sdq)
+        wq[ONE] = aq + Cc[CM0_WF, ONE, ONE] * y0[iF] + Cc[CM0_WD, ONE, ONE] * dF0[ONE]
+        wd[ONE] = ad + Cc[CM0_VF, ONE, ONE] * y0[iF] + Cc[CM0_VD, ONE, ONE] * dF0[ONE]
     else:
         _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], c0[iu:iu + R], c0[iu + R:iu + 2 * R],
                    phiT, sq, sdq, wq, wd)
@@ -745,7 +750,7 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     # the end's modal force and rate, the modes and the plate-damping power in one pass
     M = fp[kn.FP_MMODAL]
     if fold:
-        pd, pdd = _end_pass_folded(Pm, sq, sdq, phiT[0], y0[iF], dF0[0], y1[iF], dF1[0], M,
+        pd, pdd = _end_pass_folded(Pm, sq, sdq, phiT[ONE], y0[iF], dF0[ONE], y1[iF], dF1[ONE], M,
                                    y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp)
     else:
         pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
@@ -762,10 +767,10 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     prd = 0.0
     for a in range(nc):
         k = idx[a]
-        dh = dhs[0, k]
+        dh = dhs[DH_SLOPE, k]
         F = unk[a]
         pr += F * dh * v1
-        prd += unk[nc + a] * dh * v1 + F * dhs[1, k] * v1 * v1 + F * dh * a1
+        prd += unk[nc + a] * dh * v1 + F * dhs[DH_CURV, k] * v1 * v1 + F * dh * a1
     c1[C_POWER + kn.E_ROUGHNESS] = pr
     c1[C_POWER_RATE + kn.E_ROUGHNESS] = prd
     # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
@@ -774,18 +779,3 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
                       + h * h / 12.0 * (c0[C_POWER_RATE + i] - c1[C_POWER_RATE + i]))
     return True
 
-
-def slot_shapes(R: int, K: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """Shapes of one step length's maps for R modes and K contacts: ``Pm`` and ``Cc`` of
-    :func:`hermite_slot`."""
-    return (N_PMAP, R), (N_CMAP, K, K)
-
-
-def carry_size(R: int, K: int) -> int:
-    """Length of the carried data ``c`` of :func:`carried` for R modes and K contacts."""
-    return N_CARRY + 2 * R
-
-
-def scratch_sizes(R: int, K: int) -> tuple[int, int]:
-    """Lengths of :func:`hermite_step`'s float and int scratch for R modes and K contacts."""
-    return 2 * R + 10 * K + 4 + (2 * K + 1) ** 2, 3 * K + 2
