@@ -1,5 +1,17 @@
 """Adaptive exact-modal solver: exact plate propagation, error-controlled steps, located events.
 
+Two steps, one loop each (docs/theory.md, "The adaptive exact-modal scheme"):
+
+* the **Hermite step** (``_advance_hermite``; :mod:`roughvib.solvers.hermite`,
+  :mod:`roughvib.solvers.hermite_dense`), fourth order, where :func:`hermite_applies`: the
+  Feldmann law with a force-driven block and no friction moment. The modal force is held as
+  the cubic through its values and rates at both ends, the block follows the
+  Hermite-Obreschkoff rule, and step doubling over pairs of up to four output intervals keeps
+  the two half steps (estimate / 15), the output times inside a step written from its dense
+  state;
+* the **trapezoidal step** (``_advance``, ``implicit_step``) for every other case, described
+  below.
+
 The plate modes couple to the block only through the K contact forces, and each mode is a
 linear oscillator. Over a step of length h with the modal force linear in time (first-order
 hold), a mode is propagated exactly, whatever omega h is (docs/theory.md; the fixed-step
