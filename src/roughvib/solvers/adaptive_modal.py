@@ -2,13 +2,12 @@
 
 Two steps, one loop each (docs/theory.md, "The adaptive exact-modal scheme"):
 
-* the **Hermite step** (``_advance_hermite``; :mod:`roughvib.solvers.hermite`,
-  :mod:`roughvib.solvers.hermite_dense`), fourth order, where :func:`hermite_applies`: the
-  Feldmann law with a force-driven block and no friction moment. The modal force is held as
-  the cubic through its values and rates at both ends, the block follows the
-  Hermite-Obreschkoff rule, and step doubling over pairs of up to four output intervals keeps
-  the two half steps (estimate / 15), the output times inside a step written from its dense
-  state;
+* the **Hermite step** (``_advance_hermite``; :mod:`roughvib.solvers.hermite`), fourth order,
+  where :func:`hermite_applies`: the Feldmann law with a force-driven block and no friction
+  moment. The modal force is held as the cubic through its values and rates at both ends, the
+  block follows the Hermite-Obreschkoff rule, and the error is estimated over blocks of up to
+  ``PAIR_ROWS`` output intervals: one step over the block against the kept steps of one
+  interval each (estimate / (m^4 - 1) for m kept steps);
 * the **trapezoidal step** (``_advance``, ``implicit_step``) for every other case, described
   below.
 
@@ -77,7 +76,6 @@ from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers import hermite as hm
-from roughvib.solvers import hermite_dense as hd
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -133,7 +131,8 @@ I_NEWTON = 7     # Newton iterations
 I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 I_EXTRAP = 10    # accepted steps whose end was extrapolated (_extrapolate)
-N_IST = 11
+I_JACS = 11      # Newton matrices formed (the Hermite step; the trapezoidal step forms one per
+N_IST = 12       # iteration)
 
 #: the propagator cache of _advance: ``P`` (N_SLOTS, N_MAP, R) the maps Phi, G0 and G1 of
 #: :func:`step_maps` of each slot, one contiguous row per entry (``MAP_*``), so that the step's
@@ -195,17 +194,16 @@ B_END = 3     # the second half step
 B_TRIAL = 4   # a root-search trial
 B_BEST = 5    # the state at the root
 B_WTS = 6     # tolerance weights (Y only)
-B_DENSE = 7   # a state inside a step (the Hermite loop's dense output; Y and DF only)
-N_YBUF = 8
+B_CHAIN = 7   # the Hermite loop's kept steps inside a block after B_HALF (PAIR_ROWS - 2 rows)
+N_YBUF = B_CHAIN
 N_DBUF = 6
 # rows of the margin buffer G: step start, half step, step end, latest trial
 G_START = 0
 G_HALF = 1
 G_END = 2
 G_TRIAL = 3
-G_DENSE = 4   # the Hermite loop: at a dense output time ...
-G_LOW = 5     # ... and at the last point accepted (a root search's lower bracket)
-N_GBUF = 6
+G_LOW = 4     # the Hermite loop: at the last point accepted (a root search's lower bracket)
+N_GBUF = 5
 T_NOW = 0      # the one entry of the time box ``tt``
 FIRST_ROW = 0  # the output row of t = 0
 
@@ -1154,33 +1152,39 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
 #: the Hermite loop's step maps: ``Pm`` and ``Cc`` (N_SLOTS, ...) of
 #: :func:`roughvib.solvers.hermite.hermite_slot` per cache slot, ``hslot`` (N_SLOTS,) the
 #: step of each slot (0: empty). Slot s holds the step ``h_top / 2^s``: slot 0 is the top
-#: level's pair (``PAIR_ROWS`` output intervals). ``Pd`` (N_SLOTS, N_DMAP, R) the dense maps
-#: (:func:`roughvib.solvers.hermite_dense.dense_maps`) of a slot's step at the first output
-#: time inside it, ``hdense`` (N_SLOTS,) the step they were computed for (0: none)
-HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot", "Pd", "hdense"])
-#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers``, ``DF`` (N_YBUF, K)
-#: their contact force rates [N/s] and ``C`` (N_DBUF, n_carry) the carried data
-#: (:func:`roughvib.solvers.hermite.carried`) of the first six, ``G``, ``armed``, ``fired``
+#: level's full step (``PAIR_ROWS`` output intervals)
+HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot"])
+#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers`` (and the kept
+#: steps inside a block from ``B_CHAIN``), ``DF`` (N_YBUF, K) their contact force rates [N/s]
+#: and ``C`` (N_YBUF, n_carry) their carried data (:func:`roughvib.solvers.hermite.carried`),
+#: ``G``, ``armed``, ``fired``
 HermiteBuffers = collections.namedtuple("HermiteBuffers", ["Y", "DF", "C", "G", "armed", "fired"])
 #: the Hermite step's scratch: ``ws`` float, ``iws`` int64 (the Newton matrix it keeps between
-#: steps lives there), ``hjac`` (1,) the step that matrix was formed for; ``jac`` (K, K),
+#: steps lives there), ``hjac`` the step that matrix was formed for, one row each
+#: (``N_NEWTON``) for the kept steps (and root trials) and for the full step of a block, so
+#: that each keeps its own matrix; ``jac`` (K, K),
 #: ``ipiv`` (K,) and ``rhs`` (2 K,) for :func:`force_rates`
 HermiteScratch = collections.namedtuple("HermiteScratch",
                                         ["ws", "iws", "hjac", "jac", "ipiv", "rhs", "work"])
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
-HERMITE_FIRST_LEVEL = 10  # the first pair: h_top / 2^10 (4e-5 s / 1024 at a 1e-5 s output step)
-PAIR_ROWS = 4  # output intervals of the top level's pair
+HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (8e-5 s / 1024 at 1e-5 s output)
+NEWTON_KEPT = 0  # the scratch row (Newton matrix) of the kept steps and root trials ...
+NEWTON_FULL = 1  # ... and of the full step of a block
+N_NEWTON = 2
+PAIR_ROWS = 8  # output intervals of the top level's block (one kept step each)
 
 
 def hermite_top_pair(output_step: float, max_step: float) -> float:
-    """The Hermite loop's top-level pair [s]: twice its largest step, which is
-    ``PAIR_ROWS / 2`` output steps, halved until it is within ``max_step`` (0: no limit)."""
-    half = output_step * PAIR_ROWS / 2
+    """The Hermite loop's top-level full step [s]: ``PAIR_ROWS`` output steps (a block of
+    that many kept steps of one output step) or, when ``max_step`` (0: no limit) is shorter
+    than the output step, two of the largest kept step within it (a pair inside an output
+    interval)."""
+    kept = output_step
     if max_step > 0:
-        while half > max_step * (1 + 1e-12):
-            half *= 0.5
-    return 2.0 * half
+        while kept > max_step * (1 + 1e-12):
+            kept *= 0.5
+    return PAIR_ROWS * kept if kept == output_step else 2.0 * kept
 
 
 def hermite_applies(system: System) -> bool:
@@ -1194,13 +1198,14 @@ def new_hermite_maps(R: int, K: int) -> HermiteMaps:
     """An empty Hermite map cache for R modes and K contacts."""
     pm_shape, cc_shape = hm.slot_shapes(R, K)
     return HermiteMaps(np.zeros((N_SLOTS, *pm_shape)), np.zeros((N_SLOTS, *cc_shape)),
-                       np.zeros(N_SLOTS), np.zeros((N_SLOTS, hd.N_DMAP, R)), np.zeros(N_SLOTS))
+                       np.zeros(N_SLOTS))
 
 
 def new_hermite_scratch(work: np.ndarray, R: int, K: int) -> HermiteScratch:
     """The Hermite step's scratch for R modes and K contacts, with the kernels' ``work``."""
     n_ws, n_iws = hm.scratch_sizes(R, K)
-    return HermiteScratch(np.zeros(n_ws), np.zeros(n_iws, dtype=np.int64), np.zeros(1),
+    return HermiteScratch(np.zeros((N_NEWTON, n_ws)), np.zeros((N_NEWTON, n_iws), dtype=np.int64),
+                          np.zeros(N_NEWTON),
                           np.zeros((max(K, 1), max(K, 1))), np.zeros(max(K, 1), dtype=np.int64),
                           np.zeros(2 * max(K, 1)), work)
 
@@ -1246,15 +1251,20 @@ def _hermite_fill(slot, h, omega2, cdamp, phi, cres, M, hp, ist):
 
 @njit(cache=True)
 def _hstep(t0, h, y0, dF0, c0, y1, dF1, c1, slot, hp, wts, off, fp, omega2, cdamp, phiT, stiff,
-           spos, prof, reg, hs, ist):
-    """:func:`roughvib.solvers.hermite.hermite_step` with the maps of ``slot``; the Newton
-    matrix it keeps is formed anew when the step length changes."""
-    if hs.hjac[0] != h:
-        hs.iws[hm.IWS_JAC_VALID] = 0
-        hs.hjac[0] = h
+           spos, prof, reg, hs, ist, mat=NEWTON_KEPT):
+    """:func:`roughvib.solvers.hermite.hermite_step` with the maps of ``slot`` and the scratch
+    row ``mat`` of ``hs``; the Newton matrix kept there is formed anew when the step length
+    changes."""
+    if hs.hjac[mat] != h:
+        hs.iws[mat, hm.IWS_JAC_VALID] = 0
+        hs.hjac[mat] = h
     ist[I_STEP_EVALS] += 1
-    return hm.hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, hp.Pm[slot], hp.Cc[slot], off, fp,
-                           omega2, cdamp, phiT, stiff, spos, prof, reg, wts, hs.ws, hs.iws)
+    ok = hm.hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, hp.Pm[slot], hp.Cc[slot], off, fp,
+                         omega2, cdamp, phiT, stiff, spos, prof, reg, wts, hs.ws[mat],
+                         hs.iws[mat])
+    ist[I_NEWTON] += hs.iws[mat, hm.IWS_ITERS]
+    ist[I_JACS] += hs.iws[mat, hm.IWS_JACS]
+    return ok
 
 
 @njit(cache=True)
@@ -1370,33 +1380,43 @@ def _accept_point(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, st
             armed[il] = 1
 
 
+@njit(cache=True, inline="always")
+def _chain_row(j, m):
+    """The buffer row of the end of kept step j (of m) of a block: the last is ``B_END``."""
+    if j == m - 1:
+        return B_END
+    if j == 0:
+        return B_HALF
+    return B_CHAIN + j - 1
+
+
 @njit(cache=True)
 def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
                      cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
                      track_latch, fresh, max_steps):
     """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
-    arguments and return codes, with ``h_top`` the top level's pair (twice the largest step:
-    :func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,
+    arguments and return codes, with ``h_top`` the top level's full step
+    (:func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,
     ``hp`` a ``HermiteMaps`` and ``hs`` a ``HermiteScratch``.
 
-    Step doubling over a pair: one Hermite step of length 2 hk against two of hk, which are
-    kept (fourth order: the estimate is their difference / 15, no extrapolation). At the top
-    level a pair spans ``PAIR_ROWS`` output intervals and starts on a row divisible by that
-    number; each half then spans ``PAIR_ROWS / 2`` intervals, the output times inside a half
-    written from its dense state (:mod:`roughvib.solvers.hermite_dense`). One level down a pair
-    spans two intervals (its mid an output time), and below, a pair lies within one output
-    interval, aligned to dyadic fractions of it as in ``_advance``. The margins are checked
-    at every output time and half-step end in turn, each accepted (armed, written, latch
-    updated) before the next is looked at, and a crossing is located by Hermite steps re-taken
-    from the start of its half (``_hermite_root``), bracketed by the last point accepted.
+    Step doubling generalised to a block: m kept Hermite steps of length hk against one step
+    of m hk over the same span; the kept ones are kept as they are (fourth order: m local
+    errors e against the full step's m^5 e, so the estimate of the kept steps' error is the
+    difference / (m^4 - 1)). At the top level a block spans ``PAIR_ROWS`` output intervals,
+    one kept step each, and starts on a row divisible by that number; one level down a block
+    spans two intervals; below, a pair (m = 2) lies within one output interval, aligned to
+    dyadic fractions of it as in ``_advance``. Every output time is a kept step's end. The
+    margins are checked at each kept step's end in turn, each end accepted (armed, written,
+    latch updated) before the next is looked at, and a crossing is located by Hermite steps
+    re-taken from the start of its kept step (``_hermite_root``).
     """
     Y, DF, C, G, armed, fired = buf
     hslot = hp.hslot
     work = hs.work
-    y, ya, ym, yb, yd, wts = Y[B_NOW], Y[B_FULL], Y[B_HALF], Y[B_END], Y[B_DENSE], Y[B_WTS]
-    f, fa, fm, fb, fd = DF[B_NOW], DF[B_FULL], DF[B_HALF], DF[B_END], DF[B_DENSE]
-    c, ca, cm, cb = C[B_NOW], C[B_FULL], C[B_HALF], C[B_END]
-    g0, gm, gb, gd, gl = G[G_START], G[G_HALF], G[G_END], G[G_DENSE], G[G_LOW]
+    y, ya, wts = Y[B_NOW], Y[B_FULL], Y[B_WTS]
+    f, fa = DF[B_NOW], DF[B_FULL]
+    c, ca = C[B_NOW], C[B_FULL]
+    g0, gm, gl = G[G_START], G[G_HALF], G[G_LOW]
     n = grid.size
     M = fp[kn.FP_MMODAL]
     n_ev = g0.size
@@ -1409,7 +1429,8 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
     if fresh:
         force_rates(y, f, off, fp, phiT, stiff, cres, spos, prof, reg, hs)
         hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
-        hs.iws[hm.IWS_JAC_VALID] = 0
+        for mat in range(N_NEWTON):
+            hs.iws[mat, hm.IWS_JAC_VALID] = 0
     k = ist[I_K]
     while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
         _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
@@ -1442,7 +1463,7 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         rel = t - base
         span = grid[k] - base
         hl = h_top / 2.0 ** lev
-        # a pair over several output intervals starts on a row divisible by their number
+        # a block over several output intervals starts on a row divisible by their number
         # (so that the rows it steps over do not depend on where the loop stopped: chunks,
         # checkpoints, events) and ends within the grid; otherwise one level down
         rows = 0
@@ -1454,10 +1475,13 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
             lev += 1
             hl *= 0.5
         s_full = lev
-        s_half = lev + 1
-        if rows > 0:
+        if rows > 0:  # m kept steps of one output interval each
+            m = rows
+            s_kept = lev + int(round(math.log2(rows)))
             last = True
-        else:
+        else:         # a pair within one output interval
+            m = 2
+            s_kept = lev + 1
             nxt = math.floor(rel / hl + 1e-7) + 1.0
             target = nxt * hl
             if target - rel < 0.01 * hl:
@@ -1467,85 +1491,83 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
                 target = span
             if abs(target - rel - hl) > 1e-7 * hl:
                 s_full = SLOT_FLY
-                s_half = SLOT_FLY2
+                s_kept = SLOT_FLY2
                 _hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
-                _hermite_fill(s_half, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
+                _hermite_fill(s_kept, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
                               ist)
         if s_full < SLOT_FLY:
             if hslot[s_full] <= 0.0:
                 _hermite_fill(s_full, hl, omega2, cdamp, phi, cres, M, hp, ist)
-            if hslot[s_half] <= 0.0:
-                _hermite_fill(s_half, 0.5 * hl, omega2, cdamp, phi, cres, M, hp, ist)
+            if hslot[s_kept] <= 0.0:
+                _hermite_fill(s_kept, hl / m, omega2, cdamp, phi, cres, M, hp, ist)
         h = hslot[s_full]
-        hh = hslot[s_half]
-        half_rows = rows // 2
-        if rows > 0:
-            t_mid = grid[k - 1 + half_rows]
-            t_new = grid[k - 1 + rows]
-        else:
-            t_mid = t + hh
-            t_new = base + target if not last else grid[k]
-        if half_rows > 1 and hp.hdense[s_half] != hh:  # output times inside the halves
-            hd.dense_maps(omega2, cdamp, hh, hh / half_rows, hp.Pd[s_half])
-            hp.hdense[s_half] = hh
-            ist[I_MAPS] += 1
+        hk = hslot[s_kept]
         for i in range(nstate):
             wts[i] = rtol * abs(y[i]) + atol[i]
-        # the two half steps (kept), then the full step (for the error estimate)
-        ok = _hstep(t, hh, y, f, c, ym, fm, cm, s_half, hp, wts, *model)
-        ok = ok and _hstep(t_mid, hh, ym, fm, cm, yb, fb, cb, s_half, hp, wts, *model)
-        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model)
+        # the m kept steps, then the full step (for the error estimate)
+        ok = True
+        ts = t
+        ys_, fs_, cs_ = y, f, c
+        for j in range(m):
+            row = _chain_row(j, m)
+            ok = _hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts,
+                        *model)
+            if not ok:
+                break
+            ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
+            ys_, fs_, cs_ = Y[row], DF[row], C[row]
+        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model, NEWTON_FULL)
         if not ok:
             ist[I_NEWTON_FAIL] += 1
             ist[I_REJECT] += 1
             ist[I_LEV] = lev + 1
             continue
+        yb = Y[B_END]
         err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R],
-                        2.0 ** HERMITE_ORDER - 1.0)
+                        float(m) ** HERMITE_ORDER - 1.0)
         if err > 1.0:
             ist[I_REJECT] += 1
             fac = SAFETY * err ** (-1.0 / (HERMITE_ORDER + 1.0))
             drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
             ist[I_LEV] = lev + max(1, drop)
+            # a non-finite estimate within an output interval ends the run; over a block of
+            # several intervals it is the long full step's (its Newton can run away where the
+            # kept steps do not): one level down
             if err >= 1e300:
-                tt[T_NOW] = t
-                return ADV_NONFINITE
+                if rows == 0:
+                    tt[T_NOW] = t
+                    return ADV_NONFINITE
+                ist[I_LEV] = lev + 1
             continue
         ist[I_STEPS] += 1
         ist[I_LEV] = lev
-        # the points of the pair in time order: in each half its inner output times (dense
-        # states), then its end; each checked for crossings, then accepted
-        for half in range(2):
-            if half == 0:
-                ts, ys_, fs_, cs_, gs_ = t, y, f, c, g0
-                te, ye, ge = t_mid, ym, gm
-                fe, ce = fm, cm
+        # the kept steps' ends in time order: each checked for crossings, then accepted
+        for i in range(n_ev):
+            gl[i] = g0[i]
+        ts = t
+        ys_, fs_, cs_ = y, f, c
+        t_new = t
+        for j in range(m):
+            row = _chain_row(j, m)
+            if rows > 0:
+                te = grid[k - 1 + j + 1]
+            elif j == m - 1:
+                te = base + target if not last else grid[k]
             else:
-                ts, ys_, fs_, cs_, gs_ = t_mid, ym, fm, cm, gm
-                te, ye, ge = t_new, yb, gb
-                fe, ce = fb, cb
-            for i in range(n_ev):
-                gl[i] = gs_[i]
-            th_lo = 0.0
-            for j in range(1, half_rows):
-                th = j / half_rows
-                td = grid[ist[I_K]]
-                hd.dense_state(th, hh, ts, ys_, fs_, cs_, ye, fe, ce, hp.Pd[s_half], yd, fd,
-                               off, fp, phiT, reg)
-                kn.events(td, yd, gd, off, fp, phi, cres, spos, prof, reg, rf, work)
-                if _crossed(armed, gd):
-                    return _hermite_root(ts, hh, th_lo, th, td, ys_, fs_, cs_, gl, gd, yd,
-                                         buf, *root_args)
-                _accept_point(td, yd, gd, armed, *point_args, True)
-                th_lo = th
-                for i in range(n_ev):
-                    gl[i] = gd[i]
-            kn.events(te, ye, ge, off, fp, phi, cres, spos, prof, reg, rf, work)
-            if _crossed(armed, ge):
-                return _hermite_root(ts, hh, th_lo, 1.0, te, ys_, fs_, cs_, gl, ge, ye, buf,
+                te = t + (j + 1) * hk
+            ye = Y[row]
+            kn.events(te, ye, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
+            if _crossed(armed, gm):
+                return _hermite_root(ts, hk, 0.0, 1.0, te, ys_, fs_, cs_, gl, gm, ye, buf,
                                      *root_args)
-            at_output = rows > 0 or (half == 1 and last)
-            _accept_point(te, ye, ge, armed, *point_args, at_output)
+            at_output = rows > 0 or (j == m - 1 and last)
+            _accept_point(te, ye, gm, armed, *point_args, at_output)
+            for i in range(n_ev):
+                gl[i] = gm[i]
+            ts = te
+            ys_, fs_, cs_ = ye, DF[row], C[row]
+            t_new = te
+        fb, cb = DF[B_END], C[B_END]
         for j in range(nstate):
             y[j] = yb[j]
         for j in range(f.size):
@@ -1553,7 +1575,7 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         for j in range(c.size):
             c[j] = cb[j]
         for i in range(n_ev):
-            g0[i] = gb[i]
+            g0[i] = gl[i]
         t = t_new
         tt[T_NOW] = t
         # step size: up one level when the error is small and the time is on that level
@@ -1649,8 +1671,13 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         raise ValueError("the Hermite step covers the Feldmann law with a force-driven block "
                          "and no friction moment only")
     if hermite:  # the fourth-order Hermite step (_advance_hermite)
-        DF = np.zeros((N_YBUF, K))
-        C = np.zeros((N_DBUF, hm.carry_size(R, K)))
+        # a block's kept steps from B_CHAIN: PAIR_ROWS - 2 beyond B_HALF and B_END
+        n_ybuf = max(N_YBUF, B_CHAIN + PAIR_ROWS - 2)
+        Y = np.zeros((n_ybuf, nst))
+        Y[B_NOW] = y
+        y = Y[B_NOW]
+        DF = np.zeros((n_ybuf, K))
+        C = np.zeros((n_ybuf, hm.carry_size(R, K)))
         maps = new_hermite_maps(R, K)
         buf = HermiteBuffers(Y, DF, C, G, armed, fired)
         scratch = new_hermite_scratch(work, R, K)
@@ -1663,7 +1690,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     cp_interval = out_cfg.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
-    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a pair
+    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a block
         cp_stride += PAIR_ROWS - cp_stride % PAIR_ROWS
     scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
     budget = step_budget(out_cfg.step)
@@ -1672,7 +1699,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     if resume is None:
         kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
-        # the first step h_max / 256 (the Hermite loop: its first pair about as long)
+        # the first step h_max / 256 (the Hermite loop: its first full step about as long)
         ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else 8
         book = EventBook(system, regime, reg, rf)
         book.log_initial_phase(0.0, y)
@@ -1704,7 +1731,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
 
     status, message = "success", "reached the end of the output grid"
     bar = progress_bar(system, progress, initial=float(tt[T_NOW]))
-    chunk = max(1, n // 200)
+    chunk = max(1, n // 50)  # returns to Python (progress, checkpoints): ~0.1 ms each
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
 
@@ -1795,12 +1822,13 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         "propagator_evaluations": int(ist[I_MAPS]), "nonlinear_iterations": int(ist[I_NEWTON]),
         "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
         "extrapolated_steps": int(ist[I_EXTRAP]),
-        "residual_evaluations": None, "jacobian_evaluations": None,
+        "residual_evaluations": None,
+        "jacobian_evaluations": int(ist[I_JACS]) if hermite else None,
         "restarts": int(book.stats.get("restarts", 0)),
         "wall_time": wall_before + time.perf_counter() - wall0,
         "cpu_time": cpu_before + time.process_time() - cpu0,
         "events_total": len(book.events),
-        "largest_step": 0.5 * h_top if hermite else h_max,
+        "largest_step": h_max,  # the largest kept step, of either loop
     })
     k_done = int(ist[I_K])
     return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
