@@ -626,6 +626,15 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
 
 
 @njit(cache=True)
+def _all_finite(a, n):
+    """Whether the first n entries of a are finite."""
+    for i in range(n):
+        if not abs(a[i]) < math.inf:
+            return False
+    return True
+
+
+@njit(cache=True)
 def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp, phiT, stiff,
                  spos, prof, reg, wts, ws, iws):
     """One step of Hermite holds from (y0, dF0, c0) to (y1, dF1, c1); False if Newton fails.
@@ -704,6 +713,8 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         form = fresh or since >= CHORD_MAX
         _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg, jac, form,
                   dhs)
+        if not _all_finite(res, n):  # a runaway iterate: the caller takes a shorter step
+            return False
         if form:
             lu_factor(jac, piv)
             iws[IWS_JAC_VALID] = 1
@@ -718,8 +729,10 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         for col in range(n):
             unk[col] += res[col]
             e = abs(res[col]) / scale[col]
-            if e > worst:
+            if not e <= worst:  # NaN counts as the worst
                 worst = e
+        if not worst < 1e300:  # a singular matrix or a runaway iterate
+            return False
         if worst <= NEWTON_TOL_REL:
             ok = True
             break
