@@ -1168,11 +1168,11 @@ HermiteScratch = collections.namedtuple("HermiteScratch",
                                         ["ws", "iws", "hjac", "jac", "ipiv", "rhs", "work"])
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
-HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (8e-5 s / 1024 at 1e-5 s output)
+HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (4e-5 s / 1024 at 1e-5 s output)
 NEWTON_KEPT = 0  # the scratch row (Newton matrix) of the kept steps and root trials ...
 NEWTON_FULL = 1  # ... and of the full step of a block
 N_NEWTON = 2
-PAIR_ROWS = 8  # output intervals of the top level's block (one kept step each)
+PAIR_ROWS = 4  # output intervals of the top level's block (one kept step each)
 
 
 def hermite_top_pair(output_step: float, max_step: float) -> float:

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from roughvib.model import kernels as kn
-from roughvib.model.krylov import lu_factor, lu_solve
+from roughvib.model.krylov import lu_factor_checked, lu_solve
 from roughvib.physics.friction import feldmann_mu, feldmann_mu_d2
 from roughvib.physics.surface.interp import profile_eval
 
@@ -282,7 +282,7 @@ def _block_end(h, z0, vz0, az0, jz0, S1, dS1, fp):
     return z1, vz1
 
 
-#: a step's constants for its residual (``cst`` of :func:`_step_constants`)
+#: a step's constants for its residual (``cst`` of ``_step_constants``)
 CS_TEXC, CS_DTEXC = 0, 1    # excitation force [N] and its rate [N/s] at the end
 CS_XC, CS_VC = 2, 3         # x1 and the velocity residual's part known at the start
 CS_ZC, CS_VZC = 4, 5        # the block's z1, vz1 for no force at the end ...
@@ -716,7 +716,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         if not _all_finite(res, n):  # a runaway iterate: the caller takes a shorter step
             return False
         if form:
-            lu_factor(jac, piv)
+            if not lu_factor_checked(jac, piv):  # singular: the caller takes a shorter step
+                iws[IWS_JAC_VALID] = 0
+                return False
             iws[IWS_JAC_VALID] = 1
             iws[IWS_JACS] += 1
             fresh = False
