@@ -118,6 +118,7 @@ ADV_MIN_STEP = -1
 ADV_NEWTON = -2
 ADV_NONFINITE = -3
 ADV_STALL = -4
+ADV_GO = 9     # (_loop_guard: attempt a step)
 
 # integer loop state / statistics (int64 array `ist`)
 I_K = 0          # next output index
@@ -876,6 +877,64 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
 
 
 @njit(cache=True)
+def _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+           cres, spos, prof, reg, rf, work, track_latch):
+    """A step loop's entry: the outputs at grid points the state at t landed on (after an
+    event's switch, as IDA does) and, for a state set from outside (``fresh``), its margins
+    in g0 and the roots armed. Returns whether the grid is done."""
+    n = grid.size
+    k = ist[I_K]
+    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
+        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                          cres, spos, prof, reg, rf, work, track_latch)
+        k += 1
+        ist[I_IVL] = 0
+    ist[I_K] = k
+    if k >= n:
+        return True
+    if fresh:
+        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+        for i in range(g0.size):
+            armed[i] = 1 if g0[i] > 0.0 else 0
+    return False
+
+
+@njit(cache=True)
+def _loop_guard(tt, t, ist, k_stop, n, max_steps):
+    """A step loop's checks before an attempt: the return code (``ADV_DONE``, ``ADV_CHUNK``,
+    ``ADV_MIN_STEP``, ``ADV_STALL``) or ``ADV_GO`` to attempt a step (the attempt counted
+    against the stall budget)."""
+    k = ist[I_K]
+    if k >= n:
+        return ADV_DONE
+    if k >= k_stop:
+        return ADV_CHUNK
+    if ist[I_LEV] >= NLEV - 1:
+        tt[T_NOW] = t
+        return ADV_MIN_STEP
+    ist[I_IVL] += 1
+    if ist[I_IVL] > max_steps:
+        tt[T_NOW] = t
+        return ADV_STALL
+    return ADV_GO
+
+
+@njit(cache=True)
+def _interval_target(rel, hl, span):
+    """The end of a step of about hl [s] from ``rel`` into an output interval of length
+    ``span``, on the multiples of hl and never less than a hundredth of hl short of one:
+    ``(target, last)``, ``last`` when it is the interval's end."""
+    nxt = math.floor(rel / hl + 1e-7) + 1.0
+    target = nxt * hl
+    if target - rel < 0.01 * hl:
+        target += hl
+    last = target >= span * (1.0 - 1e-9)
+    if last:
+        target = span
+    return target, last
+
+
+@njit(cache=True)
 def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp, omega2, cdamp,
              phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, scratch, track_latch, fresh,
              max_steps):
@@ -914,46 +973,21 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
     if fresh:
         derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
         _state_modal_force(y, u, phiT, off, fp, reg, ut)
-    # outputs at grid points the event landed on (after the switch, as IDA does)
-    k = ist[I_K]
-    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
-        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
-                          cres, spos, prof, reg, rf, work, track_latch)
-        k += 1
-        ist[I_IVL] = 0
-    ist[I_K] = k
-    if k >= n:
+    if _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs,
+              stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
-    if fresh:
-        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-        for i in range(n_ev):
-            armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
     while True:
+        code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
+        if code != ADV_GO:
+            return code
         k = ist[I_K]
-        if k >= n:
-            return ADV_DONE
-        if k >= k_stop:
-            return ADV_CHUNK
         lev = ist[I_LEV]
-        if lev >= NLEV - 1:
-            tt[T_NOW] = t
-            return ADV_MIN_STEP
-        ist[I_IVL] += 1
-        if ist[I_IVL] > max_steps:
-            tt[T_NOW] = t
-            return ADV_STALL
         hl = h_max / 2.0 ** lev
         base = grid[k - 1]
         rel = t - base
         span = grid[k] - base
-        nxt = math.floor(rel / hl + 1e-7) + 1.0
-        target = nxt * hl
-        if target - rel < 0.01 * hl:
-            target += hl
-        last = target >= span * (1.0 - 1e-9)
-        if last:
-            target = span
+        target, last = _interval_target(rel, hl, span)
         h = target - rel
         if abs(h - hl) <= 1e-7 * hl:
             s_full = lev
@@ -1431,34 +1465,16 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
         for mat in range(N_NEWTON):
             hs.iws[mat, hm.IWS_JAC_VALID] = 0
-    k = ist[I_K]
-    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
-        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
-                          cres, spos, prof, reg, rf, work, track_latch)
-        k += 1
-        ist[I_IVL] = 0
-    ist[I_K] = k
-    if k >= n:
+    if _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs,
+              stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
-    if fresh:
-        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-        for i in range(n_ev):
-            armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
     while True:
+        code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
+        if code != ADV_GO:
+            return code
         k = ist[I_K]
-        if k >= n:
-            return ADV_DONE
-        if k >= k_stop:
-            return ADV_CHUNK
         lev = ist[I_LEV]
-        if lev >= NLEV - 1:
-            tt[T_NOW] = t
-            return ADV_MIN_STEP
-        ist[I_IVL] += 1
-        if ist[I_IVL] > max_steps:
-            tt[T_NOW] = t
-            return ADV_STALL
         base = grid[k - 1]
         rel = t - base
         span = grid[k] - base
@@ -1482,13 +1498,7 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         else:         # a pair within one output interval
             m = 2
             s_kept = lev + 1
-            nxt = math.floor(rel / hl + 1e-7) + 1.0
-            target = nxt * hl
-            if target - rel < 0.01 * hl:
-                target += hl
-            last = target >= span * (1.0 - 1e-9)
-            if last:
-                target = span
+            target, last = _interval_target(rel, hl, span)
             if abs(target - rel - hl) > 1e-7 * hl:
                 s_full = SLOT_FLY
                 s_kept = SLOT_FLY2
