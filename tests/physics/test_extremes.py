@@ -455,12 +455,18 @@ def test_huge_mass_runs_at_tolerances_above_the_floors(method):
 def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
     """The stall guard, the backstop for whatever the floors miss: with the floor check
     bypassed, 1e15 kg at an atol_acceleration of 1e-8 m/s^2 (nine orders below the floor)
-    stops as `stalled` within its step budget, with a hint, instead of running for ever."""
+    stops as `stalled` within its step budget, with a hint, instead of running for ever.
+
+    adaptive-modal with its trapezoidal step (the one of the scenes the Hermite step does not
+    cover); its Hermite step runs this case to the end (70 step pairs per output interval
+    at 1e-8, 84 at 1e-10: its estimate is not swamped by the round-off), and its guard is
+    tested below."""
     from roughvib.solvers import adaptive_modal, ida
     from roughvib.solvers.events import step_budget
 
     monkeypatch.setattr(ida, "check_tolerances", lambda *a: None)
     monkeypatch.setattr(adaptive_modal, "check_tolerances", lambda *a: None)
+    monkeypatch.setattr(adaptive_modal, "hermite_applies", lambda system: False)
     # an absolute atol_acceleration (the accuracy preset's would scale with the pilot's level,
     # which at 1e15 kg is the round-off noise of the static load)
     r = _run(**{"solver.method": method, "block.mass": 1e15, "output.duration": 0.002,
@@ -469,6 +475,22 @@ def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
     msg = r.summary["message"]
     assert "within one output interval" in msg and "Hint:" in msg and "\n" not in msg
     assert r.summary["solver"]["steps"] <= step_budget(1e-5)
+
+
+def test_the_hermite_loops_stall_guard(monkeypatch):
+    """adaptive-modal's Hermite loop stops as `stalled` when its step attempts within one
+    output interval exceed the budget (here forced to 8: its first steps, 1/256 of the output
+    step, need more)."""
+    from roughvib.solvers import adaptive_modal
+
+    monkeypatch.setattr(adaptive_modal, "step_budget", lambda output_step: 8)
+    r = _run(**{"solver.method": "adaptive-modal", "output.duration": 0.002,
+                "plate.max_frequency": 2000.0})
+    assert r.status == "stalled", r.summary["message"]
+    msg = r.summary["message"]
+    assert "more than 8 step attempts within one output interval" in msg, msg
+    assert "Hint:" in msg and "\n" not in msg
+    assert r.summary["solver"]["steps"] <= 8
 
 
 def test_ida_stopped_by_its_jacobian_guard_in_the_first_call_reports_its_counts(monkeypatch):

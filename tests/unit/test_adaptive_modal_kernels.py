@@ -200,14 +200,14 @@ def test_error_norm_is_rms_over_the_modes_and_max_over_the_rest():
     w = 1e-6 * 1.0 + 1e-6
     yb = y0.copy()
     ya = yb + 3 * w * np.array([3.0, 1.0, 0.5, 2.0])
-    assert _err_norm(ya, yb, y0, atol, 1e-6, 2) == pytest.approx(np.sqrt((9 + 1) / 2))
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 2, 3.0) == pytest.approx(np.sqrt((9 + 1) / 2))
     ya[0] = yb[0]  # modal rms now 1/sqrt(2): the block state's 2 dominates
-    assert _err_norm(ya, yb, y0, atol, 1e-6, 2) == pytest.approx(2.0)
-    assert _err_norm(ya, yb, y0, atol, 1e-6, 0) == pytest.approx(2.0)  # rigid plate: max
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 2, 3.0) == pytest.approx(2.0)
+    assert _err_norm(ya, yb, y0, atol, 1e-6, 0, 3.0) == pytest.approx(2.0)  # rigid plate: max
     for pos in range(4):  # a NaN wins wherever it sits, even before finite components
         bad = ya.copy()
         bad[pos] = np.nan
-        assert _err_norm(bad, yb, y0, atol, 1e-6, 2) >= 1e300
+        assert _err_norm(bad, yb, y0, atol, 1e-6, 2, 3.0) >= 1e300
 
 
 def test_error_norm_over_many_modes_weighs_each_by_the_larger_magnitude():
@@ -227,15 +227,15 @@ def test_error_norm_over_many_modes_weighs_each_by_the_larger_magnitude():
     ya = yb + 3.0 * w * rng.uniform(-2.0, 2.0, size=n)
     e = (ya - yb) / (3.0 * w)
     expect = max(np.sqrt(np.mean(e[:n_modal] ** 2)), np.max(np.abs(e[n_modal:])))
-    assert _err_norm(ya, yb, y0, atol, rtol, n_modal) == pytest.approx(expect, rel=1e-12)
+    assert _err_norm(ya, yb, y0, atol, rtol, n_modal, 3.0) == pytest.approx(expect, rel=1e-12)
     zero = atol.copy()
     zero[5] = 0.0
     y0z, ybz = y0.copy(), yb.copy()
     y0z[5] = ybz[5] = 0.0  # weight exactly zero: not a finite error
-    assert _err_norm(ya, ybz, y0z, zero, rtol, n_modal) >= 1e300
+    assert _err_norm(ya, ybz, y0z, zero, rtol, n_modal, 3.0) >= 1e300
     big = ya.copy()
     big[300] = np.inf
-    assert _err_norm(big, yb, y0, atol, rtol, n_modal) >= 1e300
+    assert _err_norm(big, yb, y0, atol, rtol, n_modal, 3.0) >= 1e300
 
 
 @pytest.mark.parametrize("law", ["feldmann", "coulomb"])

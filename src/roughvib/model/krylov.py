@@ -71,6 +71,13 @@ def krylov_workspace(n_states: int, n_modes: int, n_contacts: int) -> tuple[np.n
 @njit(cache=True)
 def lu_factor(A, piv):
     """LU factorisation with partial pivoting of A in place (row swaps recorded in piv)."""
+    lu_factor_checked(A, piv)
+
+
+@njit(cache=True)
+def lu_factor_checked(A, piv):
+    """:func:`lu_factor` that stops and returns False at a pivot that is zero or not finite
+    (A singular, or holding NaN or inf), True otherwise."""
     n = piv.size
     for c in range(n):
         p = c
@@ -85,6 +92,8 @@ def lu_factor(A, piv):
                 tmp = A[c, j]
                 A[c, j] = A[p, j]
                 A[p, j] = tmp
+        if not 0.0 < abs(A[c, c]) < math.inf:
+            return False
         inv = 1.0 / A[c, c]
         for i in range(c + 1, n):
             A[i, c] *= inv
@@ -92,6 +101,7 @@ def lu_factor(A, piv):
             if f != 0.0:
                 for j in range(c + 1, n):
                     A[i, j] -= f * A[c, j]
+    return True
 
 
 @njit(cache=True)

@@ -46,6 +46,7 @@ __all__ = [
     "table_kinetic",
     "calibrated_force_amplitude",
     "feldmann_mu",
+    "feldmann_mu_d2",
     "feldmann_mu_law",
     "latch_margin",
     "latch_update",
@@ -401,6 +402,26 @@ def feldmann_mu(x, b, mu_slip, mu_stick, a1, a2):
     # b * b = 1: the derivative has the same expression on both branches
     dmu_dx = -a1 * dmu * e1 + a2 * mu_stick * e2
     return mu, dmu_dx
+
+
+@njit(cache=True)
+def feldmann_mu_d2(x, b, mu_slip, mu_stick, a1, a2):
+    """:func:`feldmann_mu` and the branch's second derivative (for Newton matrices of
+    fourth-order steps, whose tangential rate equation holds ``dmu/dx``).
+
+    Returns
+    -------
+    mu, dmu_dx, d2mu_dx2 : float
+        Friction coefficient [-], its first [s/m] and second [s^2/m^2] derivative in x;
+        mu and dmu_dx are those of :func:`feldmann_mu`.
+    """
+    e1 = math.exp(-a1 * b * x)
+    e2 = math.exp(-a2 * b * x)
+    dmu = mu_stick - mu_slip
+    mu = b * (mu_slip + dmu * e1 - mu_stick * e2)
+    dmu_dx = -a1 * dmu * e1 + a2 * mu_stick * e2
+    d2mu_dx2 = b * (a1 * a1 * dmu * e1 - a2 * a2 * mu_stick * e2)
+    return mu, dmu_dx, d2mu_dx2
 
 
 @njit(cache=True)

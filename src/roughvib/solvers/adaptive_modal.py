@@ -1,5 +1,16 @@
 """Adaptive exact-modal solver: exact plate propagation, error-controlled steps, located events.
 
+Two steps, one loop each (docs/theory.md, "The adaptive exact-modal scheme"):
+
+* the **Hermite step** (``_advance_hermite``; :mod:`roughvib.solvers.hermite`), fourth order,
+  where :func:`hermite_applies`: the Feldmann law with a force-driven block and no friction
+  moment. The modal force is held as the cubic through its values and rates at both ends, the
+  block follows the Hermite-Obreschkoff rule, and the error is estimated over blocks of up to
+  ``PAIR_ROWS`` output intervals: one step over the block against the kept steps of one
+  interval each (estimate / (m^4 - 1) for m kept steps);
+* the **trapezoidal step** (``_advance``, ``implicit_step``) for every other case, described
+  below.
+
 The plate modes couple to the block only through the K contact forces, and each mode is a
 linear oscillator. Over a step of length h with the modal force linear in time (first-order
 hold), a mode is propagated exactly, whatever omega h is (docs/theory.md; the fixed-step
@@ -64,6 +75,7 @@ from roughvib.model.system import System
 from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers import hermite as hm
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -106,6 +118,7 @@ ADV_MIN_STEP = -1
 ADV_NEWTON = -2
 ADV_NONFINITE = -3
 ADV_STALL = -4
+ADV_GO = 9     # (_loop_guard: attempt a step)
 
 # integer loop state / statistics (int64 array `ist`)
 I_K = 0          # next output index
@@ -119,7 +132,8 @@ I_NEWTON = 7     # Newton iterations
 I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 I_EXTRAP = 10    # accepted steps whose end was extrapolated (_extrapolate)
-N_IST = 11
+I_JACS = 11      # Newton matrices formed (the Hermite step; the trapezoidal step forms one per
+N_IST = 12       # iteration)
 
 #: the propagator cache of _advance: ``P`` (N_SLOTS, N_MAP, R) the maps Phi, G0 and G1 of
 #: :func:`step_maps` of each slot, one contiguous row per entry (``MAP_*``), so that the step's
@@ -181,14 +195,16 @@ B_END = 3     # the second half step
 B_TRIAL = 4   # a root-search trial
 B_BEST = 5    # the state at the root
 B_WTS = 6     # tolerance weights (Y only)
-N_YBUF = 7
+B_CHAIN = 7   # the Hermite loop's kept steps inside a block after B_HALF (PAIR_ROWS - 2 rows)
+N_YBUF = B_CHAIN
 N_DBUF = 6
 # rows of the margin buffer G: step start, half step, step end, latest trial
 G_START = 0
 G_HALF = 1
 G_END = 2
 G_TRIAL = 3
-N_GBUF = 4
+G_LOW = 4     # the Hermite loop: at the last point accepted (a root search's lower bracket)
+N_GBUF = 5
 T_NOW = 0      # the one entry of the time box ``tt``
 FIRST_ROW = 0  # the output row of t = 0
 
@@ -728,8 +744,9 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
 
 
 @njit(cache=True)
-def _err_norm(ya, yb, y0, atol, rtol, n_modal):
-    """Step-doubling estimate (ya - yb) / 3 in tolerance weights: RMS over the modes, max
+def _err_norm(ya, yb, y0, atol, rtol, n_modal, div):
+    """Step-doubling estimate (ya - yb) / div in tolerance weights (div = 2^p - 1 for a
+    method of order p: 3 for the trapezoidal step, 15 for the Hermite step): RMS over the modes, max
     over everything else.
 
     The weights are IDA's (``rtol |y| + atol_i``). The first ``n_modal`` states (plate.q,
@@ -744,12 +761,12 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
     """
     n = ya.size
     worst = 0.0
-    acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal)
+    acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div)
     if not acc < 1e300:  # NaN or inf in a mode: the step is rejected as non-finite
         return 1e300
     for i in range(n_modal, n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
-        e = abs(ya[i] - yb[i]) / (3.0 * w)
+        e = abs(ya[i] - yb[i]) / (div * w)
         if not e < 1e300:  # NaN or inf anywhere: the step is rejected as non-finite
             return 1e300
         if e > worst:
@@ -762,8 +779,8 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal):
 
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH, error_model="numpy")
-def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
-    """sum over the first n_modal states of ((ya - yb) / (3 w))^2, w = rtol max(|y0|, |yb|)
+def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div):
+    """sum over the first n_modal states of ((ya - yb) / (div w))^2, w = rtol max(|y0|, |yb|)
     + atol, summed in whatever order vectorises; NaN or inf in any term makes it so.
 
     Written so that the loop vectorises: the larger magnitude by a conditional expression
@@ -775,7 +792,7 @@ def _modal_err_sq(ya, yb, y0, atol, rtol, n_modal):
         a = abs(y0[i])
         b = abs(yb[i])
         w = rtol * (a if a > b else b) + atol[i]
-        e = (ya[i] - yb[i]) / (3.0 * w)
+        e = (ya[i] - yb[i]) / (div * w)
         acc += e * e
     return acc
 
@@ -816,6 +833,28 @@ def _extrapolate(t1, ya, yb, ye, ge, armed, off, fp, phi, cres, spos, prof, reg,
 
 
 @njit(cache=True)
+def _illinois_trial(lo, hi, glo, ghi, L):
+    """The next trial fraction of a root search on [lo, hi] (fractions of a step of length L
+    [s]) with margins glo > 0 >= ghi: the secant point (the margins Illinois-scaled by the
+    caller), kept at least half ``ROOT_TOL`` inside the bracket; the midpoint if the secant
+    point is not inside.
+
+    Near convergence the secant point lies next to the end that moves; a trial just past it
+    (by half the tolerance) collapses the bracket. Bisecting whenever the secant point lay
+    within a thousandth of the bracket of an end had made the searches bisections: 25 trials
+    per event on the paper scene."""
+    th = (lo * ghi - hi * glo) / (ghi - glo)
+    if not lo < th < hi:
+        return 0.5 * (lo + hi)
+    gap = 0.5 * ROOT_TOL / L
+    if th - lo < gap:
+        th = lo + gap
+    elif hi - th < gap:
+        th = hi - gap
+    return th
+
+
+@njit(cache=True)
 def _is_multiple(rel, h):
     """Whether ``rel`` is (to 1e-7 of h) a whole multiple of h."""
     f = rel / h
@@ -835,6 +874,64 @@ def _latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, 
                 rf[kn.RF_VEXT] = v
         elif v < rf[kn.RF_VEXT]:
             rf[kn.RF_VEXT] = v
+
+
+@njit(cache=True)
+def _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+           cres, spos, prof, reg, rf, work, track_latch):
+    """A step loop's entry: the outputs at grid points the state at t landed on (after an
+    event's switch, as IDA does) and, for a state set from outside (``fresh``), its margins
+    in g0 and the roots armed. Returns whether the grid is done."""
+    n = grid.size
+    k = ist[I_K]
+    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
+        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
+                          cres, spos, prof, reg, rf, work, track_latch)
+        k += 1
+        ist[I_IVL] = 0
+    ist[I_K] = k
+    if k >= n:
+        return True
+    if fresh:
+        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
+        for i in range(g0.size):
+            armed[i] = 1 if g0[i] > 0.0 else 0
+    return False
+
+
+@njit(cache=True)
+def _loop_guard(tt, t, ist, k_stop, n, max_steps):
+    """A step loop's checks before an attempt: the return code (``ADV_DONE``, ``ADV_CHUNK``,
+    ``ADV_MIN_STEP``, ``ADV_STALL``) or ``ADV_GO`` to attempt a step (the attempt counted
+    against the stall budget)."""
+    k = ist[I_K]
+    if k >= n:
+        return ADV_DONE
+    if k >= k_stop:
+        return ADV_CHUNK
+    if ist[I_LEV] >= NLEV - 1:
+        tt[T_NOW] = t
+        return ADV_MIN_STEP
+    ist[I_IVL] += 1
+    if ist[I_IVL] > max_steps:
+        tt[T_NOW] = t
+        return ADV_STALL
+    return ADV_GO
+
+
+@njit(cache=True)
+def _interval_target(rel, hl, span):
+    """The end of a step of about hl [s] from ``rel`` into an output interval of length
+    ``span``, on the multiples of hl and never less than a hundredth of hl short of one:
+    ``(target, last)``, ``last`` when it is the interval's end."""
+    nxt = math.floor(rel / hl + 1e-7) + 1.0
+    target = nxt * hl
+    if target - rel < 0.01 * hl:
+        target += hl
+    last = target >= span * (1.0 - 1e-9)
+    if last:
+        target = span
+    return target, last
 
 
 @njit(cache=True)
@@ -876,46 +973,21 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
     if fresh:
         derivatives(t, y, d, off, fp, cdamp, spos, prof, reg)
         _state_modal_force(y, u, phiT, off, fp, reg, ut)
-    # outputs at grid points the event landed on (after the switch, as IDA does)
-    k = ist[I_K]
-    while k < n and grid[k] - t <= 1e-12 * max(1.0, t):
-        _latch_and_output(grid[k], y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff,
-                          cres, spos, prof, reg, rf, work, track_latch)
-        k += 1
-        ist[I_IVL] = 0
-    ist[I_K] = k
-    if k >= n:
+    if _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs,
+              stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
-    if fresh:
-        kn.events(t, y, g0, off, fp, phi, cres, spos, prof, reg, rf, work)
-        for i in range(n_ev):
-            armed[i] = 1 if g0[i] > 0.0 else 0
     nstate = y.size
     while True:
+        code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
+        if code != ADV_GO:
+            return code
         k = ist[I_K]
-        if k >= n:
-            return ADV_DONE
-        if k >= k_stop:
-            return ADV_CHUNK
         lev = ist[I_LEV]
-        if lev >= NLEV - 1:
-            tt[T_NOW] = t
-            return ADV_MIN_STEP
-        ist[I_IVL] += 1
-        if ist[I_IVL] > max_steps:
-            tt[T_NOW] = t
-            return ADV_STALL
         hl = h_max / 2.0 ** lev
         base = grid[k - 1]
         rel = t - base
         span = grid[k] - base
-        nxt = math.floor(rel / hl + 1e-7) + 1.0
-        target = nxt * hl
-        if target - rel < 0.01 * hl:
-            target += hl
-        last = target >= span * (1.0 - 1e-9)
-        if last:
-            target = span
+        target, last = _interval_target(rel, hl, span)
         h = target - rel
         if abs(h - hl) <= 1e-7 * hl:
             s_full = lev
@@ -948,7 +1020,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
             ist[I_LEV] = lev + 1
             continue
         # plate.q and plate.dq come first in the layout (StateLayout): 2 R modal states
-        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R])
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R], 3.0)
         if err > 1.0:
             ist[I_REJECT] += 1
             fac = SAFETY * err ** (-1.0 / 3.0)
@@ -1005,10 +1077,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 for _it in range(200):
                     if (hi - lo) * L <= ROOT_TOL:
                         break
-                    th = (lo * ghi - hi * glo) / (ghi - glo)
-                    w_ = hi - lo
-                    if not (lo + 1e-3 * w_ < th < hi - 1e-3 * w_):
-                        th = 0.5 * (lo + hi)
+                    th = _illinois_trial(lo, hi, glo, ghi, L)
                     hs = th * L
                     _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
@@ -1112,6 +1181,420 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 ist[I_LEV] -= 1
 
 
+# --- the Hermite step's loop (Feldmann law, force-driven block, no friction moment) ---------
+
+#: the Hermite loop's step maps: ``Pm`` and ``Cc`` (N_SLOTS, ...) of
+#: :func:`roughvib.solvers.hermite.hermite_slot` per cache slot, ``hslot`` (N_SLOTS,) the
+#: step of each slot (0: empty). Slot s holds the step ``h_top / 2^s``: slot 0 is the top
+#: level's full step (``PAIR_ROWS`` output intervals)
+HermiteMaps = collections.namedtuple("HermiteMaps", ["Pm", "Cc", "hslot"])
+#: the Hermite loop's buffers: ``Y`` (N_YBUF, n) states as in ``Buffers`` (and the kept
+#: steps inside a block from ``B_CHAIN``), ``DF`` (N_YBUF, K) their contact force rates [N/s]
+#: and ``C`` (N_YBUF, n_carry) their carried data (:func:`roughvib.solvers.hermite.carried`),
+#: ``G``, ``armed``, ``fired``
+HermiteBuffers = collections.namedtuple("HermiteBuffers", ["Y", "DF", "C", "G", "armed", "fired"])
+#: the Hermite step's scratch: ``ws`` float, ``iws`` int64 (the Newton matrix it keeps between
+#: steps lives there), ``hjac`` the step that matrix was formed for, one row each
+#: (``N_NEWTON``) for the kept steps (and root trials) and for the full step of a block, so
+#: that each keeps its own matrix; ``jac`` (K, K),
+#: ``ipiv`` (K,) and ``rhs`` (2 K,) for :func:`force_rates`
+HermiteScratch = collections.namedtuple("HermiteScratch",
+                                        ["ws", "iws", "hjac", "jac", "ipiv", "rhs", "work"])
+#: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
+HERMITE_ORDER = 4
+HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (4e-5 s / 1024 at 1e-5 s output)
+NEWTON_KEPT = 0  # the scratch row (Newton matrix) of the kept steps and root trials ...
+NEWTON_FULL = 1  # ... and of the full step of a block
+N_NEWTON = 2
+PAIR_ROWS = 4  # output intervals of the top level's block (one kept step each)
+
+
+def hermite_top_pair(output_step: float, max_step: float) -> float:
+    """The Hermite loop's top-level full step [s]: ``PAIR_ROWS`` output steps (a block of
+    that many kept steps of one output step) or, when ``max_step`` (0: no limit) is shorter
+    than the output step, two of the largest kept step within it (a pair inside an output
+    interval)."""
+    kept = output_step
+    if max_step > 0:
+        while kept > max_step * (1 + 1e-12):
+            kept *= 0.5
+    return PAIR_ROWS * kept if kept == output_step else 2.0 * kept
+
+
+def hermite_applies(system: System) -> bool:
+    """Whether the Hermite step covers the scene: the Feldmann law (not set-valued), a
+    force-driven block, no friction moment."""
+    off = system.off
+    return bool(off[kn.OFF_IX] >= 0 and not kn.set_valued(off) and not kn.moment_on(off))
+
+
+def new_hermite_maps(R: int, K: int) -> HermiteMaps:
+    """An empty Hermite map cache for R modes and K contacts."""
+    pm_shape, cc_shape = hm.slot_shapes(R, K)
+    return HermiteMaps(np.zeros((N_SLOTS, *pm_shape)), np.zeros((N_SLOTS, *cc_shape)),
+                       np.zeros(N_SLOTS))
+
+
+def new_hermite_scratch(work: np.ndarray, R: int, K: int) -> HermiteScratch:
+    """The Hermite step's scratch for R modes and K contacts, with the kernels' ``work``."""
+    n_ws, n_iws = hm.scratch_sizes(R, K)
+    return HermiteScratch(np.zeros((N_NEWTON, n_ws)), np.zeros((N_NEWTON, n_iws), dtype=np.int64),
+                          np.zeros(N_NEWTON),
+                          np.zeros((max(K, 1), max(K, 1))), np.zeros(max(K, 1), dtype=np.int64),
+                          np.zeros(2 * max(K, 1)), work)
+
+
+@njit(cache=True)
+def force_rates(y, dF, off, fp, phiT, stiff, cres, spos, prof, reg, hs):
+    """The contact force rates dF (K,) [N/s] of a consistent state: the contact relation's
+    rate on the closed contacts, ``(1/k_c + C) dF = vz - phi^T q' + h'(s + x) vx`` (C the
+    residual compliance), 0 on the open ones. ``hs``: ``HermiteScratch``."""
+    _iq, idq, _iz, ivz, ix, ivx, _iF, _iE, R, K = kn.state_offsets(off)
+    jac, piv, rhs = hs.jac, hs.ipiv, hs.rhs
+    idx = rhs[K:2 * K]
+    x = y[ix]
+    v = y[ivx]
+    nc = 0
+    for k in range(K):
+        dF[k] = 0.0
+        if reg[kn.REG_CLOSED + k] == 1:
+            idx[nc] = k
+            nc += 1
+    if nc == 0:
+        return
+    for a in range(nc):
+        k = int(idx[a])
+        _, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x)
+        rhs[a] = y[ivz] - kn.vdot(phiT[k], y[idq:idq + R]) + dh * v
+        for c in range(nc):
+            jac[a, c] = cres[k, int(idx[c])]
+        jac[a, a] += 1.0 / stiff[k]
+    lu_factor(jac[:nc, :nc], piv[:nc])
+    lu_solve(jac[:nc, :nc], piv[:nc], rhs[:nc])
+    for a in range(nc):
+        dF[int(idx[a])] = rhs[a]
+
+
+@njit(cache=True)
+def _hermite_fill(slot, h, omega2, cdamp, phi, cres, M, hp, ist):
+    """The Hermite maps of step h into cache slot ``slot`` of ``hp``."""
+    hm.hermite_slot(h, omega2, cdamp, phi, cres, M, hp.Pm[slot], hp.Cc[slot])
+    hp.hslot[slot] = h
+    ist[I_MAPS] += 1
+
+
+@njit(cache=True)
+def _hstep(t0, h, y0, dF0, c0, y1, dF1, c1, slot, hp, wts, off, fp, omega2, cdamp, phiT, stiff,
+           spos, prof, reg, hs, ist, mat=NEWTON_KEPT):
+    """:func:`roughvib.solvers.hermite.hermite_step` with the maps of ``slot`` and the scratch
+    row ``mat`` of ``hs``; the Newton matrix kept there is formed anew when the step length
+    changes."""
+    if hs.hjac[mat] != h:
+        hs.iws[mat, hm.IWS_JAC_VALID] = 0
+        hs.hjac[mat] = h
+    ist[I_STEP_EVALS] += 1
+    ok = hm.hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, hp.Pm[slot], hp.Cc[slot], off, fp,
+                         omega2, cdamp, phiT, stiff, spos, prof, reg, wts, hs.ws[mat],
+                         hs.iws[mat])
+    ist[I_NEWTON] += hs.iws[mat, hm.IWS_ITERS]
+    ist[I_JACS] += hs.iws[mat, hm.IWS_JACS]
+    return ok
+
+
+@njit(cache=True)
+def _crossed(armed, g):
+    """Whether an armed margin is not positive in g."""
+    for i in range(g.size):
+        if armed[i] == 1 and not g[i] > 0.0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye, buf, hp, tt,
+                  ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos, prof,
+                  reg, rf, hs):
+    """Locate the earliest crossing of an armed margin between the fractions ``th_lo`` and
+    ``th_hi`` of the step of length L [s] from (tb, yb0): ``glo_at`` are the margins at
+    ``th_lo`` (all armed ones positive), ``ghi_at`` those at ``th_hi`` (the state ``ye``, at
+    ``t_end``). The Illinois method on the margin of Hermite steps re-taken from the step's
+    start, to ``ROOT_TOL``. Leaves the state at the root in ``buf.Y[B_NOW]`` and its time in
+    ``tt``, marks the roots that crossed in ``buf.fired``; returns ``ADV_EVENT`` (or
+    ``ADV_NEWTON``)."""
+    Y, DF, C, G, armed, fired = buf
+    y, yt, ybest, wts = Y[B_NOW], Y[B_TRIAL], Y[B_BEST], Y[B_WTS]
+    ft, fbest = DF[B_TRIAL], DF[B_BEST]
+    ct, cbest = C[B_TRIAL], C[B_BEST]
+    gt = G[G_TRIAL]
+    M = fp[kn.FP_MMODAL]
+    work = hs.work
+    nstate = y.size
+    for i in range(nstate):
+        wts[i] = rtol * abs(yb0[i]) + atol[i]
+    theta_best = th_hi
+    have_best = False
+    for i in range(ghi_at.size):
+        if armed[i] == 0 or ghi_at[i] > 0.0 or not glo_at[i] > 0.0:
+            continue
+        if have_best:
+            if gt[i] > 0.0:  # still open at the earliest root so far: later
+                continue
+            hi = theta_best
+            ghi = gt[i]
+        else:
+            hi = th_hi
+            ghi = ghi_at[i]
+        lo = th_lo
+        glo = glo_at[i]
+        side = 0
+        for _it in range(200):
+            if (hi - lo) * L <= ROOT_TOL:
+                break
+            th = _illinois_trial(lo, hi, glo, ghi, L)
+            hs_ = th * L
+            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            ist[I_ROOT_EVALS] += 1
+            if not _hstep(tb, hs_, yb0, fb0, cb0, yt, ft, ct, SLOT_ROOT, hp, wts, off, fp,
+                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                tt[T_NOW] = tb
+                return ADV_NEWTON
+            kn.events(tb + hs_, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
+            g = gt[i]
+            if g > 0.0:
+                lo, glo = th, g
+                if side == 1:
+                    ghi *= 0.5
+                side = 1
+            else:
+                hi, ghi = th, g
+                if side == -1:
+                    glo *= 0.5
+                side = -1
+        if hi == th_hi:
+            for j in range(nstate):
+                ybest[j] = ye[j]
+        else:
+            hs_ = hi * L
+            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            if not _hstep(tb, hs_, yb0, fb0, cb0, ybest, fbest, cbest, SLOT_ROOT, hp, wts, off,
+                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                tt[T_NOW] = tb
+                return ADV_NEWTON
+        theta_best = hi
+        have_best = True
+        kn.events(tb + theta_best * L, ybest, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
+    for i in range(ghi_at.size):
+        fired[i] = 1 if armed[i] == 1 and gt[i] <= 0.0 else 0
+    for j in range(nstate):
+        y[j] = ybest[j]
+    tt[T_NOW] = t_end if theta_best == th_hi else tb + theta_best * L
+    return ADV_EVENT
+
+
+@njit(cache=True)
+def _accept_point(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
+                  spos, prof, reg, rf, work, track_latch, ist, output):
+    """Arm the margins g (of the state y at time t) that are positive and, at an output time
+    (``output``), write the next output row and update the latch and its margin in g."""
+    for i in range(g.size):
+        if g[i] > 0.0:
+            armed[i] = 1
+    if not output:
+        return
+    k = ist[I_K]
+    _latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+                      prof, reg, rf, work, track_latch)
+    ist[I_K] = k + 1
+    ist[I_IVL] = 0
+    if track_latch:
+        # the Feldmann latch's margin depends on the extremum just updated
+        il = off[kn.OFF_K] + kn.ROOT_LATCH
+        g[il] = kn.latch_margin(y, off, fp, reg, rf)
+        if g[il] > 0.0:
+            armed[il] = 1
+
+
+@njit(cache=True, inline="always")
+def _chain_row(j, m):
+    """The buffer row of the end of kept step j (of m) of a block: the last is ``B_END``."""
+    if j == m - 1:
+        return B_END
+    if j == 0:
+        return B_HALF
+    return B_CHAIN + j - 1
+
+
+@njit(cache=True)
+def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
+                     cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
+                     track_latch, fresh, max_steps):
+    """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
+    arguments and return codes, with ``h_top`` the top level's full step
+    (:func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,
+    ``hp`` a ``HermiteMaps`` and ``hs`` a ``HermiteScratch``.
+
+    Step doubling generalised to a block: m kept Hermite steps of length hk against one step
+    of m hk over the same span; the kept ones are kept as they are (fourth order: m local
+    errors e against the full step's m^5 e, so the estimate of the kept steps' error is the
+    difference / (m^4 - 1)). At the top level a block spans ``PAIR_ROWS`` output intervals,
+    one kept step each, and starts on a row divisible by that number; one level down a block
+    spans two intervals; below, a pair (m = 2) lies within one output interval, aligned to
+    dyadic fractions of it as in ``_advance``. Every output time is a kept step's end. The
+    margins are checked at each kept step's end in turn, each end accepted (armed, written,
+    latch updated) before the next is looked at, and a crossing is located by Hermite steps
+    re-taken from the start of its kept step (``_hermite_root``).
+    """
+    Y, DF, C, G, armed, fired = buf
+    hslot = hp.hslot
+    work = hs.work
+    y, ya, wts = Y[B_NOW], Y[B_FULL], Y[B_WTS]
+    f, fa = DF[B_NOW], DF[B_FULL]
+    c, ca = C[B_NOW], C[B_FULL]
+    g0, gm, gl = G[G_START], G[G_HALF], G[G_LOW]
+    n = grid.size
+    M = fp[kn.FP_MMODAL]
+    n_ev = g0.size
+    t = tt[T_NOW]
+    model = (off, fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist)
+    root_args = (hp, tt, ist, atol, rtol, off, fp, omega2, cdamp, phi, phiT, stiff, cres, spos,
+                 prof, reg, rf, hs)
+    point_args = (outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
+                  work, track_latch, ist)
+    if fresh:
+        force_rates(y, f, off, fp, phiT, stiff, cres, spos, prof, reg, hs)
+        hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
+        for mat in range(N_NEWTON):
+            hs.iws[mat, hm.IWS_JAC_VALID] = 0
+    if _enter(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs,
+              stiff, cres, spos, prof, reg, rf, work, track_latch):
+        return ADV_DONE
+    nstate = y.size
+    while True:
+        code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
+        if code != ADV_GO:
+            return code
+        k = ist[I_K]
+        lev = ist[I_LEV]
+        base = grid[k - 1]
+        rel = t - base
+        span = grid[k] - base
+        hl = h_top / 2.0 ** lev
+        # a block over several output intervals starts on a row divisible by their number
+        # (so that the rows it steps over do not depend on where the loop stopped: chunks,
+        # checkpoints, events) and ends within the grid; otherwise one level down
+        rows = 0
+        while hl > span * (1.0 + 1e-9):
+            r_ = int(round(hl / span))
+            if rel <= 1e-9 * span and (k - 1) % r_ == 0 and k - 1 + r_ < n:
+                rows = r_
+                break
+            lev += 1
+            hl *= 0.5
+        s_full = lev
+        if rows > 0:  # m kept steps of one output interval each
+            m = rows
+            s_kept = lev + int(round(math.log2(rows)))
+            last = True
+        else:         # a pair within one output interval
+            m = 2
+            s_kept = lev + 1
+            target, last = _interval_target(rel, hl, span)
+            if abs(target - rel - hl) > 1e-7 * hl:
+                s_full = SLOT_FLY
+                s_kept = SLOT_FLY2
+                _hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
+                _hermite_fill(s_kept, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
+                              ist)
+        if s_full < SLOT_FLY:
+            if hslot[s_full] <= 0.0:
+                _hermite_fill(s_full, hl, omega2, cdamp, phi, cres, M, hp, ist)
+            if hslot[s_kept] <= 0.0:
+                _hermite_fill(s_kept, hl / m, omega2, cdamp, phi, cres, M, hp, ist)
+        h = hslot[s_full]
+        hk = hslot[s_kept]
+        for i in range(nstate):
+            wts[i] = rtol * abs(y[i]) + atol[i]
+        # the m kept steps, then the full step (for the error estimate)
+        ok = True
+        ts = t
+        ys_, fs_, cs_ = y, f, c
+        for j in range(m):
+            row = _chain_row(j, m)
+            ok = _hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts,
+                        *model)
+            if not ok:
+                break
+            ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
+            ys_, fs_, cs_ = Y[row], DF[row], C[row]
+        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model, NEWTON_FULL)
+        if not ok:
+            ist[I_NEWTON_FAIL] += 1
+            ist[I_REJECT] += 1
+            ist[I_LEV] = lev + 1
+            continue
+        yb = Y[B_END]
+        err = _err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R],
+                        float(m) ** HERMITE_ORDER - 1.0)
+        if err > 1.0:
+            ist[I_REJECT] += 1
+            fac = SAFETY * err ** (-1.0 / (HERMITE_ORDER + 1.0))
+            drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
+            ist[I_LEV] = lev + max(1, drop)
+            # a non-finite estimate within an output interval ends the run; over a block of
+            # several intervals it is the long full step's (its Newton can run away where the
+            # kept steps do not): one level down
+            if err >= 1e300:
+                if rows == 0:
+                    tt[T_NOW] = t
+                    return ADV_NONFINITE
+                ist[I_LEV] = lev + 1
+            continue
+        ist[I_STEPS] += 1
+        ist[I_LEV] = lev
+        # the kept steps' ends in time order: each checked for crossings, then accepted
+        for i in range(n_ev):
+            gl[i] = g0[i]
+        ts = t
+        ys_, fs_, cs_ = y, f, c
+        t_new = t
+        for j in range(m):
+            row = _chain_row(j, m)
+            if rows > 0:
+                te = grid[k - 1 + j + 1]
+            elif j == m - 1:
+                te = base + target if not last else grid[k]
+            else:
+                te = t + (j + 1) * hk
+            ye = Y[row]
+            kn.events(te, ye, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
+            if _crossed(armed, gm):
+                return _hermite_root(ts, hk, 0.0, 1.0, te, ys_, fs_, cs_, gl, gm, ye, buf,
+                                     *root_args)
+            at_output = rows > 0 or (j == m - 1 and last)
+            _accept_point(te, ye, gm, armed, *point_args, at_output)
+            for i in range(n_ev):
+                gl[i] = gm[i]
+            ts = te
+            ys_, fs_, cs_ = ye, DF[row], C[row]
+            t_new = te
+        fb, cb = DF[B_END], C[B_END]
+        for j in range(nstate):
+            y[j] = yb[j]
+        for j in range(f.size):
+            f[j] = fb[j]
+        for j in range(c.size):
+            c[j] = cb[j]
+        for i in range(n_ev):
+            g0[i] = gl[i]
+        t = t_new
+        tt[T_NOW] = t
+        # step size: up one level when the error is small and the time is on that level
+        if err * 2.0 ** (HERMITE_ORDER + 1) <= SAFETY ** (HERMITE_ORDER + 1) and lev > 0:
+            up = h_top / 2.0 ** (lev - 1)
+            if up > span * (1.0 + 1e-9) or _is_multiple(t - grid[ist[I_K] - 1], up) or last:
+                ist[I_LEV] = lev - 1
+
+
 def _check_scene(system: System) -> None:
     scene = system.scene
     law = scene.friction.law
@@ -1129,7 +1612,8 @@ def _check_scene(system: System) -> None:
 
 def solve_adaptive_modal(system: System, *, progress: bool | None = None,
                          checkpoint_dir: str | os.PathLike | None = None,
-                         resume: Checkpoint | None = None) -> RawSolution:
+                         resume: Checkpoint | None = None,
+                         hermite: bool | None = None) -> RawSolution:
     """Integrate with the adaptive exact-modal scheme (see the module docstring).
 
     Parameters
@@ -1145,6 +1629,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         runs, are bit-identical.
     resume : Checkpoint, optional
         Continue from this checkpoint (of the same scene) instead of starting at t = 0.
+    hermite : bool, optional
+        Step with the fourth-order Hermite step (``_advance_hermite``) or the second-order
+        trapezoidal one (``_advance``); default: the Hermite step where it applies
+        (:func:`hermite_applies`). True where it does not apply is an error.
 
     Returns
     -------
@@ -1167,6 +1655,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         while h_max > scfg.max_step * (1 + 1e-12):
             h_max *= 0.5
 
+    h_top = hermite_top_pair(out_cfg.step, scfg.max_step)
     reg, rf = system.new_regime_arrays()
     regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
     check_tolerances(system, y_initial)
@@ -1186,14 +1675,33 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     phiT = np.ascontiguousarray(phi.T)
     atol = _atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
-    prop = new_propagators(R, K, bool(kn.moment_on(off)))
-    buf = Buffers(Y, D, U, G, armed, fired)
-    scratch = new_scratch(work, R, K)
+    if hermite is None:
+        hermite = hermite_applies(system)
+    elif hermite and not hermite_applies(system):
+        raise ValueError("the Hermite step covers the Feldmann law with a force-driven block "
+                         "and no friction moment only")
+    if hermite:  # the fourth-order Hermite step (_advance_hermite)
+        # a block's kept steps from B_CHAIN: PAIR_ROWS - 2 beyond B_HALF and B_END
+        n_ybuf = max(N_YBUF, B_CHAIN + PAIR_ROWS - 2)
+        Y = np.zeros((n_ybuf, nst))
+        Y[B_NOW] = y
+        y = Y[B_NOW]
+        DF = np.zeros((n_ybuf, K))
+        C = np.zeros((n_ybuf, hm.carry_size(R, K)))
+        maps = new_hermite_maps(R, K)
+        buf = HermiteBuffers(Y, DF, C, G, armed, fired)
+        scratch = new_hermite_scratch(work, R, K)
+    else:
+        maps = new_propagators(R, K, bool(kn.moment_on(off)))
+        buf = Buffers(Y, D, U, G, armed, fired)
+        scratch = new_scratch(work, R, K)
     tt = np.zeros(1)
     track_latch = bool(lay.tangential)
     cp_interval = out_cfg.checkpoint_interval
     # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
     cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
+    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a block
+        cp_stride += PAIR_ROWS - cp_stride % PAIR_ROWS
     scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
     budget = step_budget(out_cfg.step)
 
@@ -1201,7 +1709,8 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     if resume is None:
         kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
-        ist[I_LEV] = 8  # the first step h_max / 256; the controller grows it
+        # the first step h_max / 256 (the Hermite loop: its first full step about as long)
+        ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else 8
         book = EventBook(system, regime, reg, rf)
         book.log_initial_phase(0.0, y)
         fresh = True
@@ -1210,8 +1719,15 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         outs[:resume.k] = resume.outputs
         ist[:] = loop["ist"]
         tt[T_NOW] = resume.t
-        D[B_NOW] = loop["d"]
-        U[B_NOW] = loop["u"]
+        if hermite:
+            DF[B_NOW] = loop["dF"]
+            C[B_NOW] = loop["c"]
+            scratch.ws[:] = loop["ws"]
+            scratch.iws[:] = loop["iws"]
+            scratch.hjac[:] = loop["hjac"]
+        else:
+            D[B_NOW] = loop["d"]
+            U[B_NOW] = loop["u"]
         G[G_START] = loop["g"]
         armed[:] = loop["armed"]
         prev = dict(resume.stats)
@@ -1225,9 +1741,21 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
 
     status, message = "success", "reached the end of the output grid"
     bar = progress_bar(system, progress, initial=float(tt[T_NOW]))
-    chunk = max(1, n // 200)
+    chunk = max(1, n // 50)  # returns to Python (progress, checkpoints): ~0.1 ms each
     wall0 = time.perf_counter()
     cpu0 = time.process_time()
+
+    def loop_state() -> dict:
+        # everything the step loop carries (and the Hermite step's kept Newton matrix), so
+        # that a resumed run is bit-identical
+        state = {"recent": list(book.recent), "ist": ist.copy(), "g": G[G_START].copy(),
+                 "armed": armed.copy()}
+        if hermite:
+            state.update(dF=DF[B_NOW].copy(), c=C[B_NOW].copy(), ws=scratch.ws.copy(),
+                         iws=scratch.iws.copy(), hjac=scratch.hjac.copy())
+        else:
+            state.update(d=D[B_NOW].copy(), u=U[B_NOW].copy())
+        return state
 
     def write_cp() -> None:
         k = int(ist[I_K])
@@ -1238,8 +1766,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             scene_toml=scene_toml, t=float(tt[T_NOW]), k=k, y=y.copy(), y_initial=y_initial,
             outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
             regime=copy.deepcopy(regime), events=list(book.events), stats=st,
-            loop={"recent": list(book.recent), "ist": ist.copy(), "d": D[B_NOW].copy(),
-                  "u": U[B_NOW].copy(), "g": G[G_START].copy(), "armed": armed.copy()},
+            loop=loop_state(),
             force_amplitude=float(system.force_amplitude),
             base_dir=str(Path(scene.base_dir).resolve()),
             inputs=input_fingerprint(scene_toml, system.profile.stats)))
@@ -1250,9 +1777,15 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
             if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
                 k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
                              + cp_stride + 1)
-            code = _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, scfg.rtol, outs, off,
-                            fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg,
-                            rf, scratch, track_latch, fresh, budget)
+            if hermite:
+                code = _advance_hermite(tt, ist, k_stop, grid, h_top, buf, maps, atol,
+                                        scfg.rtol, outs, off, fpa, omega2, cdamp, phi, phiT,
+                                        phi_obs, stiff, cres, spos, prof, reg, rf, scratch,
+                                        track_latch, fresh, budget)
+            else:
+                code = _advance(tt, ist, k_stop, grid, h_max, buf, maps, atol, scfg.rtol, outs,
+                                off, fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
+                                prof, reg, rf, scratch, track_latch, fresh, budget)
             fresh = False
             regime.v_ext = float(rf[kn.RF_VEXT])
             bar.n = float(grid[min(int(ist[I_K]), n) - 1])
@@ -1299,11 +1832,13 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         "propagator_evaluations": int(ist[I_MAPS]), "nonlinear_iterations": int(ist[I_NEWTON]),
         "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
         "extrapolated_steps": int(ist[I_EXTRAP]),
-        "residual_evaluations": None, "jacobian_evaluations": None,
+        "residual_evaluations": None,
+        "jacobian_evaluations": int(ist[I_JACS]) if hermite else None,
         "restarts": int(book.stats.get("restarts", 0)),
         "wall_time": wall_before + time.perf_counter() - wall0,
         "cpu_time": cpu_before + time.process_time() - cpu0,
-        "events_total": len(book.events), "largest_step": h_max,
+        "events_total": len(book.events),
+        "largest_step": h_max,  # the largest kept step, of either loop
     })
     k_done = int(ist[I_K])
     return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
