@@ -257,15 +257,7 @@ def step_maps(omega2, cdamp, h, Phi, G0, G1):
             gr0 *= h * h
             gr1 *= h * h
         else:
-            sig = 0.5 * c
-            wd = math.sqrt(w2 - sig * sig)
-            e = math.exp(-sig * h)
-            co = math.cos(wd * h)
-            si = math.sin(wd * h)
-            p00 = e * (co + sig / wd * si)
-            p01 = e * si / wd
-            p10 = -e * w2 * si / wd
-            p11 = e * (co - sig / wd * si)
+            p00, p01, p10, p11 = hm.damped_propagator(w2, c, h)
             # constant unit force: particular solution q = 1/w2
             gc0 = (1.0 - p00) / w2
             gc1 = -p10 / w2

@@ -112,6 +112,21 @@ def _monomial_particular(w2, c, h, P00, P01, P10, P11, W, a):
 
 
 @njit(cache=True)
+def damped_propagator(w2, c, h):
+    """The free propagator exp(A h), A = [[0, 1], [-w2, -c]], of an underdamped oscillator by
+    its closed form: ``(p00, p01, p10, p11)`` with ``[q, q'](h) = [[p00, p01], [p10, p11]]
+    [q, q'](0)``. Its ``1 - cos`` terms lose digits for omega h -> 0: the step maps take their
+    force terms from a power series there."""
+    sig = 0.5 * c
+    wd = math.sqrt(w2 - sig * sig)
+    e = math.exp(-sig * h)
+    co = math.cos(wd * h)
+    si = math.sin(wd * h)
+    return (e * (co + sig / wd * si), e * si / wd, -e * w2 * si / wd,
+            e * (co - sig / wd * si))
+
+
+@njit(cache=True)
 def hermite_maps(omega2, cdamp, h, Phi, H):
     """Exact step maps of ``q'' + c q' + w^2 q = u(t)`` under the Hermite-cubic hold of u.
 
@@ -133,15 +148,7 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
     for r in range(R):
         w2 = omega2[r]
         c = cdamp[r]
-        sig = 0.5 * c
-        wd = math.sqrt(w2 - sig * sig)
-        e = math.exp(-sig * h)
-        co = math.cos(wd * h)
-        si = math.sin(wd * h)
-        p00 = e * (co + sig / wd * si)
-        p01 = e * si / wd
-        p10 = -e * w2 * si / wd
-        p11 = e * (co - sig / wd * si)
+        p00, p01, p10, p11 = damped_propagator(w2, c, h)
         if math.sqrt(w2) * h <= HERMITE_SERIES_LIMIT:
             _monomial_series(w2, c, h, W)
         else:
@@ -242,20 +249,6 @@ def hermite_slot(h, omega2, cdamp, phi, cres, M, Pm, Cc):
                 Cc[CM0_WD, k, j] += pp * Pm[PM_DU0Q, r]
                 Cc[CM0_VF, k, j] += pp * Pm[PM_U0D, r]
                 Cc[CM0_VD, k, j] += pp * Pm[PM_DU0D, r]
-
-
-@njit(cache=True)
-def tangential_rates(t, v, fsum, dfsum, off, fp, reg):
-    """Tangential acceleration [m/s^2] and its rate [m/s^3] of the Feldmann law's block at
-    velocity ``v`` under normal force ``fsum`` changing at ``dfsum`` [N/s]."""
-    m = fp[kn.FP_MASS]
-    r2 = fp[kn.FP_R2]
-    w = fp[kn.FP_OMEGA]
-    mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
-                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
-    a = (fp[kn.FP_T0] * math.cos(w * t) - mu * fsum - r2 * v) / m
-    j = (-fp[kn.FP_T0] * w * math.sin(w * t) - dmu * a * fsum - mu * dfsum - r2 * a) / m
-    return a, j
 
 
 @njit(cache=True)
@@ -546,8 +539,9 @@ def _plate_damping_sums(dq, q, u, omega2, cdamp):
 
 @njit(cache=True)
 def _tangential(texc, dtexc, v, mu, dmu, fsum, dfsum, fp):
-    """:func:`tangential_rates` from the excitation force ``texc`` [N], its rate ``dtexc``
-    [N/s] and the law's ``mu``, ``dmu`` at v."""
+    """The block's tangential acceleration [m/s^2] and its rate [m/s^3] at velocity v under
+    normal force ``fsum`` changing at ``dfsum`` [N/s], from the excitation force ``texc`` [N],
+    its rate ``dtexc`` [N/s] and the law's ``mu``, ``dmu`` at v."""
     m = fp[kn.FP_MASS]
     r2 = fp[kn.FP_R2]
     a = (texc - mu * fsum - r2 * v) / m
