@@ -1055,8 +1055,8 @@ class Output:
         with checkpoints differs from one without them within the solver tolerance;
         adaptive-modal runs with and without checkpoints are identical. The interval is
         rounded to whole output steps, and with adaptive-modal's Hermite step (the Feldmann
-        law with a force-driven block) up to a multiple of four of them (its error estimate
-        spans blocks of four output intervals). ``solver.method = "ida"`` or ``"adaptive-modal"``.
+        law with a force-driven block) up to a multiple of eight of them (its error estimate
+        spans blocks of eight output intervals). ``solver.method = "ida"`` or ``"adaptive-modal"``.
     radiation : bool
         Compute the plate's radiated sound (docs/radiation.md): third-octave levels of the
         sound power, of the plate's mean-square velocity and of the radiation efficiency, in

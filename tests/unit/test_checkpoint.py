@@ -288,19 +288,19 @@ def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_pa
 
 
 def test_hermite_loop_checkpoints_end_a_pair(tmp_path):
-    """The Hermite step's loop estimates its error over blocks of PAIR_ROWS (4) output
-    intervals that start on rows divisible by 4: an interval of 1001 rows is rounded up to
-    1004, so that a checkpoint ends a block, and the runs with, without and resumed are
+    """The Hermite step's loop estimates its error over blocks of PAIR_ROWS (8) output
+    intervals that start on rows divisible by 8: an interval of 1001 rows is rounded up to
+    1008, so that a checkpoint ends a block, and the runs with, without and resumed are
     bit-identical."""
     from roughvib.solvers.adaptive_modal import PAIR_ROWS
 
-    assert PAIR_ROWS == 4
+    assert PAIR_ROWS == 8
     scene = roughvib.load_scene("paper", {**FAST, "solver.method": "adaptive-modal",
                                           "output.duration": 0.03,
                                           "output.checkpoint_interval": 0.01001})
     a = simulate(scene, checkpoint_dir=tmp_path)
     assert a.ok and a.summary["solver"]["checkpoints"] == 2
-    assert read_checkpoint(tmp_path).k == 2 * 1004 + 1
+    assert read_checkpoint(tmp_path).k == 2 * 1008 + 1
     _assert_identical(a, resume(tmp_path))
     _assert_as_without_checkpoints(a, scene)
 

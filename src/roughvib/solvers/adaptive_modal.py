@@ -1198,7 +1198,7 @@ HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (4e-5 s / 1024 at 
 NEWTON_KEPT = 0  # the scratch row (Newton matrix) of the kept steps and root trials ...
 NEWTON_FULL = 1  # ... and of the full step of a block
 N_NEWTON = 2
-PAIR_ROWS = 4  # output intervals of the top level's block (one kept step each)
+PAIR_ROWS = 8  # output intervals of the top level's block (one kept step each)
 
 
 def hermite_top_pair(output_step: float, max_step: float) -> float:
@@ -1429,12 +1429,12 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
     of m hk over the same span; the kept ones are kept as they are (fourth order: m local
     errors e against the full step's m^5 e, so the estimate of the kept steps' error is the
     difference / (m^4 - 1)). At the top level a block spans ``PAIR_ROWS`` output intervals,
-    one kept step each, and starts on a row divisible by that number; one level down a block
-    spans two intervals; below, a pair (m = 2) lies within one output interval, aligned to
-    dyadic fractions of it as in ``_advance``. Every output time is a kept step's end. The
-    margins are checked at each kept step's end in turn, each end accepted (armed, written,
-    latch updated) before the next is looked at, and a crossing is located by Hermite steps
-    re-taken from the start of its kept step (``_hermite_root``).
+    one kept step each, and starts on a row divisible by that number; each level down a block
+    spans half as many (four, then two); below, a pair (m = 2) lies within one output
+    interval, aligned to dyadic fractions of it as in ``_advance``. Every output time is a
+    kept step's end. The margins are checked at each kept step's end in turn, each end
+    accepted (armed, written, latch updated) before the next is looked at, and a crossing is
+    located by Hermite steps re-taken from the start of its kept step (``_hermite_root``).
     """
     Y, DF, C, G, armed, fired = buf
     hslot = hp.hslot
