@@ -480,7 +480,8 @@ def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
 def test_the_hermite_loops_stall_guard(monkeypatch):
     """adaptive-modal's Hermite loop stops as `stalled` when its step attempts within one
     output interval exceed the budget (here forced to 8: its first steps, 1/256 of the output
-    step, need more)."""
+    step, need more). Its ``steps`` are kept steps, two per accepted pair inside an
+    interval: at most 2 x 8 before the guard stops it."""
     from roughvib.solvers import adaptive_modal
 
     monkeypatch.setattr(adaptive_modal, "step_budget", lambda output_step: 8)
@@ -490,7 +491,8 @@ def test_the_hermite_loops_stall_guard(monkeypatch):
     msg = r.summary["message"]
     assert "more than 8 step attempts within one output interval" in msg, msg
     assert "Hint:" in msg and "\n" not in msg
-    assert r.summary["solver"]["steps"] <= 8
+    assert r.summary["solver"]["blocks"] <= 8
+    assert r.summary["solver"]["steps"] == 2 * r.summary["solver"]["blocks"]
 
 
 def test_ida_stopped_by_its_jacobian_guard_in_the_first_call_reports_its_counts(monkeypatch):

@@ -123,8 +123,9 @@ ADV_GO = 9     # (_loop_guard: attempt a step)
 # integer loop state / statistics (int64 array `ist`)
 I_K = 0          # next output index
 I_LEV = 1        # current dyadic level
-I_STEPS = 2      # accepted steps (each = two half steps)
-I_REJECT = 3     # rejected steps
+I_STEPS = 2      # accepted steps: the trapezoidal loop's (each = two half steps), the
+#                  Hermite loop's kept steps (m per accepted block)
+I_REJECT = 3     # rejected steps (the Hermite loop: rejected blocks)
 I_STEP_EVALS = 4  # implicit steps taken (3 per attempt, plus root-search trials)
 I_ROOT_EVALS = 5  # trial steps of the root searches
 I_MAPS = 6       # propagator computations
@@ -133,7 +134,9 @@ I_NEWTON_FAIL = 8  # Newton failures (the step was retried smaller)
 I_IVL = 9        # step attempts since the last output time (stall guard)
 I_EXTRAP = 10    # accepted steps whose end was extrapolated (_extrapolate)
 I_JACS = 11      # Newton matrices formed (the Hermite step; the trapezoidal step forms one per
-N_IST = 12       # iteration)
+#                  iteration)
+I_BLOCKS = 12    # the Hermite loop's accepted blocks (m kept steps against one long step)
+N_IST = 13
 
 #: the propagator cache of _advance: ``P`` (N_SLOTS, N_MAP, R) the maps Phi, G0 and G1 of
 #: :func:`step_maps` of each slot, one contiguous row per entry (``MAP_*``), so that the step's
@@ -1541,7 +1544,8 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
                     return ADV_NONFINITE
                 ist[I_LEV] = lev + 1
             continue
-        ist[I_STEPS] += 1
+        ist[I_STEPS] += m
+        ist[I_BLOCKS] += 1
         ist[I_LEV] = lev
         # the kept steps' ends in time order: each checked for crossings, then accepted
         for i in range(n_ev):
@@ -1826,6 +1830,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         "extrapolated_steps": int(ist[I_EXTRAP]),
         "residual_evaluations": None,
         "jacobian_evaluations": int(ist[I_JACS]) if hermite else None,
+        "blocks": int(ist[I_BLOCKS]) if hermite else None,
         "restarts": int(book.stats.get("restarts", 0)),
         "wall_time": wall_before + time.perf_counter() - wall0,
         "cpu_time": cpu_before + time.process_time() - cpu0,

@@ -113,6 +113,7 @@ _SOLVER_ROWS = {
     "step_size": ("time step", "s"),
     "largest_step": ("largest step taken", "s"),
     "steps": ("steps", ""),
+    "blocks": ("error-control blocks (kept steps checked against one long step)", ""),
     "rejected_steps": ("rejected steps", ""),
     "extrapolated_steps": ("steps kept extrapolated to third order", ""),
     "error_test_failures": ("error test failures", ""),
