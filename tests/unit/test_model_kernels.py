@@ -162,3 +162,23 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
         out["res"] = res
     """, y=y, yp=yp, reg=reg)
     np.testing.assert_allclose(plain["res"], res, rtol=1e-12, atol=1e-18)
+
+
+@pytest.mark.parametrize("n_contacts", [1, 3])
+def test_observed_acceleration_is_the_modal_sum(n_contacts):
+    """The plate acceleration at the observation point is sum_r phi_obs_r q''_r with
+    q''_r = (Phi F)_r / M - c_r q'_r - w_r^2 q_r (and the friction moment's share
+    cm (Psi^T F)_r / M): the kernel against that sum written with NumPy, on random modes."""
+    rng = np.random.default_rng(7)
+    R, K, M, cm = 57, n_contacts, 0.83, 0.37
+    q, dq = rng.normal(size=R) * 1e-9, rng.normal(size=R) * 1e-5
+    fk = rng.uniform(1.0, 5.0, size=K)
+    phi, phi_obs = rng.normal(size=(R, K)), rng.normal(size=R)
+    omega2 = (2 * np.pi * rng.uniform(1e2, 5e4, size=R)) ** 2
+    cdamp = 1e-3 * np.sqrt(omega2)
+    qdd = phi @ fk / M - cdamp * dq - omega2 * q
+    got = kn.observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, np.zeros(0), 0.0, M)
+    assert got == pytest.approx(phi_obs @ qdd, rel=1e-12)
+    psi = rng.normal(size=(K, R))  # the moment's slopes, contact-major
+    got_m = kn.observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi.ravel(), cm, M)
+    assert got_m == pytest.approx(phi_obs @ (qdd + cm * psi.T @ fk / M), rel=1e-12)

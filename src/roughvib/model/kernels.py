@@ -794,16 +794,21 @@ def observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi, cm, M):
     """Plate acceleration at the observation point [m/s^2]: sum_r phi_obs_r q''_r, with
     q''_r = f_r / M - c_r q'_r - w_r^2 q_r and the modal force f_r = sum_k phi_rk F_k (plus
     ``cm sum_k Psi_rk F_k`` with the friction moment: ``psi`` its K x R slopes, contact-major,
-    or empty). Summed in whatever order vectorises (round-off only)."""
+    or empty). Summed in whatever order vectorises (round-off only): the free part in one pass
+    over the modes, then per contact the force times ``sum_r phi_obs_r phi_rk`` (a pass each;
+    one loop over the modes with the contacts' sum inside did not vectorise and cost about
+    1 us per output row on the ``paper`` scene, 13 % of the default solve)."""
     R = q.size
     K = fk.size
     inv_m = 1.0 / M
     acc = 0.0
     for r in range(R):
-        f = 0.0
-        for k in range(K):
-            f += phi[r, k] * fk[k]
-        acc += phi_obs[r] * (f * inv_m - cdamp[r] * dq[r] - omega2[r] * q[r])
+        acc -= phi_obs[r] * (cdamp[r] * dq[r] + omega2[r] * q[r])
+    for k in range(K):
+        g = 0.0
+        for r in range(R):
+            g += phi_obs[r] * phi[r, k]
+        acc += g * fk[k] * inv_m
     if psi.size > 0:
         for k in range(K):
             fm = cm * fk[k] * inv_m
