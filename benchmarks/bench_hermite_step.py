@@ -9,8 +9,9 @@ The ``paper`` scene (R = 393 modes, K = 1 contact; ``paper-handset``: K = 10) at
 state (contacts closed, block breaking away from stick; the force rates consistent with the
 contact relation), one step of the output interval (1e-5 s). Calling a many-argument numba
 function from Python costs several times the step itself, so the calls are made inside an
-``@njit`` loop. Two loops, each timed as the best of
-``--repeats`` (CPU time per call, the machine may be shared):
+``@njit`` loop (``hermite_step`` is inlined into it, as into the solver's ``_hstep``). Two
+loops, each timed as the best of ``--repeats`` (CPU time per call, the machine may be
+shared):
 
 * ``fixed``: the same step from the same state ``--calls`` times (the Newton matrix kept
   from call to call, as between the steps of one slot and regime);

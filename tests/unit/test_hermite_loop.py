@@ -58,7 +58,7 @@ def test_force_rates_are_the_contact_forces_time_derivative():
         hm.carried(i * h, ys[-1], dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
         y1, dF1, c1 = ys[-1].copy(), dF.copy(), c.copy()
         assert am._hstep(i * h, h, ys[-1], dF, c, y1, dF1, c1, 0, hp, wts, off, fp, omega2,
-                         cdamp, phiT, stiff, spos, prof, reg, hs, ist)
+                         cdamp, phiT, stiff, spos, prof, reg, hs, ist, am.NEWTON_KEPT)
         ys.append(y1)
         # the step solves the same rate at its end, jointly with the force
         am.force_rates(y1, dF, off, fp, phiT, stiff, cres, spos, prof, reg, hs)

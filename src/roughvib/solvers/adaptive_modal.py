@@ -1280,10 +1280,11 @@ def _hermite_fill(slot, h, omega2, cdamp, phi, cres, M, hp, ist):
 
 @njit(cache=True)
 def _hstep(t0, h, y0, dF0, c0, y1, dF1, c1, slot, hp, wts, off, fp, omega2, cdamp, phiT, stiff,
-           spos, prof, reg, hs, ist, mat=NEWTON_KEPT):
+           spos, prof, reg, hs, ist, mat):
     """:func:`roughvib.solvers.hermite.hermite_step` with the maps of ``slot`` and the scratch
     row ``mat`` of ``hs``; the Newton matrix kept there is formed anew when the step length
-    changes."""
+    changes. ``mat`` is always passed (a default would compile a second specialisation, each
+    with its own inlined copy of the step)."""
     if hs.hjac[mat] != h:
         hs.iws[mat, hm.IWS_JAC_VALID] = 0
         hs.hjac[mat] = h
@@ -1350,7 +1351,7 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
             _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
             ist[I_ROOT_EVALS] += 1
             if not _hstep(tb, hs_, yb0, fb0, cb0, yt, ft, ct, SLOT_ROOT, hp, wts, off, fp,
-                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist, NEWTON_KEPT):
                 tt[T_NOW] = tb
                 return ADV_NEWTON
             kn.events(tb + hs_, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
@@ -1372,7 +1373,8 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
             hs_ = hi * L
             _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
             if not _hstep(tb, hs_, yb0, fb0, cb0, ybest, fbest, cbest, SLOT_ROOT, hp, wts, off,
-                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist):
+                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist,
+                          NEWTON_KEPT):
                 tt[T_NOW] = tb
                 return ADV_NEWTON
         theta_best = hi
@@ -1516,7 +1518,7 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         for j in range(m):
             row = _chain_row(j, m)
             ok = _hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts,
-                        *model)
+                        *model, NEWTON_KEPT)
             if not ok:
                 break
             ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
