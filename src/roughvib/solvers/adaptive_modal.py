@@ -849,6 +849,21 @@ def _illinois_trial(lo, hi, glo, ghi, L):
     return th
 
 
+@njit(cache=True, inline="always")
+def _illinois_update(lo, hi, glo, ghi, side, th, g):
+    """The bracket ``(lo, hi, glo, ghi, side)`` of a root search after the trial fraction th
+    with margin g: th replaces the end of g's sign; the Illinois rule halves the margin of
+    the end that stays a second time in a row (``side``: +1 after a trial that moved ``lo``,
+    -1 after one that moved ``hi``, 0 before the first). Both step loops' searches use it."""
+    if g > 0.0:
+        if side == 1:
+            ghi *= 0.5
+        return th, hi, g, ghi, 1
+    if side == -1:
+        glo *= 0.5
+    return lo, th, glo, g, -1
+
+
 @njit(cache=True)
 def _is_multiple(rel, h):
     """Whether ``rel`` is (to 1e-7 of h) a whole multiple of h."""
@@ -1082,17 +1097,7 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                         tt[T_NOW] = tb
                         return ADV_NEWTON
                     kn.events(tb + hs, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
-                    g = gt[i]
-                    if g > 0.0:
-                        lo, glo = th, g
-                        if side == 1:
-                            ghi *= 0.5
-                        side = 1
-                    else:
-                        hi, ghi = th, g
-                        if side == -1:
-                            glo *= 0.5
-                        side = -1
+                    lo, hi, glo, ghi, side = _illinois_update(lo, hi, glo, ghi, side, th, gt[i])
                 # the state at hi (re-taken so that every margin is evaluated there)
                 hs = hi * L
                 if hi == 1.0:  # the half step's own end (derivatives are recomputed on entry)
@@ -1355,17 +1360,7 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
                 tt[T_NOW] = tb
                 return ADV_NEWTON
             kn.events(tb + hs_, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
-            g = gt[i]
-            if g > 0.0:
-                lo, glo = th, g
-                if side == 1:
-                    ghi *= 0.5
-                side = 1
-            else:
-                hi, ghi = th, g
-                if side == -1:
-                    glo *= 0.5
-                side = -1
+            lo, hi, glo, ghi, side = _illinois_update(lo, hi, glo, ghi, side, th, gt[i])
         if hi == th_hi:
             for j in range(nstate):
                 ybest[j] = ye[j]
