@@ -179,6 +179,25 @@ def output_columns(K: int) -> dict[str, int | slice]:
     return cols
 
 
+@njit(cache=True, inline="always")
+def runtime_int(value):
+    """``value`` as a run-time int64 [-], for a constant passed to a compiled function.
+
+    numba types a module constant (or a literal) at a call site as ``Literal[int]`` and
+    compiles the called function once per literal value, next to its ``int64`` version: a
+    large callee (a solver step with everything inlined) then compiles two or more times.
+    Passing ``runtime_int(SLOT)`` instead keeps one specialisation.
+    """
+    return int(value)
+
+
+@njit(cache=True, inline="always")
+def runtime_bool(value):
+    """``value`` as a run-time bool, for a constant passed to a compiled function (as
+    :func:`runtime_int`: ``Literal[bool]`` arguments compile the callee once more each)."""
+    return bool(value)
+
+
 @njit(cache=True)
 def state_offsets(off):
     """The state offsets and sizes of the header ``off``.

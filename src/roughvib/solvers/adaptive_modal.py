@@ -987,6 +987,9 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
               stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
     nstate = y.size
+    # the cache slots as run-time ints: a literal compiles each callee once more per value
+    slot_fly, slot_fly2 = kn.runtime_int(SLOT_FLY), kn.runtime_int(SLOT_FLY2)
+    slot_root = kn.runtime_int(SLOT_ROOT)
     while True:
         code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
         if code != ADV_GO:
@@ -1010,8 +1013,8 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                 ist[I_MAPS] += 1
             h = hslot[s_full]
         else:
-            s_full = SLOT_FLY
-            s_half = SLOT_FLY2
+            s_full = slot_fly
+            s_half = slot_fly2
             _fill_slot(s_full, h, omega2, cdamp, phi, cres, M, prop)
             _fill_slot(s_half, 0.5 * h, omega2, cdamp, phi, cres, M, prop)
             ist[I_MAPS] += 2
@@ -1089,11 +1092,11 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                         break
                     th = _illinois_trial(lo, hi, glo, ghi, L)
                     hs = th * L
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
+                    _fill_slot(slot_root, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_ROOT_EVALS] += 1
                     ist[I_STEP_EVALS] += 1
-                    if not implicit_step(tb, hs, yb0, db0, ub0, yt, dt_, ut, SLOT_ROOT, *model):
+                    if not implicit_step(tb, hs, yb0, db0, ub0, yt, dt_, ut, slot_root, *model):
                         tt[T_NOW] = tb
                         return ADV_NEWTON
                     kn.events(tb + hs, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
@@ -1105,10 +1108,10 @@ def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
                     for j in range(nstate):
                         ybest[j] = src[j]
                 else:
-                    _fill_slot(SLOT_ROOT, hs, omega2, cdamp, phi, cres, M, prop)
+                    _fill_slot(slot_root, hs, omega2, cdamp, phi, cres, M, prop)
                     ist[I_MAPS] += 1
                     ist[I_STEP_EVALS] += 1
-                    if not implicit_step(tb, hs, yb0, db0, ub0, ybest, dbest, ubest, SLOT_ROOT,
+                    if not implicit_step(tb, hs, yb0, db0, ub0, ybest, dbest, ubest, slot_root,
                                          *model):
                         tt[T_NOW] = tb
                         return ADV_NEWTON
@@ -1330,6 +1333,8 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
     M = fp[kn.FP_MMODAL]
     work = hs.work
     nstate = y.size
+    # run-time ints: a literal compiles _hstep (the whole step inlined) once more per value
+    slot_root, kept = kn.runtime_int(SLOT_ROOT), kn.runtime_int(NEWTON_KEPT)
     for i in range(nstate):
         wts[i] = rtol * abs(yb0[i]) + atol[i]
     theta_best = th_hi
@@ -1353,10 +1358,10 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
                 break
             th = _illinois_trial(lo, hi, glo, ghi, L)
             hs_ = th * L
-            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            _hermite_fill(slot_root, hs_, omega2, cdamp, phi, cres, M, hp, ist)
             ist[I_ROOT_EVALS] += 1
-            if not _hstep(tb, hs_, yb0, fb0, cb0, yt, ft, ct, SLOT_ROOT, hp, wts, off, fp,
-                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist, NEWTON_KEPT):
+            if not _hstep(tb, hs_, yb0, fb0, cb0, yt, ft, ct, slot_root, hp, wts, off, fp,
+                          omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist, kept):
                 tt[T_NOW] = tb
                 return ADV_NEWTON
             kn.events(tb + hs_, yt, gt, off, fp, phi, cres, spos, prof, reg, rf, work)
@@ -1366,10 +1371,9 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
                 ybest[j] = ye[j]
         else:
             hs_ = hi * L
-            _hermite_fill(SLOT_ROOT, hs_, omega2, cdamp, phi, cres, M, hp, ist)
-            if not _hstep(tb, hs_, yb0, fb0, cb0, ybest, fbest, cbest, SLOT_ROOT, hp, wts, off,
-                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist,
-                          NEWTON_KEPT):
+            _hermite_fill(slot_root, hs_, omega2, cdamp, phi, cres, M, hp, ist)
+            if not _hstep(tb, hs_, yb0, fb0, cb0, ybest, fbest, cbest, slot_root, hp, wts, off,
+                          fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist, kept):
                 tt[T_NOW] = tb
                 return ADV_NEWTON
         theta_best = hi
@@ -1461,6 +1465,10 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
               stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
     nstate = y.size
+    # run-time ints: a literal compiles each callee (_hstep: the whole step inlined) once more
+    # per value
+    slot_fly, slot_fly2 = kn.runtime_int(SLOT_FLY), kn.runtime_int(SLOT_FLY2)
+    kept, full = kn.runtime_int(NEWTON_KEPT), kn.runtime_int(NEWTON_FULL)
     while True:
         code = _loop_guard(tt, t, ist, k_stop, n, max_steps)
         if code != ADV_GO:
@@ -1492,8 +1500,8 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
             s_kept = lev + 1
             target, last = _interval_target(rel, hl, span)
             if abs(target - rel - hl) > 1e-7 * hl:
-                s_full = SLOT_FLY
-                s_kept = SLOT_FLY2
+                s_full = slot_fly
+                s_kept = slot_fly2
                 _hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
                 _hermite_fill(s_kept, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
                               ist)
@@ -1513,12 +1521,12 @@ def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, of
         for j in range(m):
             row = _chain_row(j, m)
             ok = _hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts,
-                        *model, NEWTON_KEPT)
+                        *model, kept)
             if not ok:
                 break
             ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
             ys_, fs_, cs_ = Y[row], DF[row], C[row]
-        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model, NEWTON_FULL)
+        ok = ok and _hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model, full)
         if not ok:
             ist[I_NEWTON_FAIL] += 1
             ist[I_REJECT] += 1

@@ -193,8 +193,9 @@ def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, 
             Fv[k] = stiff[k] * d[k] if d[k] > 0.0 else 0.0
             S += Fv[k]
             Fhist[n + 1, k] = Fv[k] - Fst[k]
-        n_ev = log_step_events(t1 - h, h, comp_old, d, vx0, vx1, tang, vst, False, True, eps,
-                               ev_t, ev_kind, ev_contact, n_ev, tangential)
+        n_ev = log_step_events(t1 - h, h, comp_old, d, vx0, vx1, tang, vst,
+                               kn.runtime_bool(False), kn.runtime_bool(True), eps, ev_t, ev_kind,
+                               ev_contact, n_ev, tangential)
         mu1 = 0.0
         if tangential:
             mu1, _ = feldmann_mu_law(vx1 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
