@@ -1,6 +1,6 @@
-"""The whole Hermite step (roughvib.solvers.hermite.hermite_step, in work): fourth order in
-the step, and the energy audit closes, on the paper scene's start (contact closed, block
-stuck and breaking away: the Feldmann law's steep rise)."""
+"""The whole Hermite step (roughvib.solvers.hermite.hermite_step, in work, called as the loop
+calls it): fourth order in the step, and the energy audit closes, on the paper scene's start
+(contact closed, block stuck and breaking away: the Feldmann law's steep rise)."""
 
 import numpy as np
 import pytest
@@ -10,6 +10,7 @@ from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import assemble
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import load_scene
+from roughvib.solvers import adaptive_modal as am
 from roughvib.solvers import hermite as hm
 from roughvib.solvers.checkpoint import start_state
 from roughvib.solvers.ida import _atol_vector
@@ -47,6 +48,26 @@ def _force_rate(system, y):
     return np.linalg.solve(np.diag(1 / system.stiff) + system.cres, rate)
 
 
+def _hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp, phiT, stiff,
+                  spos, prof, reg, wts, ws, iws):
+    """``hm.hermite_step`` (the same arguments and result) through the loop's ``_hstep``,
+    which a run has compiled already: the step is inlined, so calling it from Python would
+    compile a copy of its own (about 10 s). The maps go into a cache slot, ``ws`` and ``iws``
+    into the kept steps' scratch row and back (the Newton matrix kept there as the step
+    keeps it)."""
+    R, K = omega2.size, stiff.size
+    hp = am.new_hermite_maps(R, K)
+    hp.Pm[0], hp.Cc[0], hp.hslot[0] = Pm, Cc, h
+    hs = am.new_hermite_scratch(np.zeros(5 * K + 8), R, K)
+    mat = am.NEWTON_KEPT
+    hs.ws[mat], hs.iws[mat], hs.hjac[mat] = ws, iws, h
+    ist = np.zeros(am.N_IST, dtype=np.int64)
+    ok = am._hstep(t0, h, y0, dF0, c0, y1, dF1, c1, 0, hp, wts, off, fp, omega2, cdamp, phiT,
+                   stiff, spos, prof, reg, hs, ist, mat)
+    ws[:], iws[:] = hs.ws[mat], hs.iws[mat]
+    return ok
+
+
 def _integrate(paper, n):
     system, reg0, y0 = paper
     reg = reg0.copy()
@@ -68,8 +89,8 @@ def _integrate(paper, n):
     ws = np.zeros(n_ws)
     iws = np.zeros(n_iws, dtype=np.int64)
     for i in range(n):
-        assert hm.hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
-                               system.contact_s, system.prof, reg, wts, ws, iws)
+        assert _hermite_step(i * h, h, y, dF, c, y1, dF1, c1, Pm, Cc, *args, system.stiff,
+                             system.contact_s, system.prof, reg, wts, ws, iws)
         y, y1, dF, dF1, c, c1 = y1, y, dF1, dF, c1, c
     return y
 
@@ -137,9 +158,9 @@ def test_the_step_carries_what_carried_gives_of_its_end(scene, request):
     hm.carried(0.0, y0, dF0, c0, *args, system.contact_s, system.prof, reg)
     y1, dF1, c1 = y0.copy(), dF0.copy(), np.zeros_like(c0)
     n_ws, n_iws = hm.scratch_sizes(R, K)
-    assert hm.hermite_step(0.0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, *args, system.stiff,
-                           system.contact_s, system.prof, reg, wts, np.zeros(n_ws),
-                           np.zeros(n_iws, dtype=np.int64))
+    assert _hermite_step(0.0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, *args, system.stiff,
+                         system.contact_s, system.prof, reg, wts, np.zeros(n_ws),
+                         np.zeros(n_iws, dtype=np.int64))
     fresh = np.zeros_like(c1)
     hm.carried(h, y1, dF1, fresh, *args, system.contact_s, system.prof, reg)
     np.testing.assert_allclose(c1[:hm.N_CARRY], fresh[:hm.N_CARRY], rtol=1e-11, atol=0)
