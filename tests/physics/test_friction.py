@@ -20,7 +20,9 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from roughvib.physics.friction import (
+    EXP_ZERO_BELOW,
     calibrate_force_amplitude,
+    exp_or_zero,
     feldmann_mu,
     feldmann_mu_law,
     latch_margin,
@@ -90,6 +92,19 @@ def test_kernel_matches_reference():
         for x in XS:
             assert feldmann_mu_law(x, *params)[0] == pytest.approx(
                 mu_reference(x, *params), rel=1e-13, abs=1e-17)
+
+
+def test_exp_or_zero_is_math_exp_to_the_bit():
+    """The law's exponentials skip the C library's underflow path where exp is exactly 0:
+    compiled, the same values as math.exp on both sides of the cut-off, at it, and for
+    infinities and NaN."""
+    args = np.concatenate([np.linspace(-2000.0, 5.0, 40001),
+                           EXP_ZERO_BELOW + np.linspace(-1e-9, 1.0, 2001),
+                           [-745.134, -745.1332, -744.44, -708.4, -math.inf, math.inf, 0.0]])
+    for a in args:
+        assert exp_or_zero(a) == math.exp(a), a
+    assert math.exp(EXP_ZERO_BELOW) == 0.0 and math.exp(-745.13) > 0.0
+    assert math.isnan(exp_or_zero(math.nan))
 
 
 def test_derivative_against_finite_differences():

@@ -61,6 +61,22 @@ __all__ = [
 # the friction-law component: ids, registry, kinetic curves
 # --------------------------------------------------------------------------------------------
 
+#: below this argument ``math.exp`` returns exactly 0.0 (half the smallest subnormal is
+#: exp(-745.133)); the C library reaches that 0 through its underflow handler, several times the
+#: cost of an exp, and the Feldmann law's steep term exp(-a2 X) underflows whenever the block
+#: slides (perf: about 1 % of a default solve)
+EXP_ZERO_BELOW = -745.2
+
+
+@njit(cache=True, inline="always")
+def exp_or_zero(arg):
+    """``math.exp(arg)``, with the exact 0.0 it underflows to below :data:`EXP_ZERO_BELOW`
+    returned without calling it (so the same value to the bit; NaN stays NaN)."""
+    if arg < EXP_ZERO_BELOW:
+        return 0.0
+    return math.exp(arg)
+
+
 #: ids of the friction laws as the kernels see them (``off[OFF_LAW]``, roughvib.model.layout)
 LAW_FELDMANN = 0
 LAW_COULOMB = 1
@@ -395,8 +411,8 @@ def feldmann_mu(x, b, mu_slip, mu_stick, a1, a2):
     dmu_dx : float
         d mu / d x [s/m].
     """
-    e1 = math.exp(-a1 * b * x)
-    e2 = math.exp(-a2 * b * x)
+    e1 = exp_or_zero(-a1 * b * x)
+    e2 = exp_or_zero(-a2 * b * x)
     dmu = mu_stick - mu_slip
     mu = b * (mu_slip + dmu * e1 - mu_stick * e2)
     # b * b = 1: the derivative has the same expression on both branches
@@ -415,8 +431,8 @@ def feldmann_mu_d2(x, b, mu_slip, mu_stick, a1, a2):
         Friction coefficient [-], its first [s/m] and second [s^2/m^2] derivative in x;
         mu and dmu_dx are those of :func:`feldmann_mu`.
     """
-    e1 = math.exp(-a1 * b * x)
-    e2 = math.exp(-a2 * b * x)
+    e1 = exp_or_zero(-a1 * b * x)
+    e2 = exp_or_zero(-a2 * b * x)
     dmu = mu_stick - mu_slip
     mu = b * (mu_slip + dmu * e1 - mu_stick * e2)
     dmu_dx = -a1 * dmu * e1 + a2 * mu_stick * e2
@@ -619,9 +635,11 @@ def mu_reference(x: float, mu_slip: float, mu_stick: float, a1: float, a2: float
         mu(X) [-]; 0 at X = 0.
     """
     if x > 0.0:
-        return mu_slip + (mu_stick - mu_slip) * math.exp(-a1 * x) - mu_stick * math.exp(-a2 * x)
+        return (mu_slip + (mu_stick - mu_slip) * exp_or_zero(-a1 * x)
+                - mu_stick * exp_or_zero(-a2 * x))
     if x < 0.0:
-        return -mu_slip - (mu_stick - mu_slip) * math.exp(a1 * x) + mu_stick * math.exp(a2 * x)
+        return (-mu_slip - (mu_stick - mu_slip) * exp_or_zero(a1 * x)
+                + mu_stick * exp_or_zero(a2 * x))
     return 0.0
 
 
