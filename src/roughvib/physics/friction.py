@@ -635,11 +635,9 @@ def mu_reference(x: float, mu_slip: float, mu_stick: float, a1: float, a2: float
         mu(X) [-]; 0 at X = 0.
     """
     if x > 0.0:
-        return (mu_slip + (mu_stick - mu_slip) * exp_or_zero(-a1 * x)
-                - mu_stick * exp_or_zero(-a2 * x))
+        return mu_slip + (mu_stick - mu_slip) * math.exp(-a1 * x) - mu_stick * math.exp(-a2 * x)
     if x < 0.0:
-        return (-mu_slip - (mu_stick - mu_slip) * exp_or_zero(a1 * x)
-                + mu_stick * exp_or_zero(a2 * x))
+        return -mu_slip - (mu_stick - mu_slip) * math.exp(a1 * x) + mu_stick * math.exp(a2 * x)
     return 0.0
 
 
