@@ -58,7 +58,7 @@ def _hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdam
     R, K = omega2.size, stiff.size
     hp = am.new_hermite_maps(R, K)
     hp.Pm[0], hp.Cc[0], hp.hslot[0] = Pm, Cc, h
-    hs = am.new_hermite_scratch(np.zeros(5 * K + 8), R, K)
+    hs = am.new_hermite_scratch(np.zeros(kn.work_size(K)), R, K)
     mat = am.NEWTON_KEPT
     hs.ws[mat], hs.iws[mat], hs.hjac[mat] = ws, iws, h
     ist = np.zeros(am.N_IST, dtype=np.int64)

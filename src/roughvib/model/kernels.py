@@ -24,7 +24,7 @@ Kernels see raw float64/int64 arrays only (never a dataclass). They run unchange
             direction +1/-1, 0 = stick (set-valued laws)
     rf      float64 regime data, positions RF_*: the latch's running velocity extremum, the
             end time of a dwell hold
-    work    float64 scratch, length >= 5 K
+    work    float64 scratch, length work_size(K) (at least 5 K)
 
 The residual is ``res = yp - f(y)`` for differential rows, so ``yp = -res(t, y, 0)`` gives the
 consistent derivative. Closed contact k: ``F_k / s_k - (z - w_k + h(s_k + x)) = 0`` with the
@@ -156,6 +156,11 @@ def out_force_column(k, K):
 def out_roughness_column(k, K):
     """Output column of the roughness displacement -h(s_k + x) [m] at contact k of K."""
     return N_OUT_FIXED + K + k
+
+
+def work_size(K: int) -> int:
+    """Length of the kernels' float scratch ``work`` with K contacts (at least 5 K)."""
+    return 5 * K + 8
 
 
 def n_output_columns(K: int) -> int:
