@@ -10,7 +10,9 @@ For each scene, in one process (so that both see the same machine load), the def
 solver (adaptive-modal at the ``reference`` preset, its plate tolerance set by the pilot solve
 as in ``roughvib run``) and the exact-modal fixed-step scheme at the 1e-5 s output step (the
 cheapest scheme that produces the same output grid: the floor) are timed warm, the best CPU
-time of ``--repeat`` solves each (numba compilation and loading excluded by a first call).
+time of ``--repeat`` solves each (numba compilation and loading excluded by a first call),
+the two solvers' solves alternating (so that a drift of the machine's speed within the
+process reaches both alike; before 2026-11-26 all of one solver's solves came first).
 Printed: solver CPU times, step counts and their ratio. ``--processes N`` measures each
 scene in N fresh processes, one after the other, and prints each process's row and the
 median, range and count at or below the target of the ratios: a process keeps its speed
@@ -51,15 +53,18 @@ FLOOR_STEP = 1e-5
 TARGET_RATIO = 1.5
 
 
-def _best_cpu(system, repeat: int):
-    """Best process CPU time [s] of ``repeat`` solves after one untimed warm-up solve."""
-    raw = simulation._solve(system, progress=False)
-    best = float("inf")
+def _best_cpu(systems, repeat: int):
+    """Best process CPU time [s] of ``repeat`` solves of each system, after one untimed
+    warm-up solve each; the systems' solves alternate, so that a change of the machine's
+    speed within the process reaches all of them alike. Returns ``[(best, raw), ...]``."""
+    raws = [simulation._solve(system, progress=False) for system in systems]
+    best = [float("inf")] * len(systems)
     for _ in range(repeat):
-        t0 = time.process_time()
-        raw = simulation._solve(system, progress=False)
-        best = min(best, time.process_time() - t0)
-    return best, raw
+        for i, system in enumerate(systems):
+            t0 = time.process_time()
+            raws[i] = simulation._solve(system, progress=False)
+            best[i] = min(best[i], time.process_time() - t0)
+    return list(zip(best, raws, strict=True))
 
 
 def measure(name: str, repeat: int) -> dict:
@@ -71,8 +76,7 @@ def measure(name: str, repeat: int) -> dict:
                                                 step=FLOOR_STEP))
     floor = replace(system, scene=replace(floor_scene,
                                           solver=floor_scene.resolved_solver()))
-    t_def, raw_def = _best_cpu(system, repeat)
-    t_floor, raw_floor = _best_cpu(floor, repeat)
+    (t_def, raw_def), (t_floor, raw_floor) = _best_cpu([system, floor], repeat)
     return {"scene": name, "method": scene.solver.method,
             "atol_acceleration": pilot.get("atol_acceleration"),
             "default_cpu": t_def, "default_steps": raw_def.stats.get("steps"),
