@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_step_limits import run_variant  # noqa: E402
+from machine import describe  # noqa: E402
 
 MAX_FREQUENCIES = (10e3, 25e3, 50e3, 100e3)
 POINTS = (1, 3, 10, 30)
@@ -69,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--figure", default=None, help="PNG file for the log-log figure")
     args = ap.parse_args(argv)
     series = {}
+    print(describe())
     print("| scene | series | modes | contacts | steps | solver CPU [s] |")
     print("|---|---|---|---|---|---|")
     for scene in args.scenes.split(","):

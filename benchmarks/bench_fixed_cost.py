@@ -50,6 +50,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from machine import describe  # this folder's (the script's own directory is on sys.path)
+
 HERE = Path(__file__).resolve().parent
 
 # (module, attribute, label): functions timed in --child mode, patched where they are looked up
@@ -323,7 +325,8 @@ def main() -> None:
     base = Path(tempfile.mkdtemp(prefix="bench_fixed_cost_"))
     report = {"src": env0["PYTHONPATH"], "load_average_before": os.getloadavg(),
               "cpus": os.cpu_count(), "repeat": a.repeat,
-              "python": sys.version.split()[0], "runs": {}}
+              "python": sys.version.split()[0], "runs": {}, "machine": describe()}
+    print(report["machine"])
     t_py = [_run([sys.executable, "-c", "pass"], env0) for _ in range(a.repeat)]
     t_np = [_run([sys.executable, "-c", "import numpy"], env0) for _ in range(a.repeat)]
     report["python -c pass"] = statistics.median(t_py)

@@ -42,10 +42,14 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 from roughvib import simulation  # noqa: E402
 from roughvib.model.system import assemble  # noqa: E402
 from roughvib.scene import load_scene  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import describe  # noqa: E402
 
 #: the floor: the exact-modal fixed-step scheme at the output step [s]
 FLOOR_STEP = 1e-5
@@ -97,6 +101,7 @@ def main() -> None:
     if args.json_line:  # one measurement for the parent of --processes
         print(json.dumps(measure(args.scenes[0], args.repeat)))
         return
+    print(describe())
     print("| scene | default: steps | propagations | CPU [s] | floor: steps | CPU [s] | "
           "ratio |")
     print("|---|---|---|---|---|---|---|")

@@ -25,6 +25,7 @@ import argparse
 import time
 
 import numpy as np
+from machine import describe  # this folder's (the script's own directory is on sys.path)
 from numba import njit
 
 from roughvib.model import kernels as kn
@@ -97,6 +98,7 @@ def main():
     c0 = np.zeros(hm.carry_size(R, K))
     rest = (system.off, fp, system.omega2, system.cdamp, phiT)
     hm.carried(0.0, y0, dF0, c0, *rest, system.contact_s, system.prof, reg)
+    print(describe())
     print(f"{args.scene}: R = {R}, K = {K}, h = {h:g} s, {args.calls} calls, "
           f"best of {args.repeats}")
     for name, loop in (("fixed", _fixed), ("march", _march)):

@@ -43,6 +43,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from machine import describe  # this folder's (the script's own directory is on sys.path)
+
 HERE = Path(__file__).resolve().parent
 
 TARGETS = {"run": 2.0, "sweep": 10.0, "ensemble": 60.0}  # [s] wall, issue 28
@@ -164,7 +166,8 @@ def main() -> None:
     base = Path(tempfile.mkdtemp(prefix="bench_targets_"))
     report = {"src": env["PYTHONPATH"], "cpus": os.cpu_count(), "workers": workers,
               "python": sys.version.split()[0], "load_average_before": os.getloadavg(),
-              "sets": a.set}
+              "sets": a.set, "machine": describe()}
+    print(report["machine"])
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()}, sources {env['PYTHONPATH']}")
     try:
         if "run" in only:

@@ -1,0 +1,68 @@
+"""The machine a benchmark runs on, in one line, printed at the head of each issue-28 benchmark.
+
+The same code measures differently on different processors of the same size: on 2026-11-27
+(an Intel Xeon of family 6, model 207, 2.1 GHz, under KVM) the default solve took 1.6 times
+the fixed-step floor where the day before it had taken 1.3 times, with the same source tree
+and the same results. A figure in docs/performance.md is therefore quoted with this line, so
+that measurements are compared on like machines:
+
+    python benchmarks/machine.py
+
+Everything here is read without root and without a network: ``/proc/cpuinfo`` (Linux; absent
+elsewhere, then the platform module's name), the processor LLVM compiles numba's kernels for
+(``llvmlite.binding.get_host_cpu_name``, public API), the core count and the versions of the
+libraries that set the speed of a solve.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+from pathlib import Path
+
+#: the fields of /proc/cpuinfo that name a processor (the first core's)
+CPUINFO_FIELDS = ("model name", "cpu family", "model", "stepping", "cpu MHz")
+
+
+def cpuinfo(path: str | os.PathLike = "/proc/cpuinfo") -> dict[str, str]:
+    """The first processor's ``CPUINFO_FIELDS`` from a Linux ``/proc/cpuinfo``.
+
+    Returns
+    -------
+    dict
+        Field name to its text; empty where the file does not exist.
+    """
+    p = Path(path)
+    if not p.is_file():
+        return {}
+    fields: dict[str, str] = {}
+    for line in p.read_text(errors="replace").splitlines():
+        if not line.strip():  # the first processor's block ends at the first empty line
+            break
+        key, _, value = line.partition(":")
+        key = key.strip()
+        if key in CPUINFO_FIELDS:
+            fields[key] = value.strip()
+    return fields
+
+
+def describe() -> str:
+    """One line: processor (its family/model/stepping and LLVM's name for it), cores, clock,
+    Python and the numerical libraries' versions."""
+    import llvmlite.binding as llvm
+    import numba
+    import numpy
+    import scipy
+
+    info = cpuinfo()
+    name = info.get("model name") or platform.processor() or platform.machine()
+    ident = ", ".join(f"{k.replace('cpu ', '')} {info[k]}"
+                      for k in ("cpu family", "model", "stepping") if k in info)
+    clock = f" at {float(info['cpu MHz']):.0f} MHz" if "cpu MHz" in info else ""
+    return (f"{name} ({ident + '; ' if ident else ''}LLVM target {llvm.get_host_cpu_name()}), "
+            f"{os.cpu_count()} cores{clock}; Python {platform.python_version()}, "
+            f"numpy {numpy.__version__}, scipy {scipy.__version__}, numba {numba.__version__}")
+
+
+if __name__ == "__main__":
+    print(describe())
