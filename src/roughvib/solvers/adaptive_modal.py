@@ -948,6 +948,25 @@ def _interval_target(rel, hl, span):
 def _advance(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp, omega2, cdamp,
              phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, scratch, track_latch, fresh,
              max_steps):
+    """:func:`_trapezoidal_loop` on views of its arrays without memory records
+    (:func:`roughvib.model.kernels.unowned`: no reference counting in the loop); the same
+    arguments, results and return codes. Called from Python, which holds the arrays."""
+    u = kn.unowned
+    return _trapezoidal_loop(
+        u(tt), u(ist), k_stop, u(grid), h_max,
+        Buffers(u(buf.Y), u(buf.D), u(buf.U), u(buf.G), u(buf.armed), u(buf.fired)),
+        Propagators(u(prop.Phi), u(prop.G0), u(prop.G1), u(prop.G1c), u(prop.hslot),
+                    u(prop.Hm), u(prop.hmslot), u(prop.P)),
+        u(atol), rtol, u(outs), u(off), u(fp), u(omega2), u(cdamp), u(phi), u(phiT),
+        u(phi_obs), u(stiff), u(cres), u(spos), u(prof), u(reg), u(rf),
+        Scratch(u(scratch.work), u(scratch.ws), u(scratch.jac), u(scratch.ipiv)),
+        track_latch, fresh, max_steps)
+
+
+@njit(cache=True)
+def _trapezoidal_loop(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, off, fp,
+                      omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf,
+                      scratch, track_latch, fresh, max_steps):
     """Integrate from ``tt[T_NOW]`` until output index ``k_stop``, the end, or an event.
 
     Returns ``ADV_CHUNK`` (k reached k_stop), ``ADV_DONE``, ``ADV_EVENT`` (``y``, ``tt[T_NOW]``
@@ -1424,6 +1443,25 @@ def _chain_row(j, m):
 def _advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
                      cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
                      track_latch, fresh, max_steps):
+    """:func:`_hermite_loop` on views of its arrays without memory records
+    (:func:`roughvib.model.kernels.unowned`: no reference counting in the loop); the same
+    arguments, results and return codes. Called from Python, which holds the arrays."""
+    u = kn.unowned
+    return _hermite_loop(
+        u(tt), u(ist), k_stop, u(grid), h_top,
+        HermiteBuffers(u(buf.Y), u(buf.DF), u(buf.C), u(buf.G), u(buf.armed), u(buf.fired)),
+        HermiteMaps(u(hp.Pm), u(hp.Cc), u(hp.hslot)),
+        u(atol), rtol, u(outs), u(off), u(fp), u(omega2), u(cdamp), u(phi), u(phiT),
+        u(phi_obs), u(stiff), u(cres), u(spos), u(prof), u(reg), u(rf),
+        HermiteScratch(u(hs.ws), u(hs.iws), u(hs.hjac), u(hs.jac), u(hs.ipiv), u(hs.rhs),
+                       u(hs.work)),
+        track_latch, fresh, max_steps)
+
+
+@njit(cache=True)
+def _hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
+                  cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
+                  track_latch, fresh, max_steps):
     """``_advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
     arguments and return codes, with ``h_top`` the top level's full step
     (:func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,

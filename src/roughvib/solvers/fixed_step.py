@@ -210,6 +210,21 @@ EventArrays = collections.namedtuple("EventArrays", ["t", "kind", "contact"])
 @njit(cache=True)
 def _run(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres, spos,
          prof, fp, law, tangential, moreau, state, out, evs):
+    """:func:`_step_loop` on views of its arrays without memory records
+    (:func:`roughvib.model.kernels.unowned`: no reference counting of them in the loop); the
+    same arguments and results. Called from Python, which holds the arrays."""
+    u = kn.unowned
+    return _step_loop(h, n_steps, out_every, u(Phi), u(G0), u(G1), u(phi), u(phi_obs),
+                      u(omega2), u(cdamp), u(stiff), u(cres), u(spos), u(prof), u(fp), law,
+                      tangential, moreau,
+                      LoopState(u(state.q), u(state.dq), u(state.zv), u(state.Fv),
+                                u(state.active), u(state.tang), u(state.energy)),
+                      u(out), EventArrays(u(evs.t), u(evs.kind), u(evs.contact)))
+
+
+@njit(cache=True)
+def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, stiff, cres,
+               spos, prof, fp, law, tangential, moreau, state, out, evs):
     """The fixed-step loop. Mutates ``state`` (``LoopState``), ``out`` and ``evs``
     (``EventArrays``); returns (n_events, status code, step).
 

@@ -106,6 +106,18 @@ def impulse_responses(phi, phi_obs, omega, zeta, M, h, n):
 @njit(cache=True)
 def _run_paper(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, zv, tang, Fv,
                Fhist, out, ev_t, ev_kind, ev_contact):
+    """:func:`_paper_loop` on views of its arrays without memory records
+    (:func:`roughvib.model.kernels.unowned`: no reference counting of them in the loop); the
+    same arguments and results. Called from Python, which holds the arrays."""
+    u = kn.unowned
+    return _paper_loop(h, n_steps, out_every, u(G), u(Ga), u(stiff), u(spos), u(prof), u(fp),
+                       tangential, u(zv), u(tang), u(Fv), u(Fhist), u(out), u(ev_t),
+                       u(ev_kind), u(ev_contact))
+
+
+@njit(cache=True)
+def _paper_loop(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential, zv, tang, Fv,
+                Fhist, out, ev_t, ev_kind, ev_contact):
     K = stiff.size
     m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     w = np.empty(K)
