@@ -208,8 +208,8 @@ def unowned(a):
     59 % of the default solve's compiled time on the machine of 2026-11-27 (``perf``; 23 %
     on an earlier one). A view made by ``numba.carray`` over ``a``'s buffer (cffi's
     ``from_buffer``, as numba supports it) has no record: the counting calls on it return at
-    once. The solver loops (:mod:`roughvib.solvers.adaptive_modal`) take such views of their
-    arrays at entry and pass them down; the arithmetic is the same, so are the results.
+    once. The solver loops (adaptive-modal's two, the fixed-step schemes') take such views of
+    their arrays at entry and pass them down; the arithmetic is the same, so are the results.
 
     The view does not keep ``a`` alive: use it only while the caller holds ``a`` (within
     the call that made it), never return or store it. Compiled callers get the view (numba
