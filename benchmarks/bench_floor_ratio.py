@@ -42,14 +42,12 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
-from pathlib import Path  # noqa: E402
+
+from machine import describe  # noqa: E402  (this folder's; the script's directory is on sys.path)
 
 from roughvib import simulation  # noqa: E402
 from roughvib.model.system import assemble  # noqa: E402
 from roughvib.scene import load_scene  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from machine import describe  # noqa: E402
 
 #: the floor: the exact-modal fixed-step scheme at the output step [s]
 FLOOR_STEP = 1e-5
