@@ -2,7 +2,7 @@
 
 Run on demand, not by the tests:
 
-    python benchmarks/bench_default_scaling.py --repeat 3 --figure docs/figures/default_scaling.png
+    python benchmarks/bench_default_scaling.py --repeat 5 --figure docs/figures/default_scaling.png
 
 The default run (``adaptive-modal`` at ``reference``) of ``paper`` and ``paper-100mms`` at
 ``plate.max_frequency`` = 10, 25, 50, 100 kHz (one contact point) and at ``contact.points`` =
