@@ -849,11 +849,13 @@ ACCURACY_LEVELS = ("reference", "standard", "draft")
 #: methods miss the contract's event-time limit (about 1.5 steps), and the paper's scheme keeps
 #: no energy audit, so it never meets the contract.
 ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
-    # adaptive-modal: the kept states are extrapolated to third order, so the reference's
-    # plate-mode tolerance is a decade looser than the rtol. Measured over the default length
-    # against tight runs (docs/accuracy.md): worst plate band +0.0057 dB (paper), -0.011 dB
-    # (paper-100mms), events <= 3.3e-10 s; with the friction moment the 40 kHz band comes
-    # within the contract's 80 dB and reads -0.098 dB
+    # adaptive-modal: the Hermite step is fourth order and the trapezoidal step's kept states
+    # are extrapolated to third order, so the reference's plate-mode tolerance is a decade
+    # looser than the rtol. Measured over the default length against tight runs: Hermite step
+    # (the built-in scenes) worst plate band 0.0018 dB (paper), 0.0099 dB (paper-100mms),
+    # events <= 1.2e-9 s (docs/solvers.md); trapezoidal step +0.0057 dB and -0.011 dB, events
+    # <= 3.3e-10 s, and with the friction moment the 40 kHz band comes within the contract's
+    # 80 dB and reads -0.098 dB (docs/accuracy.md)
     "adaptive-modal": {
         "reference": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-6,
                       "atol_acceleration_relative": 1e-4},
