@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -50,7 +49,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from machine import describe  # this folder's (the script's own directory is on sys.path)
+# this folder's module (the script's own directory is on sys.path)
+from machine import describe, timed_python
 
 HERE = Path(__file__).resolve().parent
 
@@ -195,21 +195,6 @@ def child(out: str, argv: list[str]) -> int:
 # --------------------------------------------------------------------------------------------
 
 
-_CPU: list[float] = []  # CPU seconds (user + system) of each subprocess run by _run
-
-
-def _run(cmd: list[str], env: dict) -> float:
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    _CPU.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr}")
-    return wall
-
-
 def _solver_wall(out_dir: Path) -> float:
     return json.loads((out_dir / "summary.json").read_text())["solver"]["wall_time"]
 
@@ -240,9 +225,9 @@ def _in_process(args: list[str], out: Path, env: dict, n: int) -> list[float]:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def _import_top(cmd: list[str], env: dict, n: int = 12) -> list[tuple[str, float, float]]:
-    """The slowest imports of a run (-X importtime): (module, self s, cumulative s)."""
-    proc = subprocess.run([sys.executable, "-X", "importtime", *cmd[1:]], env=env,
+def _import_top(argv: list[str], env: dict, n: int = 12) -> list[tuple[str, float, float]]:
+    """The slowest imports of ``python ARGV`` (-X importtime): (module, self s, cumulative s)."""
+    proc = subprocess.run([sys.executable, "-X", "importtime", *argv], env=env,
                           capture_output=True, text=True)
     rows = []
     total = 0.0
@@ -327,8 +312,8 @@ def main() -> None:
               "cpus": os.cpu_count(), "repeat": a.repeat,
               "python": sys.version.split()[0], "runs": {}, "machine": describe()}
     print(report["machine"])
-    t_py = [_run([sys.executable, "-c", "pass"], env0) for _ in range(a.repeat)]
-    t_np = [_run([sys.executable, "-c", "import numpy"], env0) for _ in range(a.repeat)]
+    t_py = [timed_python(["-c", "pass"], env0)["wall"] for _ in range(a.repeat)]
+    t_np = [timed_python(["-c", "import numpy"], env0)["wall"] for _ in range(a.repeat)]
     report["python -c pass"] = statistics.median(t_py)
     report["python -c 'import numpy'"] = statistics.median(t_np)
     print(f"load average {report['load_average_before']}, interpreter start "
@@ -339,11 +324,11 @@ def main() -> None:
             sets += ["--set", s]
         out = base / f"run-{method}"
         args = ["run", a.scene, *sets, "--out", str(out), "--no-progress", "--quiet"]
-        cmd = [sys.executable, "-m", "roughvib", *args]
+        argv = ["-m", "roughvib", *args]
         rec = {}
         warm_env = {**env0, "NUMBA_CACHE_DIR": str(base / f"numba-{method}-warm"),
                     "ROUGHVIB_CACHE_DIR": str(base / f"rv-{method}-warm")}
-        _run(cmd, warm_env)  # fills the caches of the warm and new-input runs
+        timed_python(argv, warm_env)  # fills the caches of the warm and new-input runs
         for mode, fresh_numba, fresh_rv in modes:
             walls, fixed, solver, fixed_cpu = [], [], [], []
             parts: dict[str, list[float]] = {}
@@ -355,8 +340,9 @@ def main() -> None:
                 if fresh_rv:
                     env["ROUGHVIB_CACHE_DIR"] = str(base / f"rv-{tag}")
                 js = base / f"child-{tag}.json"
-                w = _run([sys.executable, str(Path(__file__).resolve()), "--child", str(js),
-                          *args], env)
+                proc = timed_python([str(Path(__file__).resolve()), "--child", str(js),
+                                     *args], env)
+                w = proc["wall"]
                 walls.append(w)
                 solver.append(_solver_wall(out))
                 got = json.loads(js.read_text())
@@ -366,7 +352,7 @@ def main() -> None:
                 fixed.append(w - got.get("integration", 0.0))
                 # CPU seconds, much less sensitive to other processes than wall time
                 cpu_int = json.loads(Path(str(js) + ".cpu").read_text()).get("integration", 0.0)
-                fixed_cpu.append(_CPU[-1] - cpu_int)
+                fixed_cpu.append(proc["cpu"] - cpu_int)
                 for k, v in _grouped(got).items():
                     parts.setdefault(k, []).append(v)
                 for k, v in got.items():
@@ -384,11 +370,11 @@ def main() -> None:
             }
         plain = []  # uninstrumented warm runs: the instrumentation's own cost
         for _ in range(a.repeat):
-            w = _run(cmd, warm_env)
+            w = timed_python(argv, warm_env)["wall"]
             plain.append(w - _solver_wall(out))  # an upper bound of the integration
         rec["warm fixed cost, uninstrumented"] = statistics.median(plain)
         rec["in-process fixed costs"] = _in_process(args, out, warm_env, a.repeat)
-        top, pkgs, imp_total = _import_top(cmd, warm_env)
+        top, pkgs, imp_total = _import_top(argv, warm_env)
         rec["importtime total self"] = imp_total
         rec["importtime by package"] = pkgs
         rec["importtime top-level imports"] = top

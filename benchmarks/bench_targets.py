@@ -40,16 +40,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from machine import describe  # this folder's (the script's own directory is on sys.path)
+# this folder's module (the script's own directory is on sys.path)
+from machine import describe, timed_python
 
 HERE = Path(__file__).resolve().parent
 
@@ -75,24 +73,9 @@ total(np.ones(3))
 """
 
 
-def _process(env: dict, argv: list[str]) -> dict:
-    """Run ``python ARGV``; wall and CPU seconds (the process and its children)."""
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    load0 = os.getloadavg()
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, *argv], env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if proc.returncode != 0:
-        raise SystemExit(f"python {' '.join(argv)} failed ({proc.returncode}):\n"
-                         f"{proc.stderr[-3000:]}")
-    return {"wall": wall, "cpu": r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime,
-            "load_before": load0[0], "load_after": os.getloadavg()[0]}
-
-
 def _command(env: dict, args: list[str]) -> dict:
-    """Run ``python -m roughvib ARGS`` (:func:`_process`)."""
-    return _process(env, ["-m", "roughvib", *args])
+    """Run ``python -m roughvib ARGS`` (:func:`machine.timed_python`)."""
+    return timed_python(["-m", "roughvib", *args], env)
 
 
 def _solver_cpu(summary: Path) -> tuple[float, float]:
@@ -124,13 +107,13 @@ def bench_run(env: dict, base: Path, repeat: int, extra: list[str]) -> dict:
     bare = base / "bare_numba.py"
     bare.write_text(BARE_NUMBA)
     _command(env, args)  # fills numba's and roughvib's caches: the measured runs are warm
-    _process(env, [str(bare)])
+    timed_python([str(bare)], env)
     runs, baseline = [], []
     for _ in range(repeat):
         r = _command(env, args)
         r["solver_cpu"], r["pilot_wall"] = _solver_cpu(out / "summary.json")
         runs.append(r)
-        baseline.append(_process(env, [str(bare)]))
+        baseline.append(timed_python([str(bare)], env))
     return {"runs": runs, "baseline": baseline}
 
 

@@ -11,13 +11,18 @@ that measurements are compared on like machines:
 Everything here is read without root and without a network: ``/proc/cpuinfo`` (Linux; absent
 elsewhere, then the platform module's name), the processor LLVM compiles numba's kernels for
 (``llvmlite.binding.get_host_cpu_name``, public API), the core count and the versions of the
-libraries that set the speed of a solve.
+libraries that set the speed of a solve. :func:`timed_python` times one Python process on it,
+the way every benchmark here that starts processes does.
 """
 
 from __future__ import annotations
 
 import os
 import platform
+import resource
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 #: the fields of /proc/cpuinfo that name a processor (the first core's)
@@ -62,6 +67,34 @@ def describe() -> str:
     return (f"{name} ({ident + '; ' if ident else ''}LLVM target {llvm.get_host_cpu_name()}), "
             f"{os.cpu_count()} cores{clock}; Python {platform.python_version()}, "
             f"numpy {numpy.__version__}, scipy {scipy.__version__}, numba {numba.__version__}")
+
+
+def timed_python(argv: list[str], env: dict) -> dict:
+    """Run ``python ARGV`` (this interpreter, started directly) and time it.
+
+    Returns
+    -------
+    dict
+        ``wall`` [s]; ``cpu``, the process's and its children's user and system time [s]
+        (``getrusage(RUSAGE_CHILDREN)``); ``load_before`` and ``load_after``, the one-minute
+        load average around it.
+
+    Raises
+    ------
+    SystemExit
+        If the process fails: its command line, exit code and the end of its stderr.
+    """
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    load0 = os.getloadavg()
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, *argv], env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise SystemExit(f"python {' '.join(argv)} failed ({proc.returncode}):\n"
+                         f"{proc.stderr[-3000:]}")
+    return {"wall": wall, "cpu": r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime,
+            "load_before": load0[0], "load_after": os.getloadavg()[0]}
 
 
 if __name__ == "__main__":
