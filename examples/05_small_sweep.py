@@ -2,13 +2,13 @@
 A small parameter sweep
 =======================
 
-A sweep runs many variants of one scene, each as a task on :mod:`dask.distributed`, and
-collects their metrics in one table. Here the paper scene is run at three friction velocities
-(10, 20 and 40 mm/s rms); the sweep report fits the total levels against the measured
-velocity, in dB per doubling of the velocity, which is how the paper states its velocity
-exponent. To keep the example short, each case simulates only 20 ms with the plate modes cut
-at 3 kHz, on a Dask cluster of two threads inside this process; the paper's own study is the
-built-in sweep ``roughvib sweep paper-velocity`` (docs: sweeps).
+A sweep runs many variants of one scene, on a local pool of worker processes or as tasks on a
+:mod:`dask.distributed` cluster, and collects their metrics in one table. Here the paper scene
+is run at three friction velocities (10, 20 and 40 mm/s rms); the sweep report fits the total
+levels against the measured velocity, in dB per doubling of the velocity, which is how the
+paper states its velocity exponent. To keep the example short, each case simulates only 20 ms
+with the plate modes cut at 3 kHz, on a Dask cluster of two threads inside this process; the
+paper's own study is the built-in sweep ``roughvib sweep paper-velocity`` (docs: sweeps).
 """
 
 import tempfile
