@@ -17,7 +17,7 @@ import roughvib
 from roughvib.analysis.levels import whole_period_window
 from roughvib.cli import build_parser
 from roughvib.model.system import assemble
-from roughvib.scene import builtin_scenes
+from roughvib.scene import Scene, builtin_scenes
 
 ROOT = Path(__file__).resolve().parents[2]
 WORDS = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7,
@@ -132,3 +132,48 @@ def test_scenes_named_in_quoted_run_commands_exist():
         scene = parser.parse_args(argv).scene
         if scene and not scene.endswith(".toml"):
             assert scene in builtins, f"{name}: {cmd}: no built-in scene {scene!r}"
+
+
+def _quickstart_defaults_paragraph() -> str:
+    text = (ROOT / "docs" / "quickstart.md").read_text(encoding="utf-8")
+    for para in re.split(r"\n\s*\n", text):
+        flat = " ".join(para.split())
+        if "The defaults are" in flat:
+            return flat
+    raise AssertionError("docs/quickstart.md no longer says what the defaults are: "
+                         "update this test")
+
+
+def _value(scene, key: str):
+    section, name = key.split(".")
+    return getattr(getattr(scene, section), name)
+
+
+def test_the_defaults_the_quickstart_states_are_the_codes():
+    """What the quickstart says an empty scene file gives, and what paper-handset changes."""
+    para = _quickstart_defaults_paragraph()
+    defaults, paper, handset = (Scene(), roughvib.load_scene("paper"),
+                                roughvib.load_scene("paper-handset"))
+    said = re.search(r"The defaults are the built-in `(\w[\w-]*)` scene", para)
+    assert said, para
+    assert roughvib.load_scene(said.group(1)).block == defaults.block
+    # keys set to "auto" and boolean keys, as `a.b` ... = "auto" and `a.b = true`
+    autos = re.search(r"\(((?:`[a-z_]+\.[a-z_]+`(?:, | and )?)+) = \"auto\"", para)
+    assert autos, para
+    keys = re.findall(r"`([a-z_]+\.[a-z_]+)`", autos.group(1))
+    assert len(keys) >= 3
+    for key in keys:
+        assert _value(defaults, key) == _value(paper, key) == "auto", key
+    flags = re.findall(r"`([a-z_]+\.[a-z_]+) = (true|false)`", para)
+    assert flags
+    for key, word in flags:
+        assert _value(defaults, key) is (word == "true"), key
+    # the hand-set contact: points, total stiffness, r1, no velocity factor
+    hand = re.search(r"`paper-handset` sets the hand-set contact instead \(" + COUNT
+                     + r" contact points, ([\d.e]+) N/m, r1 = ([\d.]+) N s/m, no velocity factor\)",
+                     para)
+    assert hand, para
+    assert handset.contact.points == _number(hand.group(1))
+    assert handset.contact.stiffness == pytest.approx(float(hand.group(2)))
+    assert handset.block.vertical_damping == pytest.approx(float(hand.group(3)))
+    assert handset.contact.velocity_factor is False
