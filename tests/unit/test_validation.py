@@ -88,7 +88,7 @@ def test_own_signal_reads_zero_db_and_twice_reads_six(run, tmp_path, monkeypatch
 def test_96_khz_record_lines_up(run, tmp_path):
     """resample_poly (Kaiser beta 9) to 96 kHz: within 0.1 dB to 31.5 kHz; the 40 kHz band
     reaches 44.7 kHz, 93 % of the record's Nyquist frequency, in the resampling filter's
-    transition band (measured -0.25 dB there), so 0.5 dB. No band is lost: the run (100 kHz)
+    transition band (measured -0.18 dB there), so 0.5 dB. No band is lost: the run (100 kHz)
     and the record both hold bands up to 40 kHz."""
     d, result, x = run
     y = resample_poly(x, 24, 25, window=("kaiser", 9.0))
@@ -108,8 +108,8 @@ def test_bands_above_the_record_nyquist_are_left_out_and_said(run, tmp_path):
     The levels still line up, within the two filter banks' difference: designed at 100 kHz and
     at 88.2 kHz, a band may be filtered at another decimation stage, and a band much quieter
     than a neighbour picks up a different share of the neighbour's skirt (both within class 1).
-    Measured: at most 0.07 dB where no neighbour is 8 dB louder, 0.59 dB elsewhere (the 20 kHz
-    band, 9.5 dB below a neighbour)."""
+    Measured: at most 0.05 dB where no neighbour is 8 dB louder, 0.28 dB elsewhere (the 2.5 kHz
+    band, 15 dB below a neighbour)."""
     d, result, x = run
     y = resample_poly(x, 441, 500, window=("kaiser", 12.0))
     rec = read_record(_wav(tmp_path / "r88k.wav", y, 88200, scale=10.0), scale=10.0)
