@@ -235,9 +235,16 @@ def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
         comments["contact.points"] = (f"contact module: {info['micro_contacts']:.4g} "
                                       f"micro-contacts ({stat.get('model')})")
     if isinstance(c.stiffness, str):
+        vf = stat.get("velocity_factor", 1.0)
         comments["contact.stiffness"] = (
-            f"contact module ({stat.get('model')}), velocity factor "
-            f"{stat.get('velocity_factor', 1.0):.4g} applied")
+            f"contact module ({stat.get('model')})" + (
+                f", velocity factor {vf:.4g} applied" if c.velocity_factor
+                and not stat.get("velocity_factor_note") else ""))
+        if c.velocity_factor:
+            # the number above holds the factor: off here, so that it is not applied twice
+            comments["contact.velocity_factor"] = (
+                f"the scene's velocity factor ({vf:.4g}) is already in contact.stiffness"
+                if not stat.get("velocity_factor_note") else stat["velocity_factor_note"])
     if isinstance(b.vertical_damping, str):
         comments["block.vertical_damping"] = (f"{b.vertical_damping_ratio} of critical at the "
                                               f"contact resonance")

@@ -235,11 +235,30 @@ def test_summit_keys_velocity_factor_and_errors():
     vf = contact_stiffness(load_scene("paper-100mms"))  # the built-in scene applies the factor
     assert vf.velocity_factor == pytest.approx(0.33)
     assert vf.s_total == pytest.approx(0.33 * base.s_total, rel=1e-12)
-    with pytest.raises(SceneError, match=r"contact.velocity_factor needs "
-                                         r"excitation.target_rms_velocity"):
-        contact_stiffness(load_scene("paper", {"contact.velocity_factor": True,
-                                               "excitation.force_amplitude": 1.0,
-                                               "excitation.target_rms_velocity": "none"}))
+    # no stated rms velocity: the factor is 1 (the static stiffness), and the result says why
+    plain = contact_stiffness(load_scene("paper", {"contact.velocity_factor": False}))
+    forced = contact_stiffness(load_scene("paper", {"contact.velocity_factor": True,
+                                                    "excitation.force_amplitude": 1.0,
+                                                    "excitation.target_rms_velocity": "none"}))
+    assert forced.velocity_factor == 1.0 and forced.s_total == plain.s_total
+    assert forced.velocity_factor_note.startswith("contact.velocity_factor not applied: no "
+                                                  "excitation.target_rms_velocity")
+    assert vf.velocity_factor_note == "" and plain.velocity_factor_note == ""
     with pytest.raises(SceneError, match=r"roughness.raw_rms must be > 0 m"):
         contact_stiffness(load_scene("paper", {"roughness.raw_rms": 0.0}))
     assert effective_modulus(2.1e11, 0.3) == pytest.approx(STEEL_E_STAR)
+
+
+@pytest.mark.parametrize("over", [
+    {"excitation.kind": "prescribed", "excitation.velocity": 0.0, "excitation.amplitude": 0.0},
+    {"excitation.force_amplitude": 0.0, "excitation.target_rms_velocity": "none"},
+])
+def test_a_block_that_does_not_slide_keeps_the_static_stiffness(over):
+    """The default contact.velocity_factor = true never refuses a block at rest: the factor,
+    a fit of the sliding contact that diverges as v_rms -> 0, is 1 there (no elevation)."""
+    scene = load_scene("paper", over)
+    assert scene.contact.velocity_factor is True  # the default, not set by the test
+    at_rest = contact_stiffness(scene)
+    static = contact_stiffness(load_scene("paper", {**over, "contact.velocity_factor": False}))
+    assert at_rest.velocity_factor == 1.0 and at_rest.s_total == static.s_total
+    assert "the block does not slide" in at_rest.velocity_factor_note

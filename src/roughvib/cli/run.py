@@ -61,6 +61,8 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
                      + (f", {nc:.3g} micro-contacts" if nc is not None else "")
                      + f"), s_total {c['stiffness_total']:.4g} N/m ({c['stiffness_source']}), "
                      f"r1 {c['vertical_damping']:.4g} N s/m")
+    if (note := cal.get("contact_stiffness", {}).get("velocity_factor_note")):
+        lines.append(f"                 {note}")
     ev = summary.get("events_by_kind", {})
     lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
                                         or "none"))

@@ -369,6 +369,9 @@ class ContactStiffness:
         rms of the raw surface used for the moments [m] (NaN if all summit keys were given).
     summit_source : str
         "moments", "keys" or "moments+keys".
+    velocity_factor_note : str
+        Why ``contact.velocity_factor = true`` was not applied (factor 1): a block that does
+        not slide, or no stated rms velocity; empty when it was applied or is off.
     """
 
     s_total: float
@@ -390,6 +393,7 @@ class ContactStiffness:
     nominal_area: float
     surface_rms: float
     summit_source: str
+    velocity_factor_note: str = ""
 
     def as_dict(self) -> dict:
         """Plain dict of the fields (JSON-ready)."""
@@ -419,20 +423,32 @@ def contact_count(micro_contacts: float) -> int:
     return max(1, int(round(micro_contacts)))
 
 
-def _scene_v_rms(scene: Scene) -> float:
+def _scene_v_rms(scene: Scene) -> tuple[float | None, str]:
+    """The rms sliding velocity the velocity factor is evaluated at [m/s], or None and why
+    the factor is not applied.
+
+    The factor is the paper's fit of the stiffness of a *sliding* contact against its rms
+    velocity (docs/theory.md); it diverges as v_rms -> 0, where a block at rest has no
+    elevation effect at all. A block that does not slide (a prescribed motion of zero rms, a
+    force-driven block with no force and no target) therefore keeps the contact module's
+    static stiffness (factor 1); so does a force-driven block whose rms velocity the scene
+    does not state (no ``excitation.target_rms_velocity``), because the factor is defined on
+    the scene's stated velocity, which is only known after such a run.
+    """
     exc = scene.excitation
     if exc.kind == "prescribed":
         v = math.sqrt(exc.velocity**2 + 0.5 * (exc.amplitude * exc.omega) ** 2)
         if v > 0:
-            return v
-        raise SceneError("contact.velocity_factor needs a moving block: excitation.velocity or "
-                         "excitation.amplitude must be non-zero, got 0 m/s rms")
-    if exc.target_rms_velocity is None:
-        raise SceneError("contact.velocity_factor needs excitation.target_rms_velocity [m/s] "
-                         f"(the factor scales with the rms velocity; or set "
-                         f"contact.velocity_factor = false), got force_amplitude = "
-                         f"{exc.force_amplitude} N only")
-    return float(exc.target_rms_velocity)
+            return v, ""
+        return None, ("the block does not slide (excitation.velocity and "
+                      "excitation.amplitude are 0): factor 1, the static contact stiffness")
+    if exc.target_rms_velocity is not None:
+        return float(exc.target_rms_velocity), ""
+    if not exc.force_amplitude:
+        return None, ("the block does not slide (excitation.force_amplitude = 0 N): factor 1, "
+                      "the static contact stiffness")
+    return None, (f"no excitation.target_rms_velocity to evaluate it at (force_amplitude = "
+                  f"{exc.force_amplitude} N only): factor 1, the static contact stiffness")
 
 
 def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None = None
@@ -460,8 +476,9 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     Raises
     ------
     SceneError
-        raw_rms = 0 without summit keys, a load outside the model's range, or the velocity
-        factor without a velocity.
+        raw_rms = 0 without summit keys, or a load outside the model's range. (The velocity
+        factor of a block that does not slide, or of a scene without a stated rms velocity,
+        is 1; ``velocity_factor_note`` says so.)
     """
     c, r, blk, plt = scene.contact, scene.roughness, scene.block, scene.plate
     given = {"density": c.summit_density, "radius": c.summit_radius, "std": c.summit_std}
@@ -498,7 +515,10 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
         raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
                          f"on these summits ({err}), got summit density {eta:.4g} 1/m^2, "
                          f"radius {rad:.4g} m, std {std:.4g} m") from None
-    vf = velocity_factor(_scene_v_rms(scene)) if c.velocity_factor else 1.0
+    v_rms, vf_note = _scene_v_rms(scene) if c.velocity_factor else (None, "")
+    vf = velocity_factor(v_rms) if v_rms is not None else 1.0
+    if c.velocity_factor and vf_note:
+        vf_note = f"contact.velocity_factor not applied: {vf_note}"
     s_total = sol.stiffness * vf
     return ContactStiffness(
         s_total=float(s_total), micro_contacts=sol.micro_contacts,
@@ -509,7 +529,7 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
         resonance_hz=float(math.sqrt(s_total / blk.mass) / (2.0 * math.pi)), model=c.model,
         load=float(load), stiffness_ratio=float(sol.stiffness * std / load),
         velocity_factor=float(vf), effective_modulus=float(e_star), nominal_area=float(area),
-        surface_rms=surface_rms, summit_source=source)
+        surface_rms=surface_rms, summit_source=source, velocity_factor_note=vf_note)
 
 
 # --------------------------------------------------------------------------------------------
