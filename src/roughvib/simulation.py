@@ -308,6 +308,7 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
     if (scene.solver.atol_acceleration is None and resume_from is None
             and system.scene.solver.atol_acceleration_relative is not None):
         system, pilot = _scale_atol_acceleration(system)
+        _check_scaled_atol(system, scene.solver, pilot)
     solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
 
     # the saved scene repeats the run: the solver section as it ran (concrete method, the
@@ -490,6 +491,40 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
     atol = s.atol_acceleration_relative * max(level, PILOT_LEVEL_FLOOR)
     info.update(level=level, atol_acceleration=atol)
     return replace(system, scene=replace(scene, solver=replace(s, atol_acceleration=atol))), info
+
+
+def _check_scaled_atol(system: System, given: Solver, pilot: dict) -> None:
+    """Refuse, naming ``solver.atol_acceleration_relative``, a relative tolerance that the
+    pilot's level turns into an ``atol_acceleration`` below the scene's round-off floor.
+
+    The solvers refuse an absolute tolerance below its floor
+    (:func:`roughvib.solvers.ida.check_tolerances`) by the key they are given, which here the
+    user did not set: this check, at the same state (the solver's start), names the key the
+    value came from, its lowest value for this scene and the derived tolerance.
+    """
+    if pilot.get("level") is None or not system.n_modes:
+        return  # a failed pilot leaves the preset's absolute value: the solver checks it
+    from roughvib.solvers.checkpoint import start_state
+    from roughvib.solvers.ida import tolerance_floors
+
+    reg, rf = system.new_regime_arrays()
+    _, _, y0 = start_state(system, reg, rf, None, 0, 0)
+    floor, u = tolerance_floors(system, y0)["atol_acceleration"]
+    atol = pilot["atol_acceleration"]
+    if atol >= floor:
+        return
+    rel = system.scene.solver.atol_acceleration_relative
+    level = max(pilot["level"], PILOT_LEVEL_FLOOR)
+    origin = (f" (from solver.accuracy = {given.accuracy!r})"
+              if "atol_acceleration_relative" in given.from_preset() else "")
+    need = floor / level
+    step = 10.0 ** (math.floor(math.log10(need)) - 2)
+    need = math.ceil(need / step) * step  # rounded up to 3 digits: the value shown passes
+    raise SceneError(
+        f"solver.atol_acceleration_relative must be >= {need:.3g} for this scene: "
+        f"times the pilot's acceleration level {level:.3g} m/s^2 it gives atol_acceleration "
+        f"= {atol:.3g} m/s^2, below the round-off floor {floor:.3g} m/s^2 of the plate modes' "
+        f"force balance (modal forces per modal mass reach {u:.3g} m/s^2), got {rel:g}{origin}")
 
 
 def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> RawSolution:

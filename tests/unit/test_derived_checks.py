@@ -174,3 +174,62 @@ def test_values_derived_for_the_run_are_checked_before_the_solve(monkeypatch, in
                                          r"block.vertical_damping must be at most 1 N s/m "
                                          r".*got \d+\.\d+$"):
         sim.simulate(scene)
+
+
+@pytest.mark.parametrize("summits", [
+    {}, {"contact.summit_std": 1e-6}, {"contact.summit_std": 1e-6, "contact.summit_radius": 1e-4},
+])
+@pytest.mark.parametrize("raw_rms", [1e-300, 1e-100, 1e-15])
+def test_a_tiny_raw_rms_is_refused_by_its_own_name(raw_rms, summits):
+    """A raw_rms the contact module cannot use was blamed on the roughness band (or raised a
+    ZeroDivisionError): the refusal names roughness.raw_rms, the key set, and its value."""
+    from roughvib.physics.surface.contact import contact_stiffness
+
+    scene = load_scene("paper", {"roughness.raw_rms": raw_rms, **summits})
+    if len(summits) == 2 and raw_rms == 1e-15:
+        # only the density is derived, which does not depend on the rms: a usable contact
+        assert contact_stiffness(scene).summit_density > 0
+        return
+    with pytest.raises(SceneError) as info:
+        contact_stiffness(scene)
+    msg = str(info.value)
+    assert msg.startswith("roughness.raw_rms must be ") and msg.endswith(f"got {raw_rms!r} m")
+    assert "wavelength" not in msg and "\n" not in msg
+
+
+def test_the_lowest_raw_rms_named_is_the_lowest_that_works():
+    """The bound the refusal states follows from the band: the derived summits of a raw_rms
+    just above it lie in the summit keys' ranges, just below it they do not."""
+    from roughvib.physics.surface.contact import contact_stiffness
+
+    with pytest.raises(SceneError) as info:
+        contact_stiffness(load_scene("paper", {"roughness.raw_rms": 1e-15}))
+    need = float(re.search(r"must be >= (\S+) m", str(info.value)).group(1))
+    cs = contact_stiffness(load_scene("paper", {"roughness.raw_rms": need * 1.01,
+                                                "contact.points": 10}))
+    lo_std, rad_hi = SANE_BOUNDS["contact.summit_std"][0], SANE_BOUNDS["contact.summit_radius"][1]
+    assert cs.summit_std >= lo_std and cs.summit_radius <= rad_hi
+    assert cs.summit_radius > 0.98 * rad_hi or cs.summit_std < 1.02 * lo_std  # the bound binds
+    with pytest.raises(SceneError, match=r"^roughness.raw_rms must be >= "):
+        contact_stiffness(load_scene("paper", {"roughness.raw_rms": need * 0.99}))
+
+
+def test_a_relative_acceleration_tolerance_is_refused_by_its_own_name(in_tmp, capsys):
+    """solver.atol_acceleration_relative times the pilot's level is the atol_acceleration of the
+    run; below the scene's round-off floor the refusal names the key the user set, the
+    derived tolerance and the lowest relative value, and that value runs."""
+    code = main(["run", "paper", "--out", "r", "--set",
+                 "solver.atol_acceleration_relative=1e-300", *TINY])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2
+    m = re.fullmatch(r"roughvib: error: solver.atol_acceleration_relative must be >= (\S+) for "
+                     r"this scene: times the pilot's acceleration level (\S+) m/s\^2 it gives "
+                     r"atol_acceleration = (\S+) m/s\^2, below the round-off floor (\S+) m/s\^2 "
+                     r".*, got 1e-300", err)
+    assert m, err
+    need, level, atol, floor = (float(g) for g in m.groups())
+    assert atol == pytest.approx(1e-300 * level, rel=1e-2) and atol < floor
+    assert need == pytest.approx(floor / level, rel=1e-2)
+    assert not (in_tmp / "r").exists()
+    assert main(["run", "paper", "--out", "r", "--set",
+                 f"solver.atol_acceleration_relative={need!r}", *TINY]) == 0

@@ -48,7 +48,7 @@ import numpy as np
 
 from roughvib._cache import cached_values, code_fingerprint
 from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
-from roughvib.scene import MAX_CONTACTS, Scene, SceneError
+from roughvib.scene import MAX_CONTACTS, SANE_BOUNDS, Scene, SceneError
 
 __all__ = [
     "GRAVITY",
@@ -451,6 +451,44 @@ def _scene_v_rms(scene: Scene) -> tuple[float | None, str]:
                   f"{exc.force_amplitude} N only): factor 1, the static contact stiffness")
 
 
+def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool) -> None:
+    """Refuse, naming ``roughness.raw_rms``, an rms too small for the contact module: summits
+    it derives lower than the lowest ``contact.summit_std`` or blunter than the largest
+    ``contact.summit_radius`` (docs/scenes.md), down to spectral moments that underflow to
+    zero. The summits' shape follows from the band alone (moments ~ rms^2: height spread ~
+    rms, radius ~ 1 / rms), so the band's own summits at 1 m rms tell which key is at fault:
+    the band (no summits at any rms; the caller names it) or the rms."""
+    try:
+        unit = summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d))
+    except ValueError:
+        return
+    std_lo = SANE_BOUNDS["contact.summit_std"][0]
+    rad_hi = SANE_BOUNDS["contact.summit_radius"][1]
+    need = max(std_lo / unit.std if derive_std else 0.0,
+               unit.radius / rad_hi if derive_radius else 0.0)
+    if r.raw_rms < need:
+        raise SceneError(
+            f"roughness.raw_rms must be >= {need:.3g} m for the contact module ('auto' contact "
+            f"points or stiffness) on this band: its summits would have a height spread of "
+            f"{unit.std * r.raw_rms:.3g} m and a radius of {unit.radius / r.raw_rms:.3g} m "
+            f"(the ranges of contact.summit_std and summit_radius: >= {std_lo:g} m, <= "
+            f"{rad_hi:g} m, docs/scenes.md), got {r.raw_rms!r} m")
+
+
+def _check_raw_rms_underflow(r, moments) -> None:
+    """Refuse, naming ``roughness.raw_rms``, an rms whose spectral moments are too small for
+    floating point (they scale as rms^2) where the band itself gives summits at 1 m rms."""
+    try:
+        summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d))
+    except ValueError:
+        return  # the band's fault: the caller names the band
+    m0, m2, m4 = moments
+    raise SceneError(f"roughness.raw_rms must be large enough for the contact module's "
+                     f"spectral moments (~ raw_rms^2) to be floating-point numbers: they "
+                     f"underflow (m0 = {m0:.3g} m^2, m2 = {m2:.3g}, m4 = {m4:.3g} 1/m^2), got "
+                     f"{r.raw_rms!r} m")
+
+
 def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None = None
                       ) -> ContactStiffness:
     """Tangent normal contact stiffness of the scene at the static load m g.
@@ -485,16 +523,21 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     need_moments = any(v is None for v in given.values())
     surface_rms = float("nan")
     source = "keys"
+    from_rms = moments is None  # the model PSD at roughness.raw_rms, not given moments
     if need_moments:
         if moments is None:
             if r.raw_rms <= 0:
                 raise SceneError("roughness.raw_rms must be > 0 m for contact.stiffness = "
                                  "'auto' (or give contact.summit_density, summit_radius and "
                                  "summit_std), got 0.0 m")
+            _check_raw_rms_scale(r, derive_std=c.summit_std is None,
+                                 derive_radius=c.summit_radius is None)
             moments = spectral_moments(r, r.raw_rms, areal=r.reduce_3d)
         try:
             sp = summit_parameters(*moments)
-        except ValueError as err:
+        except (ValueError, ArithmeticError) as err:
+            if from_rms and r.raw_rms > 0:
+                _check_raw_rms_underflow(r, moments)
             raise SceneError(f"roughness band gives no summit statistics ({err}); widen "
                              f"roughness.shortest_wavelength .. longest_wavelength, got "
                              f"[{r.shortest_wavelength}, {r.longest_wavelength}] m") from None
