@@ -262,6 +262,11 @@ SANE_BOUNDS: dict[str, tuple[float, float, str]] = {
     "output.step": (1e-9, 1e3, "s"),
     "output.transient": (0.0, 1e6, "s"),
     "output.checkpoint_interval": (0.0, 1e6, "s"),
+    # the fluid the plate radiates into: from air at about 1 hPa (continuum acoustics still
+    # holds at audio frequencies) to beyond mercury (13.5e3 kg/m^3, the densest liquid at room
+    # temperature); sound speeds from bubbly liquids (some 20 m/s) to beyond molten metals
+    "output.air_density": (1e-3, 2e4, "kg/m^3"),
+    "output.sound_speed": (10.0, 1e4, "m/s"),
 }
 
 
