@@ -1470,6 +1470,13 @@ def load_scene(source: str | Path | None = "paper", overrides: dict[str, Any] | 
 THIN_PLATE_RATIO = 0.1
 #: thin-plate theory holds for bending wavelengths longer than this many plate thicknesses
 BENDING_WAVELENGTH_THICKNESSES = 6.0
+#: relative shortfall of the analysis window against one excitation period that counts as
+#: rounding, not as a short window: a period typed to 7 or more digits (the docs write two
+#: periods at 7 Hz as 0.2857142857 s) passes. The metrics' whole-period window counts each
+#: output sample as one step long, so a window short by less than one output step still
+#: holds the period; 1e-6 of a period is below one step for any grid of fewer than 1e6
+#: samples per period, so the tolerance never hides a window that misses a sample.
+PERIOD_ROUNDING = 1e-6
 
 
 def validity_warnings(scene: Scene) -> list[str]:
@@ -1521,7 +1528,7 @@ def validity_warnings(scene: Scene) -> list[str]:
                    f"whole record, run-in included")
         window = out_.duration
     periodic = exc.frequency > 0 and (exc.kind == "force" or exc.amplitude > 0)
-    if periodic and window < scene.period:
+    if periodic and window < scene.period * (1.0 - PERIOD_ROUNDING):
         target = (" and miss excitation.target_rms_velocity, which is calibrated for whole "
                   "cycles") if exc.kind == "force" and exc.target_rms_velocity else ""
         out.append(f"the analysis window ({window:.6g} s) is shorter than one excitation period "

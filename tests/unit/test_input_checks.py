@@ -127,6 +127,17 @@ def test_validity_warnings_of_the_scene():
     assert "miss excitation.target_rms_velocity" in short[1]
     part = validity_warnings(load_scene("paper", {"output.duration": 0.25}))
     assert len(part) == 1 and "window (0.107143 s)" in part[0]
+    # two periods at 7 Hz as the docs write them (0.2857142857 s): the window falls 1e-10 of
+    # a period short by rounding, and the metrics' window holds one whole period
+    assert validity_warnings(load_scene("paper", {"output.duration": 0.2857142857})) == []
+    from roughvib.analysis.levels import whole_period_window
+
+    t = np.arange(0.0, 0.2857142857 + 0.5e-5, 1e-5)
+    win = whole_period_window(t, 1 / 7, 1 / 7)
+    assert (win.stop - win.start) * 1e-5 == pytest.approx(1 / 7, abs=1e-5)
+    # four digits are no rounding: 0.2857 s leaves a window 1e-4 of a period short
+    (four,) = validity_warnings(load_scene("paper", {"output.duration": 0.2857}))
+    assert "shorter than one excitation period" in four
     # uniform sliding (prescribed, no oscillation) has no period to cover
     assert validity_warnings(load_scene("paper", {
         "output.duration": 0.25, "output.transient": 0.0, "excitation.kind": "prescribed",
