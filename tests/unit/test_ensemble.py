@@ -134,7 +134,12 @@ def test_single_draw_note_only_for_random_surfaces():
         return {"scene": "my-scene", "model": {"profile": prof}}
 
     note = single_draw_note(summary(kind="synthetic", seed=7))
-    assert "roughness.seed = 7" in note and "roughvib run my-scene --seeds 10" in note
+    # not made by 'roughvib run' (no run_command): the saved scene, not the scene's name,
+    # which need not be a built-in
+    assert "roughness.seed = 7" in note and "my-scene" not in note
+    assert note.endswith("seed-to-seed spread: roughvib run RUN_DIR/scene.toml --seeds 10")
+    ran = {**summary(kind="synthetic", seed=7), "run_command": "roughvib run s.toml --set a=1"}
+    assert single_draw_note(ran).endswith("roughvib run s.toml --set a=1 --seeds 10")
     for kind in ("none", "sinusoid", "file"):
         assert single_draw_note(summary(kind=kind)) is None
     assert single_draw_note({}) is None

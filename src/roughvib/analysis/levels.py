@@ -45,7 +45,9 @@ def single_draw_note(summary: dict) -> str | None:
 
     A synthetic profile is one random draw (``roughness.seed``); the levels of other draws
     differ by more than the solver error. No spread is invented for a single run: the note
-    names the command that measures it.
+    names the command that measures it, from what the user ran (``run_command`` of the
+    summary, written by ``roughvib run``: the scene as given and its ``--set`` options), or
+    else from the run directory's saved scene.
 
     Parameters
     ----------
@@ -61,8 +63,13 @@ def single_draw_note(summary: dict) -> str | None:
     prof = summary.get("model", {}).get("profile", {})
     if prof.get("kind") != "synthetic":
         return None
+    command = summary.get("run_command")
+    if not isinstance(command, str) or not command.startswith("roughvib run"):
+        # a run not made by 'roughvib run' (the Python API, a sweep case): its saved scene
+        # repeats it (a synthetic draw's contact and calibration do not depend on the seed)
+        command = "roughvib run RUN_DIR/scene.toml"
     return (f"one draw of a random surface (roughness.seed = {prof.get('seed')}); "
-            f"seed-to-seed spread: roughvib run {summary.get('scene', 'SCENE')} --seeds 10")
+            f"seed-to-seed spread: {command} --seeds 10")
 
 
 def level_db(x_rms: float, ref: float = 1e-6) -> float:

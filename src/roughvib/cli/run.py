@@ -91,6 +91,22 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     print("\n".join(lines))
 
 
+def _run_command(args: argparse.Namespace, out_dir: Path) -> str:
+    """The ``roughvib run`` command of this run's scene, for the hints of the summary: the
+    scene as the user gave it (file path or built-in name) and its ``--set`` options but
+    ``roughness.seed`` (which an ensemble varies); for a resumed run, whose command line is
+    not known, the run directory's saved scene (which repeats the run)."""
+    import shlex
+
+    if args.resume:
+        return "roughvib run " + shlex.quote(str(out_dir / "scene.toml"))
+    # an ensemble sets roughness.seed itself (and refuses a --set of it)
+    sets = [v for v in (args.set or []) if v.partition("=")[0].strip() != "roughness.seed"]
+    words = ([args.scene] if args.scene is not None else []) + [
+        w for value in sets for w in ("--set", value)]
+    return " ".join(["roughvib run", shlex.join(words)]).rstrip()
+
+
 def _failure_files(summary: dict, out_dir: Path) -> str:
     """The files a failed run wrote, each with what it holds (only files that exist)."""
     files = summary.get("files") or {}
@@ -241,6 +257,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             else:
                 print(f"roughvib: {what}; nothing was written", file=sys.stderr)
             return EXIT_TERM if isinstance(exc, Terminated) else EXIT_INTERRUPT
+        result.summary["run_command"] = _run_command(args, out_dir)
         result.save(rundir)
     finally:
         rundir.close()
