@@ -5,8 +5,10 @@ A tqdm bar redraws itself with carriage returns many times a second; written int
 terminal, :func:`progress_bar` returns a :class:`LineProgress` instead, which writes one
 complete line at every tenth of the work (at most one every 5 s) and at least one every 30 s
 while the work advances, and the final state at the end. With ``disable`` it returns a
-:class:`NoProgress`, which keeps count and shows nothing. A leaf module (tqdm is imported only
-for a terminal or a notebook), so that every stage may show progress.
+:class:`NoProgress`, which keeps count and shows nothing. :func:`kernel_clock` times the
+loading and compiling of numba's kernels and says once when they are being compiled. A leaf
+module (tqdm is imported only for a terminal or a notebook, numba only when a run asks for the
+kernel clock), so that every stage may show progress.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import sys
 import time
 from typing import IO, Any
 
-__all__ = ["LineProgress", "NoProgress", "progress_bar"]
+__all__ = ["KernelClock", "LineProgress", "NoProgress", "kernel_clock", "progress_bar"]
 
 
 def _interactive(file: IO) -> bool:
@@ -202,3 +204,107 @@ class LineProgress:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class KernelClock:
+    """Time spent loading or compiling numba kernels in this process, and a notice, once per
+    process, when a kernel has to be compiled (a cold cache: the first run after installing or
+    changing roughvib, about a minute).
+
+    It listens to numba's event API (``numba.core.event``): ``"numba:compiler_lock"`` brackets
+    every load of a kernel from numba's cache and every compilation, ``"numba:compile"`` fires
+    only when a kernel was not in the cache and is compiled. A warm run compiles nothing and
+    shows no notice. Get the one clock of the process with :func:`kernel_clock`; read
+    :attr:`seconds` before and after a phase to get the phase's share.
+
+    Attributes
+    ----------
+    seconds : float
+        Wall time spent holding numba's compiler lock so far [s] (outermost holds only).
+    compiled : int
+        Kernels (signatures) compiled so far, i.e. not found in numba's cache.
+    notify : bool
+        Print the notice at the next compilation (if not printed yet); see :meth:`notifying`.
+    """
+
+    def __init__(self, file: IO | None = None) -> None:
+        self.seconds = 0.0
+        self.compiled = 0
+        self.notify = False
+        self.noticed = False
+        self.file = file
+        self._depth = 0
+        self._since = 0.0
+
+    def lock_taken(self) -> None:
+        """numba took its compiler lock (a load or a compilation starts)."""
+        if self._depth == 0:
+            self._since = time.perf_counter()
+        self._depth += 1
+
+    def lock_released(self) -> None:
+        """numba released its compiler lock."""
+        self._depth = max(self._depth - 1, 0)
+        if self._depth == 0:
+            self.seconds += time.perf_counter() - self._since
+
+    def compiling(self) -> None:
+        """numba starts compiling a kernel that was not in its cache."""
+        self.compiled += 1
+        if self.notify and not self.noticed:
+            self.noticed = True
+            file = sys.stderr if self.file is None else self.file
+            print("roughvib: compiling the numba kernels (not in numba's cache yet: the first "
+                  "run after installing or changing roughvib); this takes about a minute once, "
+                  "later runs load them from the cache", file=file, flush=True)
+
+    def notifying(self, on: bool):
+        """Context manager: :attr:`notify` set to ``on`` inside, restored after."""
+        import contextlib
+
+        @contextlib.contextmanager
+        def scope():
+            before, self.notify = self.notify, bool(on)
+            try:
+                yield self
+            finally:
+                self.notify = before
+
+        return scope()
+
+
+_KERNEL_CLOCK: KernelClock | None = None
+
+
+def kernel_clock() -> KernelClock:
+    """The process's :class:`KernelClock`, listening to numba's events from the first call on
+    (numba is imported here, when a run first asks).
+
+    Returns
+    -------
+    KernelClock
+    """
+    global _KERNEL_CLOCK
+    if _KERNEL_CLOCK is None:
+        from numba.core import event
+
+        clock = KernelClock()
+
+        class _Lock(event.Listener):
+            def on_start(self, ev):
+                clock.lock_taken()
+
+            def on_end(self, ev):
+                clock.lock_released()
+
+        class _Compile(event.Listener):
+            def on_start(self, ev):
+                clock.compiling()
+
+            def on_end(self, ev):
+                pass
+
+        event.register("numba:compiler_lock", _Lock())
+        event.register("numba:compile", _Compile())
+        _KERNEL_CLOCK = clock
+    return _KERNEL_CLOCK

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from roughvib._progress import kernel_clock
 from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
@@ -300,41 +301,27 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
     of a scene whose warnings the first one issued)."""
     if verify:
         check_verifiable(scene)
-    t0 = time.perf_counter()
-    system = assemble(scene, force_amplitude=force_amplitude, travel=estimate_travel(scene),
-                      warn=warn)
-    t_pre = time.perf_counter() - t0
-    pilot = None
-    if (scene.solver.atol_acceleration is None and resume_from is None
-            and system.scene.solver.atol_acceleration_relative is not None):
-        system, pilot = _scale_atol_acceleration(system)
-        _check_scaled_atol(system, scene.solver, pilot)
-    solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
-
-    # the saved scene repeats the run: the solver section as it ran (concrete method, the
-    # preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run
-    # (whose checkpoint holds that section) writes the same scene.toml as an uninterrupted one.
-    # Built before the solve: its derived values (calibrated force, contact module, pilot
-    # tolerance) are validated like any scene value, and a bad one stops the run before its
-    # expensive work, not after it
-    comments = {}
-    try:
-        resolved = replace(scene, solver=solver)
-        if system.tangential:
-            exc = scene.excitation
-            resolved = replace_section(resolved, "excitation",
-                                       force_amplitude=system.force_amplitude,
-                                       target_rms_velocity=None)
-            if exc.target_rms_velocity is not None:
-                comments["excitation.force_amplitude"] = (
-                    f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
-        resolved = _resolve_contact(resolved, system, comments)
-    except SceneError as exc:
-        raise SceneError(f"a value derived for this run (calibrated force amplitude, contact "
-                         f"module or solver tolerance) is out of range: {exc}") from None
-    scene_toml = scene_to_toml(resolved, comments=comments)
-
-    raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir, resume=resume_from)
+    clock = kernel_clock()
+    k_start, n_start = clock.seconds, clock.compiled
+    with clock.notifying(scene.output.progress if progress is None else progress):
+        t0 = time.perf_counter()
+        system = assemble(scene, force_amplitude=force_amplitude,
+                          travel=estimate_travel(scene), warn=warn)
+        k_pre = clock.seconds - k_start
+        t_pre = time.perf_counter() - t0 - k_pre  # numba's loading has its own line
+        pilot = None
+        if (scene.solver.atol_acceleration is None and resume_from is None
+                and system.scene.solver.atol_acceleration_relative is not None):
+            system, pilot = _scale_atol_acceleration(system)
+            _check_scaled_atol(system, scene.solver, pilot)
+        solver = system.scene.solver  # resolved: concrete method, tolerances from the preset
+        resolved, scene_toml = _resolved_scene(scene, system)
+        k_solve = clock.seconds
+        raw = _solve(system, progress=progress, checkpoint_dir=checkpoint_dir,
+                     resume=resume_from)
+    kernels = {"time": clock.seconds - k_start, "compiled": clock.compiled - n_start,
+               "preprocessing": k_pre, "pilot": (pilot or {}).get("kernel_time", 0.0),
+               "solve": clock.seconds - k_solve}
     ds = _build_dataset(system, raw)
     events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
@@ -353,7 +340,7 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
                    "atol_acceleration_relative": solver.atol_acceleration_relative,
                    "from_preset": list(scene.solver.from_preset()),
                    **({"pilot": pilot} if pilot else {}), **raw.stats,
-                   "preprocessing_time": t_pre},
+                   "preprocessing_time": t_pre, "kernels": kernels},
         "force_amplitude": system.force_amplitude,
         "calibration": system.calibration,
         "model": {"modes": system.n_modes, "structure": system.structure.name,
@@ -389,6 +376,34 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
     if verify and result.ok:
         verify_result(result, scene, progress=progress)
     return result
+
+
+def _resolved_scene(scene: Scene, system: System) -> tuple[Scene, str]:
+    """The scene as it runs, and its TOML text (the run's ``scene.toml``).
+
+    The saved scene repeats the run: the solver section as it ran (concrete method, the
+    preset's tolerances and the pilot's atol_acceleration as numbers), so a resumed run (whose
+    checkpoint holds that section) writes the same scene.toml as an uninterrupted one. Built
+    before the solve: its derived values (calibrated force, contact module, pilot tolerance)
+    are validated like any scene value, and a bad one stops the run before its expensive
+    work, not after it.
+    """
+    comments: dict[str, str] = {}
+    try:
+        resolved = replace(scene, solver=system.scene.solver)
+        if system.tangential:
+            exc = scene.excitation
+            resolved = replace_section(resolved, "excitation",
+                                       force_amplitude=system.force_amplitude,
+                                       target_rms_velocity=None)
+            if exc.target_rms_velocity is not None:
+                comments["excitation.force_amplitude"] = (
+                    f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
+        resolved = _resolve_contact(resolved, system, comments)
+    except SceneError as exc:
+        raise SceneError(f"a value derived for this run (calibrated force amplitude, contact "
+                         f"module or solver tolerance) is out of range: {exc}") from None
+    return resolved, scene_to_toml(resolved, comments=comments)
 
 
 def _add_radiation(result: Result, system: System, raw: RawSolution, ds: RunData) -> None:
@@ -472,6 +487,8 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
                                     step=None))
     pscene = replace(pscene, solver=pscene.resolved_solver())
     method = pscene.solver.method
+    clock = kernel_clock()
+    k0 = clock.seconds
     t0 = time.perf_counter()
     info = {"method": method, "duration": n * out.step}
     try:
@@ -479,7 +496,10 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
     except Exception as exc:  # noqa: BLE001 - the run goes on with the absolute preset value
         raw = None
         info["message"] = f"{type(exc).__name__}: {exc}"
-    info["wall_time"] = time.perf_counter() - t0
+    # the pilot is usually the run's first solve: loading (or compiling) the solver's numba
+    # kernels falls into it and is reported on its own line (summary solver.kernels)
+    info["kernel_time"] = clock.seconds - k0
+    info["wall_time"] = time.perf_counter() - t0 - info["kernel_time"]
     if raw is None or raw.status != "success":
         info.update(level=None, atol_acceleration=s.atol_acceleration,
                     note="pilot failed: the preset's absolute atol_acceleration is used")

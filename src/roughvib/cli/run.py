@@ -73,6 +73,8 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
     parts = [f"{s[key]} {label}" for key, label in counters if s.get(key) is not None]
     lines.append(f"solver           {s.get('method', '')}: " + ", ".join(parts)
                  + f", {s.get('wall_time', 0):.1f} s wall")
+    if (k := _kernel_line(s.get("kernels"))):
+        lines.append(f"kernels          {k}")
     if a:
         lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
                      f"(relative {a.get('relative_residual', 0):.2e})")
@@ -89,6 +91,19 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
 
         lines.append(f"accuracy         {verdict_line(acc)}")
     print("\n".join(lines))
+
+
+def _kernel_line(k: dict | None) -> str | None:
+    """The summary's line on numba's kernels: compiled (a cold cache) or loaded from its cache,
+    and how long it took (not part of the pilot's or the preprocessing's time; part of the
+    solver's wall time only where it fell into the solve). None below 0.05 s."""
+    if not isinstance(k, dict) or not (k.get("time") or 0.0) >= 0.05:
+        return None
+    how = (f"compiled {k['compiled']} numba kernels (not in numba's cache yet)"
+           if k.get("compiled") else "numba kernels loaded from numba's cache")
+    solve = k.get("solve") or 0.0
+    return (f"{how} in {k['time']:.1f} s" + (f", {solve:.1f} s of it in the solver's wall time"
+                                              if solve >= 0.05 else ""))
 
 
 def _run_command(args: argparse.Namespace, out_dir: Path) -> str:

@@ -234,7 +234,15 @@ def _solver_section(summary: dict) -> str:
     pilot = s.get("pilot")
     if isinstance(pilot, dict) and pilot.get("duration") is not None:
         rows += [("pilot solve for the acceleration level", pilot.get("duration"), "s"),
-                 ("pilot solve wall time", pilot.get("wall_time"), "s")]
+                 ("pilot solve wall time (numba's kernels not included)",
+                  pilot.get("wall_time"), "s")]
+    k = s.get("kernels")
+    if isinstance(k, dict) and k.get("time") is not None:
+        rows.append((f"numba kernels compiled ({k.get('compiled')}, not in numba's cache yet)"
+                     if k.get("compiled") else "numba kernels loaded from numba's cache",
+                     k.get("time"), "s"))
+        if k.get("solve"):
+            rows.append(("of which within the solver wall time", k.get("solve"), "s"))
     return kv_table(rows)
 
 
