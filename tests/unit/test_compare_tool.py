@@ -4,6 +4,7 @@ presets, a budget that bounds the reference."""
 import time
 
 import pandas as pd
+import pytest
 
 from roughvib.cli import main
 
@@ -76,3 +77,84 @@ def test_budget_bounds_the_reference(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "did not finish within --budget 3 s" in err
     assert spent < 3 + 15  # the budget, plus stopping the child and the imports
+
+
+def test_the_budget_bounds_the_whole_study_and_the_last_line_says_why_runs_are_missing(
+        tmp_path, monkeypatch):
+    """The reference, the warm-ups, every run (measured in the worker, so its measurement is
+    bounded too) and the figure share one deadline: the study ends EXIT_MARGIN before the
+    budget, a run going at the deadline is stopped, the ones after it are skipped. A fake
+    worker and a fake clock stand for the processes and the time: nothing here waits."""
+    import roughvib.studies.compare as cmp
+    from roughvib.scene import load_scene
+
+    now = [100.0]
+    monkeypatch.setattr(cmp.time, "perf_counter", lambda: now[0])
+    jobs = []
+
+    class Worker:
+        def run(self, job, timeout):
+            jobs.append((job, timeout, now[0]))
+            kind, scene = job[0], job[1]
+            if kind == "plot":
+                cost, info = 2.0, {"status": "success"}
+            elif job[2]:  # the reference (saved)
+                cost, info = 10.0, {"status": "success"}
+            elif job[4] is None:  # a warm-up
+                cost, info = 0.5, {"status": "success"}
+            else:
+                s = scene.resolved_solver()
+                cost = 1.0 if s.method != "ida" else 4.0 * (1e-3 / s.rtol) ** 0.5
+                if s.method == "adaptive-modal" and s.rtol < 1e-4:
+                    cost = 100.0  # far beyond its predicted cost: stopped at the deadline
+                info = {"status": "success", "block_band_db": 0.1}
+                if s.method == "newmark" and s.step == 5e-5:
+                    info = {"status": "newton_failure", "message": "Newton did not converge"}
+            if not timeout > 0:
+                return {"status": "over_budget", "wall_time": 0.0}
+            if cost > timeout:
+                now[0] += timeout
+                return {"status": "over_budget", "wall_time": timeout}
+            now[0] += cost
+            return {**info, "wall_time": cost}
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(cmp, "_Worker", Worker)
+    scene = load_scene("paper", {"output.duration": 0.01})
+    budget = 60.0
+    table = cmp.run_study(scene, tmp_path / "wp", budget=budget, progress=False,
+                          started=now[0] - 1.0)  # the CLI's imports took 1 s
+    end = 100.0 - 1.0 + budget
+    assert now[0] <= end - cmp.EXIT_MARGIN
+    runs = [(j, t, t0) for j, t, t0 in jobs if j[0] == "run" and j[4] is not None]
+    ref_dir = str(tmp_path / "wp" / "reference")
+    assert all(j[4] == (ref_dir, scene.period, scene.output.transient) for j, _, _ in runs)
+    # every job may run to its deadline at the latest: the runs' leaves the figure its reserve
+    runs_end = end - cmp.EXIT_MARGIN - cmp.FIGURE_RESERVE
+    assert all(t0 + t <= runs_end + 1e-9 for _, t, t0 in runs)
+    (_, t_plot, t0_plot), = [x for x in jobs if x[0][0] == "plot"]
+    assert t0_plot + t_plot == pytest.approx(end - cmp.EXIT_MARGIN)
+    status = table["status"].value_counts().to_dict()
+    assert status["newton_failure"] == 1 and status["skipped"] >= 1
+    assert status["over_budget"] == 1 and status["success"] >= 5
+    stopped = table.index[table["status"] == "over_budget"][0]
+    assert (table["status"].iloc[stopped + 1:] == "skipped").all()  # nothing after it
+    line = cmp.outcome_line(table)
+    assert line == (f"{status['success']} of {len(table)} runs succeeded; {status['skipped']} "
+                    f"skipped and 1 stopped for the budget; 1 failed (newton_failure)")
+    md = (tmp_path / "wp" / "work_precision.md").read_text()
+    assert line in md and "figure was not drawn" not in md
+
+
+def test_the_outcome_line_counts_each_way_a_run_ends():
+    t = pd.DataFrame({"status": ["success"] * 3 + ["skipped"] * 2 + ["over_budget",
+                                                                     "newton_failure",
+                                                                     "newton_failure",
+                                                                     "error"]})
+    from roughvib.studies.compare import outcome_line
+
+    assert outcome_line(t) == ("3 of 9 runs succeeded; 2 skipped and 1 stopped for the budget; "
+                               "3 failed (2 newton_failure, error)")
+    assert outcome_line(t[t["status"] == "success"]) == "3 of 3 runs succeeded"

@@ -13,6 +13,7 @@ import contextlib
 import gc
 import os
 import sys
+import time
 
 from roughvib._version import __version__
 from roughvib.cli import compare, lab, modes, report, results, run, surface, sweep
@@ -123,8 +124,10 @@ def _fewer_collections():
 def main(argv: list[str] | None = None) -> int:
     """Console entry point ``roughvib``; returns the exit status."""
     _no_collection_at_exit()
+    started = time.perf_counter() - _process_age()
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.started = started  # what a command's time budget counts from (compare --budget)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
@@ -163,6 +166,21 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _process_age() -> float:
+    """Seconds since this process started (its interpreter's start-up and imports), from
+    Linux's /proc; 0 where that cannot be read (then a budget counts from ``main``)."""
+    try:
+        with open("/proc/self/stat", "rb") as fh:
+            fields = fh.read().rsplit(b")", 1)[1].split()
+        with open("/proc/uptime", "rb") as fh:
+            uptime = float(fh.read().split()[0])
+        # field 22 of stat (starttime, in clock ticks after boot) is the 20th after the name
+        age = uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
+    return age if 0.0 <= age < 3600.0 else 0.0
 
 
 def _warning_line(message: Warning | str, category: type[Warning]) -> str:

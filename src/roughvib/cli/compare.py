@@ -17,6 +17,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         DEFAULT_STEPS,
         BudgetExceeded,
         crossings,
+        outcome_line,
         run_study,
     )
 
@@ -36,12 +37,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
                           methods=methods, rtols=rtols, steps=steps,
                           reference_rtol=args.reference_rtol,
                           reference_method=args.reference_method,
-                          presets=not args.no_presets, progress=not args.no_progress)
+                          presets=not args.no_presets, progress=not args.no_progress,
+                          started=getattr(args, "started", None))
     except BudgetExceeded as exc:
         print(f"roughvib: {exc}", file=sys.stderr)
         return EXIT_SOLVER
-    done = table[table["status"] == "success"]
-    print(f"{len(done)} of {len(table)} runs succeeded; results in {args.out}/work_precision.*")
+    print(f"{outcome_line(table)}; results in {args.out}/work_precision.*")
     for metric in ("plate_band_db", "block_band_db", "velocity_rel_rms"):
         for c in crossings(table, metric):
             print(f"  {c['method']} crosses ida ({metric}) at {c['wall_time']:.3g} s wall, "

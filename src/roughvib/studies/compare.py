@@ -23,9 +23,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing as mp
-import shutil
 import sys
-import tempfile
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -40,7 +38,7 @@ from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene, user_stac
 from roughvib.simulation import simulate
 
 __all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS",
-           "BudgetExceeded", "crossings", "errors_against", "run_study"]
+           "BudgetExceeded", "crossings", "errors_against", "outcome_line", "run_study"]
 
 DEFAULT_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 DEFAULT_STEPS = (1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 1e-6, 5e-7, 2e-7, 1e-7)
@@ -161,31 +159,55 @@ def crossings(table: pd.DataFrame, metric: str, against: str = "ida") -> list[di
 
 
 def _serve(conn) -> None:  # pragma: no cover - runs in the worker process
-    """The worker's loop: run each scene it is sent, save the result, report the times and the
-    warnings the run issued (as ``(category, message)`` pairs: the study shows them, once)."""
+    """The worker's loop: do each job it is sent (:func:`_job`) and report what it gives and
+    the warnings it issued (as ``(category, message)`` pairs: the study shows them, once)."""
+    references: dict[str, Result] = {}
     while True:
         job = conn.recv()
         if job is None:
             return
-        scene, save_to, progress = job
         with warnings.catch_warnings(record=True) as caught:  # under the default filters
             try:
-                t0 = time.perf_counter()
-                c0 = time.process_time()
-                res = simulate(scene, progress=progress)
-                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-                if save_to:
-                    res.save(save_to)
-                info = {"wall_time": wall, "cpu_time": cpu, "status": res.status,
-                        "message": res.summary.get("message", "")}
+                info = _job(job, references)
             except Exception as exc:  # noqa: BLE001 - reported as the run's row
                 info = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
         info["warnings"] = list(dict.fromkeys((w.category, str(w.message)) for w in caught))
         conn.send(info)
 
 
+def _job(job: tuple, references: dict) -> dict:
+    """One job of the worker: ``("run", scene, save_to, progress, measure)`` simulates the
+    scene, saves it into ``save_to`` (if given) and, with ``measure = (reference_dir, period,
+    transient)``, measures it against the reference there (loaded once per worker), so that
+    the measurement is bounded by the budget like the run; ``("plot", table, path, title,
+    contract)`` draws the study's figure."""
+    if job[0] == "plot":
+        from roughvib.views.work_precision import plot_work_precision
+
+        _, table, path, title, contract = job
+        plot_work_precision(table, path, title, contract=contract)
+        return {"status": "success"}
+    _, scene, save_to, progress, measure = job
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    res = simulate(scene, progress=progress)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    s = res.summary.get("solver", {})
+    info = {"wall_time": wall, "cpu_time": cpu, "status": res.status,
+            "message": res.summary.get("message", ""), "steps": s.get("steps"),
+            "residual_evaluations": s.get("residual_evaluations")}
+    if save_to:
+        res.save(save_to)
+    if measure is not None and res.ok:
+        ref_dir, period, transient = measure
+        if ref_dir not in references:
+            references[ref_dir] = load_result(ref_dir)
+        info.update(errors_against(res, references[ref_dir], period, transient))
+    return info
+
+
 class _Worker:
-    """A child process that runs the study's scenes one after another, so that a run can be
+    """A child process that does the study's jobs one after another, so that a job can be
     stopped when the budget is spent. It is started with ``spawn`` (a fresh interpreter:
     forking a process with threads can copy a held lock into the child and hang it) and
     restarted after a stop."""
@@ -194,35 +216,38 @@ class _Worker:
         self.proc = None
         self.conn = None
 
-    def run(self, scene: Scene, save_to: Path | None, timeout: float,
-            progress: bool = False) -> dict:
-        """Run ``scene`` for at most ``timeout`` seconds; save its result into ``save_to``.
+    def run(self, job: tuple, timeout: float) -> dict:
+        """Do ``job`` (see :func:`_job`) for at most ``timeout`` seconds.
 
-        Returns ``status``, ``message``, ``wall_time`` and ``cpu_time`` (of the simulation
-        in the worker; status ``over_budget`` when it was stopped)."""
+        Returns what the job gives (``status``, ``message``, ``wall_time``, ...), or status
+        ``over_budget`` when it was stopped, or not started (``timeout`` <= 0)."""
+        if not timeout > 0:
+            return {"status": "over_budget", "wall_time": 0.0,
+                    "message": "not started: the budget was spent"}
+        t0 = time.perf_counter()
         if self.proc is None or not self.proc.is_alive():
             ctx = mp.get_context("spawn")
             self.conn, child = ctx.Pipe()
             self.proc = ctx.Process(target=_serve, args=(child,), daemon=True)
             self.proc.start()
             child.close()
-        t0 = time.perf_counter()
-        self.conn.send((scene, str(save_to) if save_to else "", progress))
-        if self.conn.poll(max(timeout, 0.0)):
+        self.conn.send(job)
+        if self.conn.poll(max(timeout - (time.perf_counter() - t0), 0.0)):
             try:
                 return self.conn.recv()
-            except EOFError:
+            except (EOFError, OSError):  # the worker died (killed, out of memory)
                 self.close()
                 return {"status": "error", "wall_time": time.perf_counter() - t0,
                         "message": "the worker process ended unexpectedly"}
-        self.close()
+        self.close(busy=True)
         spent = time.perf_counter() - t0
         return {"status": "over_budget", "wall_time": spent,
                 "message": f"stopped after {spent:.0f} s: the budget was spent"}
 
-    def close(self) -> None:
+    def close(self, busy: bool = False) -> None:
+        """End the worker: ask an idle one to return, stop a busy one (``busy``) at once."""
         if self.proc is not None:
-            if self.proc.is_alive():
+            if self.proc.is_alive() and not busy:
                 try:
                     self.conn.send(None)
                 except (BrokenPipeError, OSError):
@@ -264,7 +289,7 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
               methods=TOLERANCE_METHODS + FIXED_METHODS,
               rtols=DEFAULT_RTOLS, steps=DEFAULT_STEPS, reference_rtol: float = 1e-10,
               reference_method: str = "auto", presets: bool = True,
-              progress: bool = True) -> pd.DataFrame:
+              progress: bool = True, started: float | None = None) -> pd.DataFrame:
     """Run the work-precision study and write its table, markdown and figure.
 
     Parameters
@@ -290,6 +315,9 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
         Also run each method at its accuracy presets.
     progress : bool
         Progress bars (the reference's solver, then the runs) on stderr.
+    started : float, optional
+        The ``time.perf_counter()`` value the budget counts from (the CLI passes its process's
+        start, so that its imports count); default: the call of this function.
 
     Returns
     -------
@@ -303,48 +331,81 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
     RuntimeError
         If the reference run fails.
     """
-    t_start = time.perf_counter()
+    t_start = time.perf_counter() if started is None else float(started)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     base = scene.with_overrides({"output.progress": False, "output.checkpoint_interval": 0.0})
-
-    def remaining() -> float:
-        return budget - (time.perf_counter() - t_start)
-
+    clock = _Deadlines(t_start, budget)
     worker = _Worker()
     try:
-        return _study(scene, base, out, worker, budget, remaining, t_start, reference, methods,
-                      rtols, steps, reference_rtol, reference_method, presets, progress)
+        return _study(scene, base, out, worker, budget, clock, reference, methods, rtols,
+                      steps, reference_rtol, reference_method, presets, progress)
     finally:
         worker.close()
 
 
-def _study(scene, base, out, worker, budget, remaining, t_start, reference, methods, rtols,
-           steps, reference_rtol, reference_method, presets, progress) -> pd.DataFrame:
+#: seconds of the budget kept for the process's exit after the study (the CLI's last lines,
+#: the interpreter's teardown: 0.3-0.6 s measured on a quiet 2-core machine, 1.1 s at a load
+#: of 11) and for writing the table and the markdown
+EXIT_MARGIN = 2.0
+#: seconds of the budget kept after the last run for drawing the figure in the worker
+#: (matplotlib's import and the drawing: 1.7-2.6 s measured on the project's 2-core machine)
+FIGURE_RESERVE = 5.0
+
+
+class _Deadlines:
+    """The study's budget as deadlines: the reference and the figure may use it up to
+    :data:`EXIT_MARGIN` before its end, the runs up to :data:`FIGURE_RESERVE` before that."""
+
+    def __init__(self, t_start: float, budget: float) -> None:
+        self.t_start = t_start
+        self.end = t_start + budget - EXIT_MARGIN
+
+    def left(self) -> float:
+        """Seconds left for the reference or the figure."""
+        return self.end - time.perf_counter()
+
+    def left_for_runs(self) -> float:
+        """Seconds left for the runs (and their warm-up)."""
+        return self.left() - FIGURE_RESERVE
+
+    def spent(self) -> float:
+        return time.perf_counter() - self.t_start
+
+
+def _reference(base, out, worker, budget, clock, reference, reference_rtol, reference_method,
+               progress, issued) -> tuple[str, str]:
+    """The reference of the study: its directory and label (computed within the budget, or
+    the given one, checked)."""
+    if reference is not None:
+        ref = load_result(reference)
+        if not ref.ok:
+            raise RuntimeError(f"reference run failed: {ref.summary.get('message')}")
+        return str(reference), f"given {reference}"
+    rscene = _reference_scene(base, reference_method, reference_rtol)
+    rs = rscene.resolved_solver()
+    label = (f"{rs.method} rtol {rs.rtol:g}, atol {rs.atol:g} m, atol_acceleration "
+             f"{rs.atol_acceleration:g} m/s^2")
+    print(f"reference: {label} (within the budget of {budget:g} s)", file=sys.stderr,
+          flush=True)
+    info = worker.run(("run", rscene, str(out / "reference"), progress, None), clock.left())
+    issued.issue(info)
+    if info["status"] == "over_budget":
+        raise BudgetExceeded(
+            f"the reference run ({label}) did not finish within --budget {budget:g} s; "
+            f"give a larger --budget, a looser --reference-rtol or --reference DIR")
+    if info["status"] != "success":
+        raise RuntimeError(f"reference run failed ({info['status']}): {info['message']}")
+    return str(out / "reference"), label
+
+
+def _study(scene, base, out, worker, budget, clock, reference, methods, rtols, steps,
+           reference_rtol, reference_method, presets, progress) -> pd.DataFrame:
     from roughvib._progress import progress_bar
 
     issued = _Warnings()
-    if reference is not None:
-        ref = load_result(reference)
-        ref_label = f"given {reference}"
-    else:
-        rscene = _reference_scene(base, reference_method, reference_rtol)
-        rs = rscene.resolved_solver()
-        ref_label = (f"{rs.method} rtol {rs.rtol:g}, atol {rs.atol:g} m, atol_acceleration "
-                     f"{rs.atol_acceleration:g} m/s^2")
-        print(f"reference: {ref_label} (within the budget of {budget:g} s)", file=sys.stderr,
-              flush=True)
-        info = worker.run(rscene, out / "reference", remaining(), progress=progress)
-        issued.issue(info)
-        if info["status"] == "over_budget":
-            raise BudgetExceeded(
-                f"the reference run ({ref_label}) did not finish within --budget {budget:g} s; "
-                f"give a larger --budget, a looser --reference-rtol or --reference DIR")
-        if info["status"] != "success":
-            raise RuntimeError(f"reference run failed ({info['status']}): {info['message']}")
-        ref = load_result(out / "reference")
-    if not ref.ok:
-        raise RuntimeError(f"reference run failed: {ref.summary.get('message')}")
+    ref_dir, ref_label = _reference(base, out, worker, budget, clock, reference,
+                                    reference_rtol, reference_method, progress, issued)
     queue = _queue(base, methods, rtols, steps, presets)
     # warm-up: compile (or load) every method's numba kernels before anything is timed
     for m in methods:
@@ -352,53 +413,73 @@ def _study(scene, base, out, worker, budget, remaining, t_start, reference, meth
                              base.output.step),
                 "output.duration": 20 * base.output.step}
         # a failure shows later; the warnings are those of its 20 steps, not of the study
-        worker.run(base.with_overrides(tiny), None, remaining())
+        worker.run(("run", base.with_overrides(tiny), "", False, None), clock.left_for_runs())
     rows = []
     last_cost: dict[str, float] = {}
-    period = base.period
+    measure = (ref_dir, base.period, base.output.transient)
     bar = progress_bar(len(queue), desc="work-precision runs", disable=not progress, unit="run")
-    with tempfile.TemporaryDirectory(prefix="wp-", dir=out) as scratch:
-        for i, run in enumerate(queue):
-            row = {"method": run.method, "setting": run.setting, "preset": run.preset,
-                   "setting_name": "step [s]" if run.method in FIXED_STEP_METHODS else "rtol"}
-            predicted = last_cost.get(run.method, 0.0) * (
-                2.5 if run.method in FIXED_STEP_METHODS else 3.0)
-            if predicted > remaining():
-                row.update(status="skipped", message=f"predicted {predicted:.0f} s exceeds "
-                                                     f"the remaining budget")
-                rows.append(row)
-                bar.update(1)
-                continue
-            save_to = Path(scratch) / f"run{i}"
-            info = worker.run(base.with_overrides(run.overrides), save_to, remaining())
+    for run in queue:
+        row = {"method": run.method, "setting": run.setting, "preset": run.preset,
+               "setting_name": "step [s]" if run.method in FIXED_STEP_METHODS else "rtol"}
+        predicted = last_cost.get(run.method, 0.0) * (
+            2.5 if run.method in FIXED_STEP_METHODS else 3.0)
+        left = clock.left_for_runs()
+        if predicted > left or left <= 0:
+            row.update(status="skipped",
+                       message=f"predicted {predicted:.0f} s exceeds the remaining budget"
+                       if left > 0 else "not started: the budget was spent")
+        else:
+            info = worker.run(("run", base.with_overrides(run.overrides), "", False, measure),
+                              left)
             issued.issue(info)
-            row.update(status=info["status"], message=info.get("message", ""),
-                       wall_time=info.get("wall_time"), cpu_time=info.get("cpu_time"))
-            if save_to.exists():
-                res = load_result(save_to, partial=info["status"] != "success")
-                s = res.summary.get("solver", {})
-                row.update(steps=s.get("steps"),
-                           residual_evaluations=s.get("residual_evaluations"))
-                if res.ok:
-                    row.update(errors_against(res, ref, period, base.output.transient))
-                shutil.rmtree(save_to, ignore_errors=True)
+            row.update({k: v for k, v in info.items() if k != "warnings"})
             last_cost[run.method] = float(info.get("wall_time") or 0.0)
-            rows.append(row)
-            bar.update(1)
+        rows.append(row)
+        bar.update(1)
     bar.close()
     table = pd.DataFrame(rows)
     for col in METRICS + ("wall_time", "cpu_time", "steps", "residual_evaluations",
-                          "block_band_hz", "plate_band_hz", "verdict"):
+                          "block_band_hz", "plate_band_hz", "verdict", "message"):
         if col not in table:
             table[col] = np.nan
     table.to_csv(out / "work_precision.csv", index=False, float_format="%.6g")
-    _write_markdown(table, out / "work_precision.md", scene.name, ref_label,
-                    time.perf_counter() - t_start, budget)
-    from roughvib.views.work_precision import plot_work_precision
-
-    plot_work_precision(table, out / "work_precision.png", f"work-precision, scene {scene.name}",
-                        contract=asdict(CONTRACT))
+    drawn = worker.run(("plot", table, str(out / "work_precision.png"),
+                        f"work-precision, scene {scene.name}", asdict(CONTRACT)), clock.left())
+    issued.issue(drawn)
+    _write_markdown(table, out / "work_precision.md", scene.name, ref_label, clock.spent(),
+                    budget, figure=drawn)
     return table
+
+
+def outcome_line(table: pd.DataFrame) -> str:
+    """One line on how the study's runs ended: succeeded, skipped or stopped for the budget,
+    failed (with their statuses).
+
+    Parameters
+    ----------
+    table : DataFrame
+        :func:`run_study`'s table (column ``status``).
+
+    Returns
+    -------
+    str
+        e.g. ``"10 of 49 runs succeeded; 37 skipped and 1 stopped for the budget; 1 failed
+        (newton_failure)"``.
+    """
+    status = table["status"].astype(str) if len(table) else pd.Series([], dtype=str)
+    n_ok = int((status == "success").sum())
+    skipped = int((status == "skipped").sum())
+    stopped = int((status == "over_budget").sum())
+    failed = status[~status.isin(["success", "skipped", "over_budget"])]
+    parts = [f"{n_ok} of {len(status)} runs succeeded"]
+    budget = [f"{skipped} skipped" if skipped else "", f"{stopped} stopped" if stopped else ""]
+    if skipped or stopped:
+        parts.append(" and ".join(b for b in budget if b) + " for the budget")
+    if len(failed):
+        counts = failed.value_counts()
+        parts.append(f"{len(failed)} failed (" + ", ".join(
+            f"{k}" if v == 1 else f"{v} {k}" for k, v in counts.items()) + ")")
+    return "; ".join(parts)
 
 
 def _queue(base: Scene, methods, rtols, steps, presets: bool) -> list[_Run]:
@@ -429,7 +510,7 @@ def _queue(base: Scene, methods, rtols, steps, presets: bool) -> list[_Run]:
 
 
 def _write_markdown(table: pd.DataFrame, path: Path, name: str, ref_label: str, spent: float,
-                    budget: float) -> None:
+                    budget: float, figure: dict | None = None) -> None:
     cols = ["method", "setting", "preset", "status", "wall_time", "cpu_time", "steps",
             "block_band_db", "block_band_hz", "plate_band_db", "plate_band_hz",
             "velocity_rel_rms", "event_dt_max", "events_unmatched", "energy_rel_residual",
@@ -440,9 +521,14 @@ def _write_markdown(table: pd.DataFrame, path: Path, name: str, ref_label: str, 
     cross = []
     for metric in ("plate_band_db", "block_band_db", "velocity_rel_rms"):
         cross += crossings(table, metric)
+    fig = ""
+    if figure is not None and figure.get("status") != "success":
+        fig = (" The figure was not drawn: " + ("the budget was spent"
+               if figure.get("status") == "over_budget" else str(figure.get("message"))) + ".")
     path.write_text(
         f"# Work-precision: scene {name}\n\nReference: {ref_label}. Whole study: {spent:.0f} s "
-        f"of a {budget:g} s budget.\n\n" + "\n".join(md) + "\n\n## Crossings with IDA\n\n"
+        f"of a {budget:g} s budget; {outcome_line(table)}.{fig}\n\n" + "\n".join(md)
+        + "\n\n## Crossings with IDA\n\n"
         + ("\n".join(f"- {c['method']} ({c['metric']}): {c['wall_time']:.3g} s at error "
                      f"{c['error']:.3g}" for c in cross) or "none in the measured range")
         + "\n")
