@@ -255,7 +255,7 @@ class KernelClock:
             self.noticed = True
             file = sys.stderr if self.file is None else self.file
             print("roughvib: compiling the numba kernels (not in numba's cache yet: the first "
-                  "run after installing or changing roughvib); this takes about a minute once, "
+                  "run after installing or changing roughvib); this takes a minute or more, once; "
                   "later runs load them from the cache", file=file, flush=True)
 
     def notifying(self, on: bool):
