@@ -271,3 +271,26 @@ def test_lab_commands_have_help_with_examples(capsys):
         assert info.value.code == 0
         out = capsys.readouterr().out
         assert "examples:" in out and f"roughvib {cmd} runs/paper" in out
+
+
+def test_the_overall_levels_name_their_method_and_the_summarys_level(run, tmp_path, monkeypatch):
+    """'simulated 100.0 dB' beside the summary's 100.1 dB for the same window: two methods.
+    The line says its overall levels are energy sums of the compared bands (checked against
+    the table) and gives the summary's level as what it is, the broadband rms of the window
+    (checked against the time series)."""
+    from roughvib.analysis import figures_data as fd
+
+    monkeypatch.chdir(tmp_path)
+    d, result, x = run
+    (csv,) = export_run(d, "csv", out=tmp_path)
+    v = compare_record(result, read_record(csv, column="plate_acceleration"))
+    band_sum = 10 * math.log10(np.sum(10 ** (v.table["simulated_db"].to_numpy() / 10)))
+    assert v.overall_simulated_db == pytest.approx(band_sum, abs=1e-9)
+    win = fd.analysis_window(result)
+    broadband = 20 * math.log10(np.sqrt(np.mean(x[win] ** 2)) / 1e-6)
+    assert v.info["simulated_broadband_db"] == pytest.approx(broadband, abs=1e-6)
+    line = v.summary_line()
+    assert (f"simulated {band_sum:.1f} dB re 1e-6 m/s^2, energy sums of the bands compared; "
+            f"the run summary's {broadband:.1f} dB is the broadband rms)") in line
+    assert json.loads(json.dumps(v.to_summary()))["simulated_broadband_db"] == \
+        pytest.approx(broadband, abs=1e-6)
