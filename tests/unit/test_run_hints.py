@@ -48,3 +48,20 @@ def test_the_seed_hint_names_what_the_user_ran(how, tmp_path, monkeypatch, capsy
     # the run directory keeps it, for the report
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["run_command"] + " --seeds 10" == hint
+
+
+def test_a_rigid_base_has_no_plate_level_line(tmp_path, monkeypatch, capsys):
+    """'plate accel 0 m/s^2 rms (n/a re 1e-6 m/s^2)' for a base that cannot move: the line
+    says there is no plate motion instead; a plate with modes keeps its level."""
+    monkeypatch.chdir(tmp_path)
+    sets = [w for v in SETS for w in ("--set", v)]
+    assert main(["run", "paper", "--out", "rigid", "--set", "plate.kind=rigid", *sets,
+                 "--no-progress"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("plate accel"))
+    assert line == "plate accel      none: the rigid base (no modes) does not move"
+    summary = json.loads((tmp_path / "rigid" / "summary.json").read_text())
+    assert summary["model"]["modes"] == 0
+    assert summary["metrics"]["plate_vertical_acceleration_rms"] == 0.0  # what it replaces
+    assert main(["run", "paper", "--out", "modal", *sets, "--no-progress"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("plate accel"))
+    assert line.endswith("dB re 1e-6 m/s^2)") and "n/a" not in line

@@ -49,7 +49,9 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
             f"re 1e-6 m/s^2)",
             f"plate accel      {m.get('plate_vertical_acceleration_rms', float('nan')):.4g} "
             f"m/s^2 rms ({_fmt_db(m.get('plate_vertical_acceleration_level_db_re_1e-6'))} "
-            f"re 1e-6 m/s^2)",
+            f"re 1e-6 m/s^2)" if summary.get("model", {}).get("modes") != 0 else
+            f"plate accel      none: the {summary['model'].get('structure', 'structure')} "
+            f"does not move",
             f"normal force     mean {m.get('normal_force_mean', float('nan')):.5g} N, "
             f"min {m.get('normal_force_min', float('nan')):.4g} N",
         ]
