@@ -40,8 +40,8 @@ from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_input
 if TYPE_CHECKING:
     from roughvib.solvers.ida import RawSolution
 
-__all__ = ["check_verifiable", "checkpoint_scene", "energy_audit", "resume", "simulate",
-           "verification_scene", "verify_result"]
+__all__ = ["check_verifiable", "checkpoint_scene", "energy_audit", "energy_audit_note", "resume",
+           "simulate", "verification_scene", "verify_result"]
 
 
 def energy_audit(system: System, raw: RawSolution) -> dict:
@@ -52,28 +52,69 @@ def energy_audit(system: System, raw: RawSolution) -> dict:
     gravitational energy. The running integrals are IDA states, so the residual is of the
     order of the integration tolerance.
 
+    The relative residual is the residual over the energies involved: the sum of ``|terms|``
+    and ``|change of stored energy|``, but at least ``energy_scale_floor``, the larger
+    magnitude of the stored energy at the start and at the end (kinetic, elastic and
+    gravitational with its zero at z = 0). The residual is a difference of those
+    stored energies, so it is known only to their round-off: a run in which nothing moves
+    (pure stick) has terms of round-off size too, and its residual of 7e-21 J read as a
+    relative residual of 1 without the floor.
+
     Returns
     -------
     dict
-        Terms [J], ``residual`` [J] and ``relative_residual`` (residual / sum of ``|terms|``).
+        Terms [J], ``stored_energy_change`` [J], ``residual`` [J], ``energy_scale`` [J] (the
+        denominator), ``energy_scale_floor`` [J], ``relative_residual`` and ``t_end`` [s].
+        Where the audit cannot be computed (a solver that keeps no energy integrals, the
+        paper's convolution scheme; a state that is not finite) every value but ``t_end`` is
+        None; :func:`energy_audit_note` says why.
     """
     terms = {n: float(raw.y_final[system.layout.index(f"energy.{n}")]) for n in ENERGY_TERMS}
     e0 = system.stored_energy(raw.y_initial)
     e1 = system.stored_energy(raw.y_final)
+    if not all(math.isfinite(v) for v in (*terms.values(), e0, e1)):
+        return {**dict.fromkeys(terms), "stored_energy_change": None, "residual": None,
+                "energy_scale": None, "energy_scale_floor": None, "relative_residual": None,
+                "t_end": raw.t_final}
     inputs = terms["excitation_work"] + terms["roughness_work"]
     losses = (terms["friction_dissipation"] + terms["tangential_damping"]
               + terms["vertical_damping"] + terms["plate_damping"])
     delta = e1 - e0
     residual = inputs - losses - delta
-    scale = sum(abs(v) for v in terms.values()) + abs(delta)
+    floor = max(abs(e0), abs(e1))
+    scale = max(sum(abs(v) for v in terms.values()) + abs(delta), floor)
     return {
         **terms,
         "stored_energy_change": delta,
         "residual": residual,
-        "relative_residual": (residual / scale if scale > 0 else 0.0)
-        if np.isfinite(residual) else float("nan"),
+        "energy_scale": scale,
+        "energy_scale_floor": floor,
+        "relative_residual": residual / scale if scale > 0 else 0.0,
         "t_end": raw.t_final,
     }
+
+
+def energy_audit_note(system: System, audit: dict) -> str | None:
+    """Why a run's energy audit (:func:`energy_audit`) was not computed, or None if it was.
+
+    Parameters
+    ----------
+    system : System
+        The run's system.
+    audit : dict
+        Its energy audit.
+
+    Returns
+    -------
+    str or None
+        One sentence for the summary (``energy_audit_note`` of summary.json).
+    """
+    if audit.get("residual") is not None:
+        return None
+    if system.scene.solver.method == "paper":
+        return ("not computed: solver.method = 'paper' keeps no energy integrals (the "
+                "convolution scheme has no modal states)")
+    return "not computed: the run's state at its end is not finite"
 
 
 def _build_dataset(system: System, raw: RawSolution) -> RunData:
@@ -356,6 +397,7 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
         "events_by_kind": by_kind,
         "metrics": _metrics(system, ds) if raw.status == "success" else {},
         "energy_audit": audit,
+        **({"energy_audit_note": note} if (note := energy_audit_note(system, audit)) else {}),
         "warnings": list(system.warnings),
     }
     if raw.status != "success":

@@ -77,9 +77,12 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
                  + f", {s.get('wall_time', 0):.1f} s wall")
     if (k := _kernel_line(s.get("kernels"))):
         lines.append(f"kernels          {k}")
-    if a:
-        lines.append(f"energy audit     residual {a.get('residual', 0):.3e} J "
-                     f"(relative {a.get('relative_residual', 0):.2e})")
+    if summary.get("energy_audit_note") or (a and a.get("residual") is None):
+        lines.append(f"energy audit     {summary.get('energy_audit_note') or 'not computed'}")
+    elif a:
+        lines.append(f"energy audit     residual {a['residual']:.3e} J "
+                     f"(relative {a.get('relative_residual') or 0.0:.2e} of "
+                     f"{a.get('energy_scale') or float('nan'):.3g} J)")
     rad = summary.get("radiation")
     if rad:  # output.radiation
         lines.append("radiation        " + (
