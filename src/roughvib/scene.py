@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from importlib import resources
@@ -1385,6 +1387,49 @@ def builtin_scenes() -> dict[str, str]:
     return out
 
 
+_FILE_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+               (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+               (stat.S_ISSOCK, "a socket"))
+
+
+def read_regular_file(path: Path, what: str) -> bytes:
+    """The bytes of a regular file, refusing anything else in one line before reading.
+
+    The file is opened without blocking and checked on the open descriptor, so a named pipe
+    is refused at once instead of waiting for a writer, and nothing can swap the file between
+    the check and the read.
+
+    Parameters
+    ----------
+    path : Path
+    what : str
+        What the file is, for the message (``"scene file"``, ``"sweep file"``).
+
+    Raises
+    ------
+    SceneError
+        Unreadable, or not a regular file: ``<what> <path> must be a regular file, got a named
+        pipe (FIFO)``.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = next((k for test, k in _FILE_KINDS if test(mode)), "not a file")
+            raise SceneError(f"{what} {path} must be a regular file, got {kind}")
+        chunks = []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    finally:
+        os.close(fd)
+
+
 def read_toml_file(path: Path, what: str = "scene file") -> dict[str, Any]:
     """Read a TOML file as UTF-8 (a leading byte-order mark is accepted and dropped).
 
@@ -1397,13 +1442,11 @@ def read_toml_file(path: Path, what: str = "scene file") -> dict[str, Any]:
     Raises
     ------
     SceneError
-        Unreadable file, bytes that are not UTF-8 (the line and the byte are named), or
-        invalid TOML; one line.
+        Unreadable file, not a regular file (a directory, a named pipe, a device: reading a
+        pipe would wait for a writer forever), bytes that are not UTF-8 (the line and the byte
+        are named), or invalid TOML; one line.
     """
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise SceneError(f"{what} {path} cannot be read: {exc.strerror}") from None
+    raw = read_regular_file(path, what)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

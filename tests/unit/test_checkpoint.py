@@ -374,3 +374,17 @@ def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):
     assert proc.returncode == 130, err
     assert "nothing was written" in err and "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
+def test_a_checkpoint_that_is_a_named_pipe_is_refused_at_once(tmp_path):
+    """--resume DIR with DIR/checkpoint.pkl a named pipe blocked forever on opening it. In a
+    subprocess with a timeout: a regression fails instead of hanging the suite."""
+    (tmp_path / "run").mkdir()
+    os.mkfifo(tmp_path / "run" / "checkpoint.pkl")
+    done = subprocess.run([sys.executable, "-m", "roughvib", "run", "--resume", "run"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr == ("roughvib: error: run/checkpoint.pkl: not a regular file, so not a "
+                           "roughvib checkpoint; resume only a directory a roughvib run wrote "
+                           "checkpoints into\n")

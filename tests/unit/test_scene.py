@@ -177,3 +177,29 @@ def test_numbers_beyond_float_or_int64_range_are_one_line_errors(key, tmp_path):
     f.write_text(f"[{section}]\n{field} = 1{'0' * 400}\n")
     with pytest.raises(SceneError, match=r"got 1\.000e\+400$"):
         load_scene(f)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "mkfifo"), reason="named pipes are POSIX")
+def test_a_scene_file_that_is_not_a_regular_file_is_refused_at_once(tmp_path):
+    """A named pipe as scene file blocked `roughvib run` forever (waiting for a writer); a
+    directory or a device is no scene file either. In a subprocess with a timeout, so that a
+    regression fails instead of hanging the suite."""
+    import os
+    import subprocess
+    import sys
+
+    os.mkfifo(tmp_path / "fifo.toml")
+    (tmp_path / "dir.toml").mkdir()
+    for name, kind in (("fifo.toml", "a named pipe (FIFO)"), ("dir.toml", "a directory"),
+                       (os.devnull, "a character device")):
+        done = subprocess.run([sys.executable, "-m", "roughvib", "run", name], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2
+        assert done.stderr == (f"roughvib: error: scene file {name} must be a regular file, "
+                               f"got {kind}\n")
+    with pytest.raises(SceneError, match=r"^sweep file .*fifo.toml must be a regular file, "
+                                         r"got a named pipe \(FIFO\)$"):
+        from roughvib.scene import read_toml_file
+
+        read_toml_file(tmp_path / "fifo.toml", "sweep file")
+    assert not (tmp_path / "runs").exists()

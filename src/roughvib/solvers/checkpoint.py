@@ -343,6 +343,22 @@ def _read_head(fh, path: Path) -> tuple[str, int]:
     return digest, int(size)
 
 
+def _open_regular(path: Path):
+    """``path`` opened for reading if it is a regular file (checked on the open descriptor,
+    opened without blocking: a named pipe would wait for a writer forever), else SceneError."""
+    import stat
+
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise SceneError(f"{path}: not a regular file, so not a roughvib checkpoint; "
+                             f"resume only a directory a roughvib run wrote checkpoints into")
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 def check_checkpoint_file(path: str | os.PathLike) -> None:
     """Check a checkpoint file's header, format version and length without unpickling it.
 
@@ -359,7 +375,7 @@ def check_checkpoint_file(path: str | os.PathLike) -> None:
     """
     path = Path(path)
     try:
-        with path.open("rb") as fh:
+        with _open_regular(path) as fh:
             _, length = _read_head(fh, path)
             pos = fh.tell()
             size = fh.seek(0, os.SEEK_END)
@@ -391,7 +407,7 @@ def read_checkpoint(directory: str | os.PathLike) -> Checkpoint:
                          f"output.checkpoint_interval > 0 s)")
     again = "run the scene again"
     try:
-        with path.open("rb") as fh:
+        with _open_regular(path) as fh:
             digest, length = _read_head(fh, path)
             payload = fh.read()
     except OSError as exc:
