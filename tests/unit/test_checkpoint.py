@@ -388,3 +388,44 @@ def test_a_checkpoint_that_is_a_named_pipe_is_refused_at_once(tmp_path):
     assert done.stderr == ("roughvib: error: run/checkpoint.pkl: not a regular file, so not a "
                            "roughvib checkpoint; resume only a directory a roughvib run wrote "
                            "checkpoints into\n")
+
+
+@pytest.mark.filterwarnings("ignore::roughvib.scene.ModelValidityWarning")  # 10 ms
+def test_resume_refuses_when_the_directorys_scene_toml_was_edited(tmp_path, capsys):
+    """--resume runs the scene stored in the checkpoint; an edited DIR/scene.toml (an earlier
+    run's, which a user may take for the run's) used to be ignored silently. The checkpoint
+    records its digest; a changed or new scene.toml refuses the resume in one line, the
+    restored one (or none) resumes."""
+    scene = roughvib.load_scene("paper", {**FAST, "output.duration": 0.01,
+                                          "output.checkpoint_interval": 0.005})
+    out = tmp_path / "run"
+    out.mkdir()
+    earlier = 'name = "paper"\n\n[block]\nmass = 0.221\n'
+    (out / "scene.toml").write_text(earlier)
+    a = simulate(scene, checkpoint_dir=out)  # the API leaves the checkpoint in place
+    assert a.ok and read_checkpoint(out).inputs["directory_scene_toml"] != "absent"
+    (out / "scene.toml").write_text(earlier.replace("0.221", "0.543"))
+    with pytest.raises(SceneError, match=r"scene.toml changed since the checkpoint was written "
+                                         r"\(SHA-256 \w+\.\.\. then, SHA-256 \w+\.\.\. now\): "
+                                         r"--resume continues the scene stored in "):
+        resume(out)
+    capsys.readouterr()
+    assert main(["run", "--resume", str(out), "--no-progress", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "run the edited scene as a new run" in err
+    (out / "scene.toml").write_text(earlier)  # restored: resumes, as the uninterrupted run
+    _assert_identical(a, resume(out))
+    (out / "scene.toml").unlink()  # removed: nothing left to mislead
+    resume(out)
+
+
+@pytest.mark.filterwarnings("ignore::roughvib.scene.ModelValidityWarning")  # 10 ms
+def test_a_scene_toml_that_appears_after_the_checkpoint_refuses_the_resume(tmp_path):
+    scene = roughvib.load_scene("paper", {**FAST, "output.duration": 0.01,
+                                          "output.checkpoint_interval": 0.005})
+    out = tmp_path / "run"
+    simulate(scene, checkpoint_dir=out)
+    assert read_checkpoint(out).inputs["directory_scene_toml"] == "absent"
+    (out / "scene.toml").write_text('name = "mine"\n')
+    with pytest.raises(SceneError, match=r"\(absent then, SHA-256 \w+\.\.\. now\)"):
+        resume(out)

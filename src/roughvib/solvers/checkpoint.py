@@ -9,9 +9,10 @@ from a consistent state both in the run that wrote it and in the run that resume
 adaptive exact-modal scheme, a one-step method, stores everything its loop carries from one
 step to the next. Either way the resumed run is identical to the uninterrupted one
 (docs/robustness.md).
-It also records what the run read besides the scene (the SHA-256 of a roughness file) and the
-code that ran it (:func:`code_identity`), and :func:`check_inputs` refuses to resume when
-either has changed.
+It also records what the run read besides the scene (the SHA-256 of a roughness file), the
+code that ran it (:func:`code_identity`) and the SHA-256 of the run directory's ``scene.toml``
+(an earlier run's, if any), and :func:`check_inputs` refuses to resume when any of them has
+changed: an edited ``scene.toml`` would otherwise look as if the resumed run used it.
 
 The file is a header line ``roughvib-checkpoint``, a line with the format version, the
 SHA-256 and the length of what follows, and then a Python pickle of the :class:`Checkpoint`.
@@ -28,7 +29,7 @@ import hashlib
 import os
 import pickle
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -201,10 +202,11 @@ def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
     Raises
     ------
     SceneError
-        One line: the scene text is damaged; the code that wrote the checkpoint (roughvib's
-        version or sources, a numerical library's version) is not the code resuming it, or
-        was not recorded (an older roughvib); or the roughness file is missing, changed, or
-        was not recorded.
+        One line: the scene text is damaged; the run directory's ``scene.toml`` was edited
+        (or appeared) since the checkpoint was written; the code that wrote the checkpoint
+        (roughvib's version or sources, a numerical library's version) is not the code
+        resuming it, or was not recorded (an older roughvib); or the roughness file is
+        missing, changed, or was not recorded.
     """
     again = "start the run again without --resume"
     recorded = cp.inputs.get("scene_sha256")
@@ -219,6 +221,7 @@ def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
     if "scikit-sundae" in then:  # IDA's checkpoint
         now["scikit-sundae"] = _sundae_version()
     changed = [k for k in sorted(set(then) | set(now)) if then.get(k) != now.get(k)]
+    _check_directory_scene(cp, path)
     if changed:
         def show(v):
             return "none" if v is None else (v[:12] + "..." if len(str(v)) > 16 else v)
@@ -245,6 +248,57 @@ def check_inputs(cp: Checkpoint, scene: Scene, path: Path) -> None:
         raise SceneError(f"roughness.path {rec['path']} changed since the checkpoint was "
                          f"written (SHA-256 {rec['sha256'][:12]}... then, {now[:12]}... now): "
                          f"restore it or {again}")
+
+
+#: key of ``Checkpoint.inputs``: the SHA-256 of the run directory's ``scene.toml`` when the
+#: checkpoint was written, ``"absent"`` if there was none (see :func:`write_checkpoint`)
+DIRECTORY_SCENE = "directory_scene_toml"
+
+
+def _scene_file_digest(directory: Path) -> str | None:
+    """SHA-256 of ``directory/scene.toml``; ``"absent"`` without one, ``"not a regular file"``
+    for anything else there, None if it cannot be read (then nothing is compared). Never
+    raises and never blocks: a run's checkpoint must not fail over this file."""
+    import stat
+
+    try:
+        fd = os.open(directory / "scene.toml", os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        return "absent"
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return "not a regular file"
+        h = hashlib.sha256()
+        while chunk := os.read(fd, 1 << 20):
+            h.update(chunk)
+        return h.hexdigest()
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def _check_directory_scene(cp: Checkpoint, path: Path) -> None:
+    """Refuse to resume when the run directory's scene.toml changed since the checkpoint: a
+    user who edited it would believe the resumed run uses it, and --resume runs the scene
+    stored in the checkpoint."""
+    then = cp.inputs.get(DIRECTORY_SCENE)
+    if then is None:  # an older checkpoint, or unreadable then: nothing to compare
+        return
+    now = _scene_file_digest(path.parent)
+    if now is None or now == then or now == "absent":  # removed: nothing that misleads
+        return
+    scene_file = path.parent / "scene.toml"
+
+    def show(d):
+        return d if d in ("absent", "not a regular file") else f"SHA-256 {d[:12]}..."
+
+    raise SceneError(f"{scene_file} changed since the checkpoint was written ({show(then)} "
+                     f"then, {show(now)} now): --resume continues the scene stored in {path}, "
+                     f"not that file; restore it, or run the edited scene as a new run "
+                     f"('roughvib run {scene_file} --out NEW_DIR')")
 
 
 def check_resume(cp: Checkpoint, system: System, n: int, n_out: int) -> None:
@@ -295,6 +349,9 @@ def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     path = out / CHECKPOINT_NAME
+    # what the directory's scene.toml was when the checkpoint was written (an earlier run's,
+    # or none): a resume refuses if it was edited, since --resume runs the checkpoint's scene
+    cp = replace(cp, inputs={**cp.inputs, DIRECTORY_SCENE: _scene_file_digest(out)})
     payload = pickle.dumps(cp, protocol=pickle.HIGHEST_PROTOCOL)
     head = _HEADER + f"{CHECKPOINT_VERSION} {_sha256(payload)} {len(payload)}\n".encode()
     fd, tmp = tempfile.mkstemp(prefix=f".{CHECKPOINT_NAME}.", dir=out)
