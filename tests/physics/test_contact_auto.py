@@ -62,9 +62,11 @@ def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffnes
     html = write_report(tmp_path / "run").read_text()
     assert "contact points from" in html and "micro-contacts (statistical model)" in html
     assert f"{cs.s_total:.4g}" in html and f"{cs.micro_contacts:.4g}" in html
-    # a synthetic surface is one draw: the report says so and names the ensemble command
+    # a synthetic surface is one draw: the report says so and names the ensemble command; a
+    # run of the Python API (no 'roughvib run' command line) by its saved scene, not by the
+    # scene's name, which the overrides above no longer describe
     assert "one draw of a random surface (roughness.seed = 1)" in html
-    assert "roughvib run paper --seeds 10" in html
+    assert "roughvib run RUN_DIR/scene.toml --seeds 10" in html
 
 
 @pytest.mark.parametrize("model", ["gw", "gt"])

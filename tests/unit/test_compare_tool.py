@@ -158,3 +158,30 @@ def test_the_outcome_line_counts_each_way_a_run_ends():
     assert outcome_line(t) == ("3 of 9 runs succeeded; 2 skipped and 1 stopped for the budget; "
                                "3 failed (2 newton_failure, error)")
     assert outcome_line(t[t["status"] == "success"]) == "3 of 3 runs succeeded"
+
+
+def test_the_budget_counts_from_the_process_start_only_for_a_command_line(monkeypatch,
+                                                                          tmp_path):
+    """The console script's budget counts its imports (the process's start, from /proc); a
+    call of main() from Python (a test, a notebook) counts from the call, not from whenever
+    the calling process started."""
+    import sys
+
+    import roughvib.cli as cli
+    import roughvib.studies.compare as cmp
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cli, "_process_age", lambda: 1000.0)
+    seen = []
+
+    def study(*a, started=None, **k):
+        seen.append(time.perf_counter() - started)
+        return pd.DataFrame({"method": ["ida"], "status": ["skipped"], "wall_time": [None],
+                             **{m: [None] for m in cmp.METRICS}})
+
+    monkeypatch.setattr(cmp, "run_study", study)
+    assert main(["compare", "paper", "--out", "wp", "--no-progress"]) == 0
+    monkeypatch.setattr(sys, "argv", ["roughvib", "compare", "paper", "--out", "wp",
+                                      "--no-progress"])
+    assert main() == 0
+    assert seen[0] < 100.0 <= 1000.0 <= seen[1] < 1100.0

@@ -124,7 +124,9 @@ def _fewer_collections():
 def main(argv: list[str] | None = None) -> int:
     """Console entry point ``roughvib``; returns the exit status."""
     _no_collection_at_exit()
-    started = time.perf_counter() - _process_age()
+    # a command line of its own (the console script, python -m roughvib): the budget of a
+    # command counts from the process's start; called with arguments from Python, from here
+    started = time.perf_counter() - (_process_age() if argv is None else 0.0)
     parser = build_parser()
     args = parser.parse_args(argv)
     args.started = started  # what a command's time budget counts from (compare --budget)
@@ -168,16 +170,21 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
+#: /proc/self/stat's field 22 (starttime: clock ticks after boot), counted from the field
+#: after the process name (field 3 is index 0)
+_STAT_STARTTIME = 22 - 3
+
+
 def _process_age() -> float:
     """Seconds since this process started (its interpreter's start-up and imports), from
     Linux's /proc; 0 where that cannot be read (then a budget counts from ``main``)."""
     try:
         with open("/proc/self/stat", "rb") as fh:
-            fields = fh.read().rsplit(b")", 1)[1].split()
+            _, after_name = fh.read().rsplit(b")", 1)
         with open("/proc/uptime", "rb") as fh:
             uptime = float(fh.read().split()[0])
-        # field 22 of stat (starttime, in clock ticks after boot) is the 20th after the name
-        age = uptime - int(fields[19]) / os.sysconf("SC_CLK_TCK")
+        ticks = int(after_name.split()[_STAT_STARTTIME])
+        age = uptime - ticks / os.sysconf("SC_CLK_TCK")
     except (OSError, ValueError, IndexError):
         return 0.0
     return age if 0.0 <= age < 3600.0 else 0.0

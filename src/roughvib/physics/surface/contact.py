@@ -462,8 +462,8 @@ def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool) -> None:
         unit = summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d))
     except ValueError:
         return
-    std_lo = SANE_BOUNDS["contact.summit_std"][0]
-    rad_hi = SANE_BOUNDS["contact.summit_radius"][1]
+    std_lo, _, _ = SANE_BOUNDS["contact.summit_std"]
+    _, rad_hi, _ = SANE_BOUNDS["contact.summit_radius"]
     need = max(std_lo / unit.std if derive_std else 0.0,
                unit.radius / rad_hi if derive_radius else 0.0)
     if r.raw_rms < need:
