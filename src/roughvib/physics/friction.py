@@ -22,6 +22,7 @@ Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from roughvib._cache import cached_values, code_fingerprint
-from roughvib.scene import Friction, SceneError
+from roughvib.scene import SANE_BOUNDS, Friction, SceneError
 
 __all__ = [
     "LAWS",
@@ -291,13 +292,60 @@ def pchip_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return slope
 
 
+#: what a friction table may hold (its values are read as the keys they stand for are): a
+#: coefficient in the sane range of friction.mu_slip / mu_stick, a sliding speed in that of
+#: friction.stribeck_velocity
+_TABLE_MU_MAX = SANE_BOUNDS["friction.mu_stick"][1]
+_TABLE_V_MAX = SANE_BOUNDS["friction.stribeck_velocity"][1]
+#: the steepest slope |d mu / d v| of a friction table [s/m]: that of the steepest Feldmann
+#: curve within the keys' sane ranges (a coefficient step of 10 decaying at a2 = 1e8 s/m); a
+#: step of 0.05 within 1e-300 m/s made the solver divide by zero
+_TABLE_SLOPE_MAX = _TABLE_MU_MAX * SANE_BOUNDS["friction.a2"][1]
+
+
+def _table_text(path: Path, where: str) -> str:
+    """The text of a friction table: UTF-8, a leading byte-order mark dropped (as the scene,
+    sweep and roughness files); one line naming the file otherwise."""
+    try:
+        raw = path.read_bytes()
+    except OSError as err:
+        raise SceneError(f"{where} must be a readable CSV file, got {err.strerror or err}"
+                         ) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise SceneError(f"{where} must be UTF-8 text (save it as UTF-8 CSV), got byte "
+                         f"0x{raw[exc.start]:02x} at byte {exc.start} on line {line}") from None
+
+
+def _table_header(rows: list[list[str]], text: str, where: str) -> tuple[int, int]:
+    """Columns of ``velocity`` and ``mu`` in the header row; a header that names both but not
+    as separate comma-separated columns is refused for its separator."""
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    if "velocity" in header and "mu" in header:
+        return header.index("velocity"), header.index("mu")
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    m = re.search(r"velocity(.+?)mu\b|\bmu(.+?)velocity", first, re.IGNORECASE)
+    if m is not None:
+        between = m.group(1) if m.group(1) is not None else m.group(2)
+        sep = between.strip() or between  # a tab or blanks are the separator themselves
+        if sep != ",":
+            raise SceneError(f"{where} must separate its columns with commas (a CSV file, "
+                             f"decimals with a point), got {sep!r} between 'velocity' and 'mu' "
+                             f"in the header row")
+    raise SceneError(f"{where} must have the columns 'velocity' [m/s] and 'mu' [-] in its "
+                     f"header row, got {', '.join(header) or 'no header'}")
+
+
 def load_friction_table(path: str | Path, mu_stick: float) -> tuple[np.ndarray, np.ndarray]:
     """Read and check a kinetic friction curve: a CSV with columns ``velocity`` and ``mu``.
 
     Parameters
     ----------
     path : path
-        The CSV file (header row, then one row per sample; other columns are ignored).
+        The CSV file: UTF-8 (a leading byte-order mark is allowed), comma-separated, a header
+        row, then one row per sample; other columns are ignored.
     mu_stick : float
         The static coefficient [-]; the curve at v = 0 must not exceed it.
 
@@ -312,26 +360,27 @@ def load_friction_table(path: str | Path, mu_stick: float) -> tuple[np.ndarray, 
     ------
     SceneError
         One line naming the file and, for a bad value, the row (data rows count from 1; the
-        header is line 1 of the file): a missing file or column, fewer than two rows, a value
-        that is not a finite number, a negative or non-increasing velocity, a first velocity
-        other than 0, a negative coefficient, or a coefficient at v = 0 above mu_stick.
+        header is line 1 of the file): a missing file, bytes that are not UTF-8, a separator
+        other than a comma, a missing column, fewer than two rows, a value that is not a finite
+        number, a velocity outside [0, 100] m/s (the sane range of
+        ``friction.stribeck_velocity``) or not increasing, a first velocity other than 0, a
+        coefficient outside [0, 10] (the sane range of ``friction.mu_stick``), a slope
+        between rows steeper than 1e9 s/m (the steepest Feldmann curve in the sane ranges of
+        ``friction.mu_stick`` and ``friction.a2``), or a coefficient at v = 0 above
+        mu_stick.
     """
     import csv
+    import io
 
     path = Path(path)
     where = f"friction.table {str(path)!r}"
+    text = _table_text(path, where)
     try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as err:
-        raise SceneError(f"{where} must be a readable CSV file, got {err.strerror or err}"
-                         ) from None
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as err:
+        raise SceneError(f"{where} must be a CSV file, got {err}") from None
     rows = [r for r in rows if any(c.strip() for c in r)]
-    header = [c.strip().lower() for c in rows[0]] if rows else []
-    if "velocity" not in header or "mu" not in header:
-        raise SceneError(f"{where} must have the columns 'velocity' [m/s] and 'mu' [-] in its "
-                         f"header row, got {', '.join(header) or 'no header'}")
-    iv, im = header.index("velocity"), header.index("mu")
+    iv, im = _table_header(rows, text, where)
     data = rows[1:]
     if len(data) < 2:
         raise SceneError(f"{where} must have at least 2 data rows, got {len(data)}")
@@ -349,15 +398,23 @@ def load_friction_table(path: str | Path, mu_stick: float) -> tuple[np.ndarray, 
                 in_unit = f" in {unit}" if unit else ""
                 raise SceneError(f"{at}: {name} must be a finite number{in_unit}, got {cell!r}")
             arr[i] = val
-        if v[i] < 0.0:
-            raise SceneError(f"{at}: velocity must be >= 0 m/s, got {v[i]:g}")
+        if not 0.0 <= v[i] <= _TABLE_V_MAX:
+            raise SceneError(f"{at}: velocity must be in [0, {_TABLE_V_MAX:g}] m/s (the "
+                             f"physically sane range of a sliding speed), got {v[i]:g}")
         if i == 0 and v[i] != 0.0:
             raise SceneError(f"{at}: velocity must start at 0 m/s, got {v[i]:g}")
         if i > 0 and not v[i] > v[i - 1]:
             raise SceneError(f"{at}: velocity must increase from row to row, got {v[i]:g} m/s "
                              f"after {v[i - 1]:g} m/s")
-        if mu[i] < 0.0:
-            raise SceneError(f"{at}: mu must be >= 0, got {mu[i]:g}")
+        if not 0.0 <= mu[i] <= _TABLE_MU_MAX:
+            raise SceneError(f"{at}: mu must be in [0, {_TABLE_MU_MAX:g}] (the physically sane "
+                             f"range of a friction coefficient, as friction.mu_stick), got "
+                             f"{mu[i]:g}")
+        if i > 0 and abs(mu[i] - mu[i - 1]) > _TABLE_SLOPE_MAX * (v[i] - v[i - 1]):
+            raise SceneError(f"{at}: mu may change by at most {_TABLE_SLOPE_MAX:g} s/m x the "
+                             f"velocity step (the steepest Feldmann curve in the keys' sane "
+                             f"ranges), got {mu[i - 1]:g} to {mu[i]:g} over {v[i - 1]:g} to "
+                             f"{v[i]:g} m/s")
     if mu[0] > mu_stick:
         raise SceneError(f"{where} row 1 (line 2): mu at velocity 0 must be <= friction.mu_stick "
                          f"({mu_stick:g}), got {mu[0]:g}")
