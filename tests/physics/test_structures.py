@@ -2,6 +2,7 @@
 modes against the plate they were exported from, the exchange format's checks."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -228,6 +229,15 @@ def test_read_modes_sorts_by_frequency(tmp_path):
     ({"nodes": np.array([[0, 0], [1, 1], [2, 2], [3, 3.0]])}, "nodes [m] must span an area"),
     ({"damping_ratio": np.array([0.01, 1.5])}, "damping_ratio [-] must be in [0, 1)"),
     ({"frequency": None}, "missing frequency"),
+    # shapes 1e200 times too large made the static equilibrium a singular matrix
+    ({"shapes": np.array([[1, 2, 3, 4.0], [0, 1, 0, 1.0]]) * 1e200},
+     "shapes [1/sqrt(kg)] must be mass-normalised, at most 2e+06 in magnitude (a modal mass "
+     "of at least 1e-12 kg, the lightest plate within the sane ranges), got 4e+200 for mode 1"),
+    # numpy dropped the imaginary part with a ComplexWarning
+    ({"shapes": np.array([[1, 2, 3, 4.0], [0, 1, 0, 1.0]]) + np.array([[0, 0, 0.5j, 0]] * 2)},
+     "shapes [1/sqrt(kg)] must be real numbers (real normal modes; realise complex modes "
+     "before importing them), got 2 value(s) with an imaginary part, the first 3+0.5j at "
+     "mode 1, node 3"),
 ])
 def test_bad_modes_files_are_refused_in_one_line(tmp_path, change, fragment):
     arrays = {**_good(), **change}
@@ -237,6 +247,101 @@ def test_bad_modes_files_are_refused_in_one_line(tmp_path, change, fragment):
         read_modes(path)
     msg = str(info.value)
     assert fragment in msg and "bad.npz" in msg and "\n" not in msg
+
+
+def test_complex_arrays_with_a_zero_imaginary_part_are_read_as_real(tmp_path):
+    arrays = _good()
+    path = _write(tmp_path / "c.npz", **{**arrays, "shapes": arrays["shapes"] + 0j})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no ComplexWarning
+        m = read_modes(path)
+    assert m.shapes.dtype == float
+    np.testing.assert_array_equal(m.shapes, arrays["shapes"][::-1])
+
+
+def _damaged_npz(tmp_path, kind):
+    path = tmp_path / "bad.npz"
+    good = _write(tmp_path / "good.npz", **_good()).read_bytes()
+    if kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "truncated":
+        path.write_bytes(good[:len(good) // 2])
+    elif kind == "npy":
+        np.save(tmp_path / "a.npy", np.ones(3))
+        path.write_bytes((tmp_path / "a.npy").read_bytes())
+    else:  # a member damaged inside a complete archive: its checksum fails
+        np.savez_compressed(path, **_good())
+        raw = bytearray(path.read_bytes())
+        raw[60:80] = bytes(20)
+        path.write_bytes(bytes(raw))
+    return path
+
+
+@pytest.mark.parametrize("kind, fragment", [
+    ("empty", "must be a .npz file (a zip archive of arrays, as numpy.savez writes), got an "
+              "empty file (0 bytes)"),  # was EOFError
+    ("truncated", "bytes that are not a complete zip archive (truncated, or another format?)"),
+    ("npy", "bytes that are not a complete zip archive"),  # was TypeError
+    ("damaged", "is not a readable .npz file (damaged or truncated?): "),  # was BadZipFile
+])
+def test_damaged_npz_files_are_refused_in_one_line(tmp_path, kind, fragment):
+    path = _damaged_npz(tmp_path, kind)
+    with pytest.raises(SceneError) as info:
+        read_modes(path)
+    msg = str(info.value)
+    assert msg.startswith(f"plate.modes_file {str(path)!r} ") and fragment in msg, msg
+    assert "\n" not in msg
+
+
+def _unv_lines(tmp_path):
+    modes = export_modes(Plate(max_frequency=1000.0), grid=(6, 5))
+    return write_modes(tmp_path / "plate.unv", modes).read_text().splitlines(keepends=True)
+
+
+def test_a_truncated_universal_file_is_refused(tmp_path):
+    """pyuff drops a dataset without its closing delimiter: a file cut inside a mode ran with
+    the modes before the cut, without a word."""
+    lines = _unv_lines(tmp_path)
+    delims = [i + 1 for i, ln in enumerate(lines) if ln.rstrip() == "    -1"]
+    assert len(delims) == 2 * (1 + len(read_modes(tmp_path / "plate.unv")))
+    last_open = delims[-2]
+    for cut in (last_open, last_open + 12, len(lines) - 1):
+        path = tmp_path / f"cut{cut}.unv"
+        path.write_text("".join(lines[:cut]))
+        with pytest.raises(SceneError) as info:
+            read_modes(path)
+        assert str(info.value) == (
+            f"plate.modes_file {str(path)!r} is truncated: dataset "
+            f"{'55 ' if cut > last_open else ''}opened on line {last_open} never ends (every "
+            f"dataset must end with a line '    -1'), got the end of the file on line {cut}")
+    # cut after a dataset's closing line the file is complete (with fewer modes): nothing in
+    # the format tells the two apart
+    path = tmp_path / "whole.unv"
+    path.write_text("".join(lines[:delims[-3]]))
+    assert len(read_modes(path)) == len(read_modes(tmp_path / "plate.unv")) - 1
+
+
+@pytest.mark.parametrize("value, fragment", [
+    ("  nan", "every value must be a finite number, got 'nan'"),
+    ("  ***********", "every value must be a number, got '***********'"),
+    ("          NaN", "dataset 55 #1 (mode 1) must give a finite number at every node, got nan "
+                    "at node 3"),  # read by pyuff, which then said 1 node lacked a value
+])
+def test_a_value_that_is_not_a_number_is_named_in_a_universal_file(tmp_path, value, fragment):
+    lines = _unv_lines(tmp_path)
+    first55 = next(i for i, ln in enumerate(lines) if ln.strip() == "55")
+    row = first55 + 14  # the vertical displacement of the third node of the first mode
+    assert lines[row - 1].strip() == "3"
+    lines[row] = lines[row][:-14] + value + "\n"  # the last field (E13.5) replaced
+    path = tmp_path / "nan.unv"
+    path.write_text("".join(lines))
+    with pytest.raises(SceneError) as info:
+        read_modes(path)
+    msg = str(info.value)
+    if "NaN" not in value:
+        fragment = f"dataset 55 (lines {first55}-{first55 + 2 * 30 + 10}), line {row + 1}: " \
+            + fragment
+    assert msg.startswith(f"plate.modes_file {str(path)!r}: ") and fragment in msg, msg
 
 
 def test_points_outside_the_nodes_are_refused():

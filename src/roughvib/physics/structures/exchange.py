@@ -22,12 +22,19 @@ from pathlib import Path
 import numpy as np
 
 from roughvib.physics.structures.base import check_frequencies
-from roughvib.scene import SceneError
+from roughvib.scene import SANE_BOUNDS, SceneError
 
-__all__ = ["ModeSet", "SUFFIXES", "read_modes", "write_modes"]
+__all__ = ["MAX_SHAPE", "ModeSet", "SUFFIXES", "read_modes", "write_modes"]
 
 #: the file suffixes the exchange format knows (lower case)
 SUFFIXES = (".npz", ".unv", ".uff")
+
+#: the largest mass-normalised displacement a mode may have [1/sqrt(kg)]: the peak 2 / sqrt(M)
+#: of the lightest simply supported plate within the sane ranges of plate.density, thickness,
+#: length and width (M = 1e-12 kg). Shapes 1e200 times too large passed every other check and
+#: made the static equilibrium a singular matrix.
+MAX_SHAPE = 2.0 / float(np.sqrt(np.prod([SANE_BOUNDS[f"plate.{k}"][0] for k in (
+    "density", "thickness", "length", "width")])))
 
 
 @dataclass(frozen=True)
@@ -70,7 +77,9 @@ def validated(frequency, nodes, shapes, damping_ratio=None, *, where: str) -> Mo
     SceneError
         One line naming ``where``, the array, the rule and the value.
     """
-    def arr(name, value, ndim):
+    def arr(name, value, ndim, axes):
+        if np.iscomplexobj(value):
+            value = _real(np.asarray(value), f"{where}: {name}", axes)
         try:
             a = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
@@ -84,9 +93,9 @@ def validated(frequency, nodes, shapes, damping_ratio=None, *, where: str) -> Mo
                              f" non-finite value(s)")
         return a
 
-    f = arr("frequency [Hz]", frequency, 1)
-    xy = arr("nodes [m]", nodes, 2)
-    S = arr("shapes [1/sqrt(kg)]", shapes, 2)
+    f = arr("frequency [Hz]", frequency, 1, ("mode",))
+    xy = arr("nodes [m]", nodes, 2, ("node", "column"))
+    S = arr("shapes [1/sqrt(kg)]", shapes, 2, ("mode", "node"))
     if xy.shape[1] != 2:
         raise SceneError(f"{where}: nodes [m] must have shape (N, 2) (x, y), got {xy.shape}")
     if xy.shape[0] < 3:
@@ -102,7 +111,7 @@ def validated(frequency, nodes, shapes, damping_ratio=None, *, where: str) -> Mo
     check_frequencies(f, f"{where}: frequency")
     z = None
     if damping_ratio is not None:
-        z = arr("damping_ratio [-]", damping_ratio, 1)
+        z = arr("damping_ratio [-]", damping_ratio, 1, ("mode",))
         if z.shape != f.shape:
             raise SceneError(f"{where}: damping_ratio [-] must have shape ({f.size},) like "
                              f"frequency, got {z.shape}")
@@ -112,9 +121,31 @@ def validated(frequency, nodes, shapes, damping_ratio=None, *, where: str) -> Mo
                              f"modes), got {z[bad[0]]} for mode {bad[0] + 1}")
     if not np.any(S):
         raise SceneError(f"{where}: shapes [1/sqrt(kg)] are all zero")
+    peak = np.abs(S).max(axis=1)
+    if peak.max() > MAX_SHAPE:
+        r = int(np.argmax(peak > MAX_SHAPE))
+        raise SceneError(f"{where}: shapes [1/sqrt(kg)] must be mass-normalised, at most "
+                         f"{MAX_SHAPE:g} in magnitude (a modal mass of at least "
+                         f"{4.0 / MAX_SHAPE**2:g} kg, the lightest plate within the sane "
+                         f"ranges), got {peak[r]:.6g} for mode {r + 1}")
     order = np.argsort(f, kind="stable")
     return ModeSet(frequency=f[order], nodes=xy, shapes=S[order],
                    damping_ratio=None if z is None else z[order])
+
+
+def _real(a: np.ndarray, where: str, axes: tuple[str, ...]) -> np.ndarray:
+    """The real part of a complex array whose imaginary part is exactly zero; anything else is
+    refused: the model takes real normal modes, and dropping an imaginary part (the complex
+    modes of a non-proportionally damped structure) would change the structure silently.
+    ``axes`` names the array's axes for the message (``("mode", "node")``)."""
+    nonzero = np.argwhere(a.imag != 0)
+    if nonzero.size:
+        first = tuple(nonzero[0])
+        at = ", ".join(f"{ax} {int(i) + 1}" for ax, i in zip(axes, first, strict=False))
+        raise SceneError(f"{where} must be real numbers (real normal modes; realise complex "
+                         f"modes before importing them), got {nonzero.shape[0]} value(s) with "
+                         f"an imaginary part, the first {complex(a[first]):.6g} at {at}")
+    return np.ascontiguousarray(a.real, dtype=float)
 
 
 def _suffix(path: Path, what: str) -> str:
@@ -151,11 +182,7 @@ def read_modes(path: str | Path, *, what: str = "plate.modes_file") -> ModeSet:
         raise SceneError(f"{where} does not exist (relative paths are relative to the scene "
                          f"file)")
     if suf == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                arrays = {k: data[k] for k in data.files}
-        except (OSError, ValueError) as exc:
-            raise SceneError(f"{where} is not a readable .npz file: {exc}") from None
+        arrays = _read_npz(path, where)
         missing = [k for k in ("frequency", "nodes", "shapes") if k not in arrays]
         if missing:
             raise SceneError(f"{where} must hold the arrays frequency [Hz], nodes [m], shapes "
@@ -165,15 +192,102 @@ def read_modes(path: str | Path, *, what: str = "plate.modes_file") -> ModeSet:
     return _read_uff(path, where)
 
 
-def _read_uff(path: Path, where: str) -> ModeSet:
+def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
+    """The arrays of a ``.npz`` file; an empty, truncated or damaged file in one line."""
+    import zipfile
+    import zlib
+
+    size = path.stat().st_size
+    rule = "a .npz file (a zip archive of arrays, as numpy.savez writes)"
+    if size == 0:
+        raise SceneError(f"{where} must be {rule}, got an empty file (0 bytes)")
+    if not zipfile.is_zipfile(path):
+        raise SceneError(f"{where} must be {rule}, got {size} bytes that are not a complete zip "
+                         f"archive (truncated, or another format?)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError, EOFError, AttributeError, zipfile.BadZipFile,
+            zlib.error) as exc:
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise SceneError(f"{where} is not a readable .npz file (damaged or truncated?): "
+                         f"{reason}") from None
+
+
+#: the line that opens and closes a dataset of a universal file
+_UFF_DELIMITER = b"    -1"
+
+
+def _uff_blocks(raw: bytes, where: str) -> list[tuple[int, int, str]]:
+    """The datasets of a universal file as (first line, last line, type), the delimiter lines
+    included (1-based); a dataset without its closing delimiter (a truncated file) is refused.
+    """
+    lines = raw.split(b"\n")
+    delims = [i + 1 for i, ln in enumerate(lines) if ln.rstrip(b" \r") == _UFF_DELIMITER]
+
+    def kind(start: int) -> str:
+        head = lines[start].decode("ascii", "replace").strip() if start < len(lines) else ""
+        return head.split()[0] if head else ""
+
+    if len(delims) % 2:
+        start = delims[-1]
+        end = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
+        raise SceneError(f"{where} is truncated: dataset {kind(start) + ' ' if kind(start) else ''}"
+                         f"opened on line {start} "
+                         f"never ends (every dataset must end with a line '    -1'), got the "
+                         f"end of the file on line {end}")
+    return [(a, b, kind(a)) for a, b in zip(delims[::2], delims[1::2], strict=True)]
+
+
+def _uff_bad_value(raw: bytes, block: tuple[int, int, str]) -> str:
+    """Where a dataset that pyuff cannot read holds a value that is not a finite number: its
+    line and the value, or an empty string."""
+    first, last, typ = block
+    lines = raw.split(b"\n")[first:last - 1]  # between the delimiters, the type line first
+    skip = 6 if typ == "55" else 1  # the type line, and dataset 55's five text records
+    for k, line in enumerate(lines[skip:], start=first + 1 + skip):
+        for tok in line.decode("ascii", "replace").split():
+            try:
+                val = float(tok.replace("D", "E").replace("d", "e"))
+            except ValueError:
+                return f"line {k}: every value must be a number, got {tok!r}"
+            if not np.isfinite(val):
+                return f"line {k}: every value must be a finite number, got {tok!r}"
+    return ""
+
+
+def _uff_sets(path: Path, where: str) -> list[dict]:
+    """The datasets 2411 and 55 of a universal file, read by pyuff; a truncated file, or a
+    dataset pyuff cannot read, refused in one line naming the dataset's lines."""
     import pyuff
 
+    raw = path.read_bytes()
+    blocks = _uff_blocks(raw, where)
     try:
-        sets = pyuff.UFF(str(path)).read_sets()
+        uff = pyuff.UFF(str(path))
+        types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # pyuff raises many kinds on a malformed file
         raise SceneError(f"{where} is not a readable universal file: {exc}") from None
-    if isinstance(sets, dict):
-        sets = [sets]
+    sets = []
+    for i, t in enumerate(types):
+        if t not in (2411, 55):
+            continue
+        try:
+            sets.append(uff.read_sets(i))
+        except Exception as exc:  # pyuff says only "Error when reading data-set(s)."
+            if len(blocks) != len(types):
+                raise SceneError(f"{where}: dataset {t} (the file's dataset {i + 1}) cannot be "
+                                 f"read: {exc}") from None
+            a, b, _ = blocks[i]
+            bad = _uff_bad_value(raw, blocks[i])
+            raise SceneError(f"{where}: dataset {t} (lines {a}-{b}), "
+                             + (bad if bad else f"cannot be read (its records do not follow "
+                                                f"the universal file format: {exc})")) from None
+    return sets
+
+
+def _read_uff(path: Path, where: str) -> ModeSet:
+    sets = _uff_sets(path, where)
     nodes = [s for s in sets if s.get("type") == 2411]
     modes = [s for s in sets if s.get("type") == 55 and s.get("analysis_type") == 2]
     if not nodes:
@@ -188,12 +302,19 @@ def _read_uff(path: Path, where: str) -> ModeSet:
     freq, damp, shapes = [], [], []
     for j, s in enumerate(modes):
         comp = "r3" if "r3" in s else "r1"
-        vals = np.asarray(s[comp], dtype=float)
+        mode = f"dataset 55 #{j + 1} (mode {s.get('mode_n')})"
+        vals = np.asarray(s[comp])
+        vals = _real(vals, f"{where}: {mode} shapes", ("value",)) if np.iscomplexobj(vals) else \
+            vals.astype(float)
         nn = np.asarray(s["node_nums"], dtype=np.int64)
+        if not np.isfinite(vals).all():
+            k = int(np.flatnonzero(~np.isfinite(vals))[0])
+            raise SceneError(f"{where}: {mode} must give a finite number at every node, got "
+                             f"{vals[k]} at node {int(nn[k])}")
         unknown = [int(n) for n in nn if int(n) not in pos]
         if unknown:
-            raise SceneError(f"{where}: dataset 55 #{j + 1} (mode {s.get('mode_n')}) names node "
-                             f"{unknown[0]}, which no dataset 2411 defines")
+            raise SceneError(f"{where}: {mode} names node {unknown[0]}, which no dataset 2411 "
+                             f"defines")
         row = np.full(xy.shape[0], np.nan)
         row[[pos[int(n)] for n in nn]] = vals
         mm = float(s.get("modal_m", 0.0) or 0.0)
