@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["EXPORT_FORMATS", "EXPORT_SIGNALS", "G_N", "Record", "RecordError", "UNITS",
-           "export_run", "read_record", "units_factor"]
+__all__ = ["EXPORT_FORMATS", "EXPORT_SIGNALS", "G_N", "MAX_SAMPLE", "Record", "RecordError",
+           "UNITS", "export_run", "read_record", "units_factor"]
 
 #: standard acceleration of gravity [m/s^2] (the "g" of accelerometer data sheets)
 G_N = 9.80665
@@ -67,6 +67,11 @@ _UFF_DIR_MINUS_Z = -3  # "positive down" in a frame whose Z points up, out of th
 
 # relative precision of the abscissa increment in an ASCII UFF 58 header (format %13.5e)
 _UFF_INC_RTOL = 5e-6
+
+#: the largest sample magnitude a record may hold [m/s^2]: 1e8 g, a thousand times the range of
+#: shock accelerometers; samples of 1e300 (units or scale mistaken) overflowed the band levels
+#: to NaN, which validate printed with exit status 0
+MAX_SAMPLE = 1e9
 
 
 class RecordError(ValueError):
@@ -116,6 +121,12 @@ class Record:
             raise RecordError(f"{self.path}: {bad.size} NaN or infinite samples in "
                               f"{self.channel} (first at sample {bad[0]}); a record must be "
                               f"finite")
+        big = np.flatnonzero(np.abs(x) > MAX_SAMPLE)
+        if big.size:
+            raise RecordError(f"{self.path}: samples of {self.channel} must be at most "
+                              f"{MAX_SAMPLE:g} m/s^2 in magnitude (1e8 g, far beyond any "
+                              f"accelerometer; wrong units or scale?), got {x[big[0]]:.6g} "
+                              f"m/s^2 at sample {big[0]} (units {self.units!r})")
         object.__setattr__(self, "signal", x)
 
     @property
@@ -228,16 +239,48 @@ def _split_header(cell: str) -> tuple[str, str | None]:
     return cell.strip(), None
 
 
-def _read_csv(path: Path, column, units) -> Record:
+def _text(path: Path) -> str:
+    """A text file's content: UTF-8, a leading byte-order mark dropped; one line otherwise."""
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise RecordError(f"{path}: a CSV record must be UTF-8 text (save it as UTF-8), got "
+                          f"byte 0x{raw[exc.start]:02x} at byte {exc.start} on line {line}"
+                          ) from None
+
+
+def _numbers(df, i: int, name: str, path: Path, decimal: str) -> np.ndarray:
+    """Column ``i`` as floats; the first cell that is not a number named with its data row."""
     import pandas as pd
 
+    col = df.iloc[:, i]
+    if decimal != "." and not pd.api.types.is_numeric_dtype(col):
+        col = col.where(col.isna(), col.astype(str).str.replace(decimal, ".", regex=False))
+    num = pd.to_numeric(col, errors="coerce")
+    bad = np.flatnonzero(num.isna().to_numpy() & col.notna().to_numpy())
+    if bad.size:
+        raise RecordError(f"{path}: column {name!r} must hold numbers, got "
+                          f"{str(col.iloc[bad[0]])[:40]!r} in data row {bad[0] + 1}")
+    return num.to_numpy(dtype=float)
+
+
+def _read_csv(path: Path, column, units) -> Record:
+    import io
+
+    import pandas as pd
+
+    text = _text(path)
     lines: list[tuple[int, str]] = []  # (line number, text) of the first two data lines
-    with path.open(encoding="utf-8-sig", errors="replace") as fh:
-        for i, line in enumerate(fh):
-            if line.strip() and not line.lstrip().startswith("#"):
-                lines.append((i, line.strip()))
-            if len(lines) >= 2:
-                break
+    for i, line in enumerate(text.splitlines()):
+        if line.strip() and not line.lstrip().startswith("#"):
+            lines.append((i, line.strip()))
+        if len(lines) >= 2:
+            break
     if not lines:
         raise RecordError(f"{path}: no data in the file")
     sep = next((s for s in (";", "\t", ",") if s in lines[-1][1]), None)
@@ -260,11 +303,12 @@ def _read_csv(path: Path, column, units) -> Record:
     header = None if numeric(lines[0][1]) else cells(lines[0][1])
     skip = lines[0][0] + 1 if header is not None else 0
     try:
-        df = pd.read_csv(path, sep=sep if sep is not None else r"\s+", comment="#",
-                         header=None, skiprows=skip, skipinitialspace=True,
-                         encoding="utf-8-sig", decimal=decimal)
+        df = pd.read_csv(io.StringIO(text), sep=sep if sep is not None else r"\s+",
+                         comment="#", header=None, skiprows=skip, skipinitialspace=True,
+                         decimal=decimal)
     except (ValueError, pd.errors.ParserError) as exc:
-        raise RecordError(f"{path}: not a readable CSV table ({exc})") from None
+        reason = " ".join(str(exc).split())  # pandas ends some messages with a newline
+        raise RecordError(f"{path}: not a readable CSV table ({reason})") from None
     if header is not None and len(header) != df.shape[1]:
         raise RecordError(f"{path}: the header names {len(header)} columns, the data has "
                           f"{df.shape[1]}")
@@ -277,12 +321,8 @@ def _read_csv(path: Path, column, units) -> Record:
     it = next((i for i, n in enumerate(names) if n.lower() in ("t", "time")), 0)
     values = [i for i in range(len(names)) if i != it]
     iv = values[_pick([names[i] for i in values], column, path, "value column")]
-    try:
-        t = df.iloc[:, it].to_numpy(dtype=float)
-        x = df.iloc[:, iv].to_numpy(dtype=float)
-    except (TypeError, ValueError):
-        raise RecordError(f"{path}: column {names[iv]!r} or the time column holds "
-                          f"non-numbers") from None
+    t = _numbers(df, it, names[it], path, decimal)
+    x = _numbers(df, iv, names[iv], path, decimal)
     tu = (col_units[it] or "s").strip().lower()
     if tu not in _TIME_UNITS:
         raise RecordError(f"{path}: unknown time units {col_units[it]!r} (s, ms or us)")
@@ -308,28 +348,91 @@ def _full_scale(data: np.ndarray) -> np.ndarray:
     raise RecordError(f"unsupported WAV sample type {data.dtype}")
 
 
-def _sidecar(path: Path) -> dict:
+def _sidecar(path: Path, *, needed: bool) -> dict:
+    """The JSON sidecar ``<stem>.json`` of a WAV file (as :func:`export_run` writes it), its
+    keys checked: ``scale`` (a number > 0, only where ``needed``), ``units`` (known units) and
+    ``start_time_s`` (a finite number [s]).
+
+    A JSON file without ``scale`` is not a sidecar and is ignored (empty dict); a sidecar
+    that cannot be read is refused where it is ``needed`` (no ``--scale``) and ignored
+    otherwise. Every refusal is one line naming the sidecar, the key, the rule and the value.
+    """
     side = path.with_suffix(".json")
     if not side.is_file():
         return {}
     try:
-        meta = json.loads(side.read_text())
-    except (OSError, ValueError):
+        meta = json.loads(side.read_bytes().decode("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        if not needed:
+            return {}
+        reason = " ".join(str(getattr(exc, "strerror", None) or exc).split())
+        raise RecordError(f"{side}: the sidecar of {path.name} must be a readable JSON file "
+                          f"(UTF-8) with 'scale' and 'units', got {reason}") from None
+    if not isinstance(meta, dict) or "scale" not in meta:
         return {}
-    return meta if isinstance(meta, dict) and "scale" in meta else {}
+
+    def number(key: str, rule: str, ok) -> float:
+        v = meta[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not ok(float(v)):
+            raise RecordError(f"{side}: sidecar key {key!r} must be {rule}, got {v!r}")
+        return float(v)
+
+    out = {"start_time_s": 0.0}
+    if "start_time_s" in meta:
+        out["start_time_s"] = number("start_time_s", "a finite number [s] (the time of the "
+                                     "first sample)", math.isfinite)
+    if not needed:
+        return out
+    units = meta.get("units", "")
+    if not isinstance(units, str):
+        raise RecordError(f"{side}: sidecar key 'units' must be a string (g, m/s^2, ...), got "
+                          f"{units!r}")
+    if units.strip():
+        units_factor(units, path=f"{side}: sidecar key 'units'")
+    out["units"] = units
+    per = units.strip() or "the sidecar's 'units'"
+    out["scale"] = number("scale", f"a number > 0 ({per} per full-scale unit)",
+                          lambda v: math.isfinite(v) and v > 0)
+    return out
+
+
+def _wav_header(path: Path) -> None:
+    """Refuse a WAV file shorter than its RIFF header says (a truncated file): scipy reads
+    the samples that are there, or fails on a cut header with struct.error."""
+    size = path.stat().st_size
+    if size == 0:
+        raise RecordError(f"{path}: not a readable WAV file (it is empty, 0 bytes)")
+    with path.open("rb") as fh:
+        head = fh.read(12)
+    if head[:4] not in (b"RIFF", b"RIFX"):
+        return  # RF64, or not a WAV file: scipy says which
+    if len(head) < 12:
+        raise RecordError(f"{path}: not a readable WAV file (it ends after {size} bytes, "
+                          f"inside its 12-byte RIFF header: truncated?)")
+    declared = int.from_bytes(head[4:8], "little" if head[:4] == b"RIFF" else "big") + 8
+    if declared - 8 not in (0, 0xFFFFFFFF) and size < declared:
+        raise RecordError(f"{path}: the WAV file is truncated: its header declares {declared} "
+                          f"bytes, the file has {size}")
 
 
 def _read_wav(path: Path, column, units, scale) -> Record:
+    import struct
     import warnings
 
     from scipy.io import wavfile
 
+    _wav_header(path)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", wavfile.WavFileWarning)  # unknown chunks
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", wavfile.WavFileWarning)  # unknown chunks
             fs, data = wavfile.read(path)
-    except (ValueError, OSError) as exc:
-        raise RecordError(f"{path}: not a readable WAV file ({exc})") from None
+    except (ValueError, OSError, EOFError, struct.error) as exc:
+        reason = (f"it ends inside a header chunk after {path.stat().st_size} bytes, "
+                  f"truncated?" if isinstance(exc, struct.error | EOFError) else str(exc))
+        raise RecordError(f"{path}: not a readable WAV file ({reason})") from None
+    short = [str(w.message) for w in caught if "EOF" in str(w.message)]
+    if short:  # a data chunk longer than the file
+        raise RecordError(f"{path}: the WAV file is truncated ({short[0]})")
     try:
         frac = _full_scale(data)
     except RecordError as exc:
@@ -341,20 +444,20 @@ def _read_wav(path: Path, column, units, scale) -> Record:
     else:
         _pick(["channel 1"], column, path, "channel")
         name = "channel 1"
-    meta = _sidecar(path)
+    meta = _sidecar(path, needed=scale is None)
     if scale is None:
         if not meta:
             raise RecordError(f"{path}: a WAV file needs --scale (m/s^2 per full-scale unit; "
                               f"or a JSON sidecar {path.with_suffix('.json').name} with "
                               f"'scale' and 'units')")
-        scale, found = float(meta["scale"]), str(meta.get("units", ""))
-        f, u, src = _units(found, units, path)
+        scale = meta["scale"]
+        f, u, src = _units(meta["units"], units, path)
     else:
         if not (math.isfinite(scale) and scale > 0):
             raise RecordError(f"{path}: --scale must be > 0 (per full-scale unit), got {scale}")
         f, u, src = units_factor(units or "m/s^2", path=path), units or "m/s^2", "option"
     return Record(str(path), frac * (float(scale) * f), float(fs), u, src, name,
-                  float(meta.get("start_time_s", 0.0)) if meta else 0.0)
+                  meta.get("start_time_s", 0.0))
 
 
 def _uff_name(d: dict, i: int) -> str:
@@ -365,14 +468,58 @@ def _uff_name(d: dict, i: int) -> str:
     return f"set {i + 1}"
 
 
-def _read_uff(path: Path, column, units) -> Record:
+def _uff58_sets(path: Path) -> list[dict]:
+    """The datasets 58 of a universal file, read by pyuff one by one: a truncated file, a
+    dataset pyuff cannot read, or one with fewer samples than it declares is refused in one
+    line naming the dataset's lines (and the value that is not a number, where there is one).
+    """
     import pyuff
 
+    from roughvib.physics.structures.exchange import (
+        universal_file_bad_value,
+        universal_file_datasets,
+    )
+
     try:
-        sets = pyuff.UFF(str(path)).read_sets()
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    blocks, unterminated = universal_file_datasets(raw)
+    if unterminated is not None:
+        start, typ, end = unterminated
+        raise RecordError(f"{path}: the universal file is truncated: dataset "
+                          f"{typ + ' ' if typ else ''}opened on line {start} never ends (every "
+                          f"dataset must end with a line '    -1'), got the end of the file on "
+                          f"line {end}")
+    try:
+        uff = pyuff.UFF(str(path))
+        types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # pyuff raises plain Exceptions on damaged files
         raise RecordError(f"{path}: not a readable universal file ({exc})") from None
-    sets = [sets] if isinstance(sets, dict) else list(sets)
+    lines = blocks if len(blocks) == len(types) else [None] * len(types)
+    sets = []
+    for i, t in enumerate(types):
+        if t != 58:
+            continue
+        where = (f"dataset 58 (lines {lines[i][0]}-{lines[i][1]})" if lines[i] else
+                 f"dataset 58 (the file's dataset {i + 1})")
+        try:
+            d = uff.read_sets(i)
+        except Exception as exc:  # pyuff says only "Error when reading data-set(s)."
+            bad = universal_file_bad_value(raw, lines[i]) if lines[i] else ""
+            raise RecordError(f"{path}: {where}, " + (bad or f"cannot be read ({exc})")
+                              ) from None
+        n = int(d.get("num_pts", 0) or 0)
+        if n and np.asarray(d.get("data", [])).size != n:
+            bad = universal_file_bad_value(raw, lines[i]) if lines[i] else ""
+            raise RecordError(f"{path}: {where} declares {n} samples, pyuff read "
+                              f"{np.asarray(d['data']).size}" + (f"; {bad}" if bad else ""))
+        sets.append(d)
+    return sets
+
+
+def _read_uff(path: Path, column, units) -> Record:
+    sets = _uff58_sets(path)
     cand = [d for d in sets if d.get("type") == 58 and d.get("func_type") == _UFF_TIME_RESPONSE]
     if not cand:
         raise RecordError(f"{path}: no dataset 58 with a time response (function type 1)")
@@ -405,12 +552,61 @@ def _read_uff(path: Path, column, units) -> Record:
     return Record(str(path), x * f, fs, u, src, _uff_name(d, 0), t0)
 
 
+#: the lead-in of a TDMS segment: tag, table-of-contents mask, version, offsets [bytes]
+_TDMS_LEAD_IN = 28
+_TDMS_BIG_ENDIAN = 1 << 6  # the table-of-contents flag of a big-endian segment
+_TDMS_UNCLOSED = 0xFFFFFFFFFFFFFFFF  # the next-segment offset of a segment never finished
+
+
+def _tdms_segments(path: Path) -> None:
+    """Walk the segments' lead-ins: a file that ends inside a segment, or whose last segment
+    was never finished (the writer stopped), is refused; npTDMS reads what is there and only
+    logs a warning."""
+    size = path.stat().st_size
+    pos = 0
+    with path.open("rb") as fh:
+        while pos < size:
+            fh.seek(pos)
+            lead = fh.read(_TDMS_LEAD_IN)
+            if len(lead) < _TDMS_LEAD_IN or lead[:4] != b"TDSm":
+                what = ("ends inside a segment's lead-in" if len(lead) < _TDMS_LEAD_IN
+                        else "has no segment tag 'TDSm'")
+                raise RecordError(f"{path}: not a complete TDMS file: at byte {pos} it {what} "
+                                  f"(truncated or damaged; the file has {size} bytes)")
+            toc = int.from_bytes(lead[4:8], "little")
+            order = "big" if toc & _TDMS_BIG_ENDIAN else "little"
+            nxt = int.from_bytes(lead[12:20], order)
+            if nxt == _TDMS_UNCLOSED:
+                raise RecordError(f"{path}: the TDMS file is truncated: the segment at byte "
+                                  f"{pos} was never finished (the writer stopped)")
+            end = pos + _TDMS_LEAD_IN + nxt
+            if end > size:
+                raise RecordError(f"{path}: the TDMS file is truncated or damaged: the segment "
+                                  f"at byte {pos} declares {end - pos} bytes, the file ends "
+                                  f"{size - pos} bytes after its start")
+            pos = end
+
+
+def _tdms_number(props, key: str, rule: str, ok, where: str, default=None) -> float:
+    """A numeric channel property, checked (one line naming the channel, the property, the
+    rule and the value)."""
+    v = props.get(key, default)
+    try:
+        val = float(v)
+    except (TypeError, ValueError):
+        val = math.nan
+    if isinstance(v, bool) or not ok(val):
+        raise RecordError(f"{where}: property {key} must be {rule}, got {v!r}")
+    return val
+
+
 def _read_tdms(path: Path, column, units) -> Record:
     try:
         from nptdms import TdmsFile
     except ImportError:
         raise RecordError(f"{path}: reading TDMS needs the npTDMS package (pip install "
                           f"'roughvib[tdms]')") from None
+    _tdms_segments(path)
     try:
         f = TdmsFile.read(path)
     except Exception as exc:  # npTDMS raises plain Exceptions on damaged files
@@ -427,18 +623,24 @@ def _read_tdms(path: Path, column, units) -> Record:
         i = _pick(full, column, path, "channel")
     ch = chans[i][1]
     props = ch.properties
-    inc = props.get("wf_increment")
-    if not inc or not float(inc) > 0:
-        raise RecordError(f"{path}: channel {full[i]!r} has no sample interval (property "
-                          f"wf_increment)")
-    x = np.asarray(ch[:], dtype=float)
+    where = f"{path}: channel {full[i]!r}"
+    if not props.get("wf_increment"):
+        raise RecordError(f"{where} has no sample interval (property wf_increment)")
+    inc = _tdms_number(props, "wf_increment", "a number > 0 [s] (the sample interval)",
+                       lambda v: math.isfinite(v) and v > 0, where)
+    t0 = _tdms_number(props, "wf_start_offset", "a finite number [s]", math.isfinite, where,
+                      default=0.0)
+    data = np.asarray(ch[:])
+    if data.dtype.kind not in "iuf":
+        raise RecordError(f"{where} must hold real numbers (a time record), got samples of "
+                          f"type {data.dtype}")
+    x = data.astype(float)
     if np.any(np.isnan(x)):
         raise RecordError(f"{path}: {int(np.isnan(x).sum())} NaN samples in {full[i]!r}; a "
                           f"record must be finite")
     found = str(props.get("unit_string", "") or "").strip() or None
     fac, u, src = _units(found, units, path)
-    return Record(str(path), x * fac, 1.0 / float(inc), u, src, full[i],
-                  float(props.get("wf_start_offset", 0.0) or 0.0))
+    return Record(str(path), x * fac, 1.0 / inc, u, src, full[i], t0)
 
 
 def read_record(path: str | os.PathLike, *, column: str | int | None = None,
@@ -484,7 +686,9 @@ def read_record(path: str | os.PathLike, *, column: str | int | None = None,
     """
     p = Path(path)
     if not p.is_file():
-        raise RecordError(f"{p}: no such file")
+        raise RecordError(f"{p}: " + ("is a directory, not a record file" if p.is_dir() else
+                                      "is not a regular file" if p.exists() else
+                                      "no such file"))
     kind = kind or _READERS.get(p.suffix.lower())
     if kind not in ("csv", "wav", "uff", "tdms"):
         raise RecordError(f"{p}: unknown record format {p.suffix!r} (.csv, .txt, .wav, .uff, "

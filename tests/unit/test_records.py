@@ -187,6 +187,172 @@ def test_refusals_are_one_line_naming_the_file(tmp_path, record, kind):
     _one_line(e.value, f"bad_{kind}.csv")
 
 
+def _csv(path, t, x, head="time [s],acceleration [m/s^2]"):
+    np.savetxt(path, np.column_stack([t, x]), fmt="%.15g", delimiter=",", header=head,
+               comments="")
+    return path
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("latin1", "{p}: a CSV record must be UTF-8 text (save it as UTF-8), got byte 0xb5 at "
+               "byte 23 on line 1"),  # was pandas' codec message
+    ("text", "{p}: column 'acceleration' must hold numbers, got 'abc' in data row 3"),
+    ("ragged", "{p}: not a readable CSV table (Error tokenizing data. C error: Expected 2 "
+               "fields in line 6, saw 3)"),  # pandas' message ended in a newline: two lines
+    ("g1e300", "{p}: samples of acceleration must be at most 1e+09 m/s^2 in magnitude (1e8 g, "
+               "far beyond any accelerometer; wrong units or scale?), got 9.80665e+300 m/s^2 "
+               "at sample 1 (units 'g')"),  # ran to NaN levels and exit status 0
+])
+def test_malformed_csv_records_are_refused_in_one_line(tmp_path, kind, message):
+    p = tmp_path / f"{kind}.csv"
+    rows = "0,1\n0.001,2\n0.002,3\n0.003,4\n"
+    if kind == "latin1":
+        p.write_bytes(b"time [s],acceleration [\xb5m/s^2]\n" + rows.encode())
+    elif kind == "text":
+        p.write_text("time [s],acceleration [m/s^2]\n" + rows.replace(",3", ",abc"))
+    elif kind == "ragged":
+        p.write_text("time [s],acceleration [m/s^2]\n" + rows + "0.004,5,6\n")
+    else:
+        p.write_text("time [s],acceleration [g]\n" + rows.replace(",2", ",1e300"))
+    with pytest.raises(RecordError) as e:
+        read_record(p)
+    assert str(e.value) == message.format(p=p)
+
+
+def _wav(path, x, **sidecar):
+    wavfile.write(path, int(FS), (x / 50).astype(np.float32))
+    if sidecar:
+        path.with_suffix(".json").write_text(json.dumps(sidecar))
+    return path
+
+
+@pytest.mark.parametrize("cut", [4, 30, 44, 100, -1])
+def test_a_truncated_wav_file_is_refused(tmp_path, record, cut):
+    """Cut inside the header scipy raised struct.error (30 bytes) or said nothing useful;
+    cut inside the samples it read the samples that were there."""
+    full = _wav(tmp_path / "full.wav", record[1]).read_bytes()
+    p = tmp_path / "cut.wav"
+    p.write_bytes(full[:cut])
+    with pytest.raises(RecordError) as e:
+        read_record(p, scale=50.0)
+    msg = str(e.value)
+    if cut == 4:
+        assert msg == (f"{p}: not a readable WAV file (it ends after 4 bytes, inside its 12-byte "
+                       f"RIFF header: truncated?)")
+    else:
+        assert msg == (f"{p}: the WAV file is truncated: its header declares {len(full)} bytes, "
+                       f"the file has {len(full[:cut])}")
+
+
+@pytest.mark.parametrize("meta, message", [
+    ({"scale": "ten", "units": "m/s^2"},
+     "sidecar key 'scale' must be a number > 0 (m/s^2 per full-scale unit), got 'ten'"),
+    ({"scale": -50, "units": "g"},
+     "sidecar key 'scale' must be a number > 0 (g per full-scale unit), got -50"),
+    ({"scale": None, "units": "g"},
+     "sidecar key 'scale' must be a number > 0 (g per full-scale unit), got None"),
+    ({"scale": True}, "sidecar key 'scale' must be a number > 0 (the sidecar's 'units' per "
+                      "full-scale unit), got True"),
+    ({"scale": 50, "units": 9.81}, "sidecar key 'units' must be a string (g, m/s^2, ...), "
+                                   "got 9.81"),
+    ({"scale": 50, "units": "furlong/s^2"}, "sidecar key 'units': unknown acceleration units "
+                                            "'furlong/s^2'; accepted: g, mg, m/s^2"),
+    ({"scale": 50, "units": "m/s^2", "start_time_s": "noon"},
+     "sidecar key 'start_time_s' must be a finite number [s] (the time of the first sample), "
+     "got 'noon'"),
+])
+def test_bad_sidecar_keys_are_named_with_the_sidecar(tmp_path, record, meta, message):
+    """{"scale": "ten"} gave 'could not convert string to float' (no file, no key)."""
+    p = _wav(tmp_path / "rec.wav", record[1], **meta)
+    with pytest.raises(RecordError) as e:
+        read_record(p)
+    msg = str(e.value)
+    assert msg.startswith(f"{p.with_suffix('.json')}: {message}"), msg
+    assert "\n" not in msg
+
+
+def test_a_broken_sidecar_is_refused_only_where_it_is_needed(tmp_path, record):
+    p = _wav(tmp_path / "rec.wav", record[1])
+    p.with_suffix(".json").write_text('{"scale": 50, "units": ')
+    with pytest.raises(RecordError) as e:
+        read_record(p)
+    assert str(e.value).startswith(f"{p.with_suffix('.json')}: the sidecar of rec.wav must be a "
+                                   f"readable JSON file (UTF-8) with 'scale' and 'units', got ")
+    # with --scale the sidecar is not read for its scale: the record is read
+    np.testing.assert_allclose(read_record(p, scale=50.0).signal, record[1], rtol=2.0**-23)
+
+
+def _uff58(path, x):
+    import pyuff
+
+    t = np.arange(x.size) / FS
+    sets = [pyuff.prepare_58(func_type=1, rsp_node=7, rsp_dir=3, ref_node=0, ref_dir=0,
+                             id1="plate accel", abscissa_spacing=1, abscissa_spec_data_type=17,
+                             ordinate_spec_data_type=12, orddenom_spec_data_type=0,
+                             z_axis_spec_data_type=0, ordinate_axis_units_lab="g",
+                             data=x / G_N, x=t)]
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    return path.read_text().splitlines(keepends=True)
+
+
+def test_a_truncated_or_unreadable_uff58_record_is_refused(tmp_path, record):
+    lines = _uff58(tmp_path / "full.uff", record[1][:400])
+    p = tmp_path / "cut.uff"
+    p.write_text("".join(lines[:60]))  # pyuff dropped the unfinished dataset: "no dataset 58"
+    with pytest.raises(RecordError) as e:
+        read_record(p)
+    assert str(e.value) == (f"{p}: the universal file is truncated: dataset 58 opened on line 1 "
+                            f"never ends (every dataset must end with a line '    -1'), got the "
+                            f"end of the file on line 60")
+    row = 20  # a data line (four E20.12 values)
+    assert len(lines[row].split()) == 4
+    for field, rule in (("   ****************", "every value must be a number, got "
+                                                 "'****************'"),
+                        ("  nan", "every value must be a finite number, got 'nan'")):
+        bad = list(lines)
+        bad[row] = lines[row][:-21] + field + "\n"
+        p.write_text("".join(bad))
+        with pytest.raises(RecordError) as e:
+            read_record(p)
+        msg = str(e.value)  # pyuff said "Error when reading data-set(s)." or read 399 samples
+        assert msg.startswith(f"{p}: dataset 58 (lines 1-{len(lines)}")
+        assert msg.endswith(f"line {row + 1}: {rule}"), msg
+
+
+def test_a_truncated_tdms_record_and_bad_properties_are_refused(tmp_path, record):
+    nptdms = pytest.importorskip("nptdms")
+    x = record[1][:1000]
+
+    def write(name, **props):
+        ch = nptdms.ChannelObject("accel", "plate", x, properties={
+            "wf_increment": 1.0 / FS, "unit_string": "m/s^2", **props})
+        with nptdms.TdmsWriter(tmp_path / name) as w:
+            w.write_segment([ch])
+        return tmp_path / name
+
+    full = write("full.tdms").read_bytes()
+    p = tmp_path / "cut.tdms"
+    p.write_bytes(full[:-100])  # npTDMS read 987 samples and only logged a warning
+    with pytest.raises(RecordError) as e:
+        read_record(p)
+    assert str(e.value) == (f"{p}: the TDMS file is truncated or damaged: the segment at byte 0 "
+                            f"declares {len(full)} bytes, the file ends {len(full) - 100} bytes "
+                            f"after its start")
+    for key, value, rule in (("wf_increment", "fast", "a number > 0 [s] (the sample interval)"),
+                             ("wf_start_offset", "noon", "a finite number [s]")):
+        p = write(f"{key}.tdms", **{key: value})
+        with pytest.raises(RecordError) as e:  # was ValueError: could not convert ...
+            read_record(p)
+        assert str(e.value) == (f"{p}: channel 'accel/plate': property {key} must be {rule}, "
+                                f"got {value!r}")
+
+
+def test_a_directory_is_not_a_record(tmp_path):
+    (tmp_path / "d.csv").mkdir()
+    with pytest.raises(RecordError, match=r"d\.csv: is a directory, not a record file$"):
+        read_record(tmp_path / "d.csv")
+
+
 # --------------------------------------------------------------------------------------------
 # export
 # --------------------------------------------------------------------------------------------

@@ -16,6 +16,9 @@ def _groups(paths: list[str]) -> list[tuple[str, list[str]]]:
     groups: list[tuple[str, list[str]]] = []
     for p in paths:
         if Path(p).is_dir():
+            if groups and not (Path(p) / "summary.json").is_file():  # meant as a record
+                raise InputError(f"{p}: is a directory, not a measured record file (nor a run "
+                                 f"directory: it holds no summary.json)")
             groups.append((p, []))
         elif not groups:
             raise InputError(f"{p}: the first argument must be a run directory (roughvib run)")

@@ -24,7 +24,8 @@ import numpy as np
 from roughvib.physics.structures.base import check_frequencies
 from roughvib.scene import SANE_BOUNDS, SceneError
 
-__all__ = ["MAX_SHAPE", "ModeSet", "SUFFIXES", "read_modes", "write_modes"]
+__all__ = ["MAX_SHAPE", "ModeSet", "SUFFIXES", "read_modes", "universal_file_bad_value",
+           "universal_file_datasets", "write_modes"]
 
 #: the file suffixes the exchange format knows (lower case)
 SUFFIXES = (".npz", ".unv", ".uff")
@@ -216,35 +217,77 @@ def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
 
 #: the line that opens and closes a dataset of a universal file
 _UFF_DELIMITER = b"    -1"
+#: text records at the head of a dataset (after its type line), skipped when looking for a
+#: value that is not a number: dataset 55's five ID lines, dataset 58's records 1 to 11
+_UFF_TEXT_RECORDS = {"55": 5, "58": 11}
 
 
-def _uff_blocks(raw: bytes, where: str) -> list[tuple[int, int, str]]:
-    """The datasets of a universal file as (first line, last line, type), the delimiter lines
-    included (1-based); a dataset without its closing delimiter (a truncated file) is refused.
+def universal_file_datasets(raw: bytes) -> tuple[list[tuple[int, int, str]],
+                                                 tuple[int, str, int] | None]:
+    """The datasets of a universal file, found by their delimiter lines as pyuff finds them.
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's content.
+
+    Returns
+    -------
+    datasets : list of (int, int, str)
+        Each complete dataset as (first line, last line, type), its two delimiter lines
+        included; lines count from 1.
+    unterminated : (int, str, int) or None
+        A last dataset without its closing delimiter (a truncated file; pyuff drops it
+        without a word) as (its opening line, its type or "", the file's last line).
     """
-    lines = raw.split(b"\n")
-    delims = [i + 1 for i, ln in enumerate(lines) if ln.rstrip(b" \r") == _UFF_DELIMITER]
+    # pyuff's rule: the tag anywhere, then a line end, the file's end or blanks to column 80
+    # (a binary dataset's closing tag follows its data on the same line)
+    delims: list[tuple[int, int]] = []  # (line, byte offset)
+    line, counted = 1, 0
+    at = raw.find(_UFF_DELIMITER)
+    while at >= 0:
+        after = raw[at + 6:at + 80]
+        if after[:1] in (b"", b"\n", b"\r") or after == b" " * 74:
+            line += raw.count(b"\n", counted, at)
+            counted = at
+            delims.append((line, at))
+        at = raw.find(_UFF_DELIMITER, at + 1)
 
-    def kind(start: int) -> str:
-        head = lines[start].decode("ascii", "replace").strip() if start < len(lines) else ""
-        return head.split()[0] if head else ""
+    def kind(offset: int) -> str:
+        """The type of the dataset opened by the tag at ``offset`` (first word of the next
+        line)."""
+        nl = raw.find(b"\n", offset)
+        head = raw[nl + 1:nl + 81].split(b"\n", 1)[0] if nl >= 0 else b""
+        words = head.decode("ascii", "replace").split()
+        return words[0] if words else ""
 
-    if len(delims) % 2:
-        start = delims[-1]
-        end = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
-        raise SceneError(f"{where} is truncated: dataset {kind(start) + ' ' if kind(start) else ''}"
-                         f"opened on line {start} "
-                         f"never ends (every dataset must end with a line '    -1'), got the "
-                         f"end of the file on line {end}")
-    return [(a, b, kind(a)) for a, b in zip(delims[::2], delims[1::2], strict=True)]
+    blocks = [(a[0], b[0], kind(a[1])) for a, b in zip(delims[::2], delims[1::2],
+                                                         strict=False)]
+    if len(delims) % 2 == 0:
+        return blocks, None
+    end = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
+    return blocks, (delims[-1][0], kind(delims[-1][1]), end)
 
 
-def _uff_bad_value(raw: bytes, block: tuple[int, int, str]) -> str:
-    """Where a dataset that pyuff cannot read holds a value that is not a finite number: its
-    line and the value, or an empty string."""
-    first, last, typ = block
+def universal_file_bad_value(raw: bytes, dataset: tuple[int, int, str]) -> str:
+    """Where an ASCII dataset of a universal file holds a value that is not a finite number.
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's content.
+    dataset : (int, int, str)
+        One of :func:`universal_file_datasets`.
+
+    Returns
+    -------
+    str
+        ``"line L: every value must be a (finite) number, got 'x'"``, or ``""`` where every
+        value after the dataset's text records is a finite number.
+    """
+    first, last, typ = dataset
     lines = raw.split(b"\n")[first:last - 1]  # between the delimiters, the type line first
-    skip = 6 if typ == "55" else 1  # the type line, and dataset 55's five text records
+    skip = 1 + _UFF_TEXT_RECORDS.get(typ, 0)
     for k, line in enumerate(lines[skip:], start=first + 1 + skip):
         for tok in line.decode("ascii", "replace").split():
             try:
@@ -254,6 +297,17 @@ def _uff_bad_value(raw: bytes, block: tuple[int, int, str]) -> str:
             if not np.isfinite(val):
                 return f"line {k}: every value must be a finite number, got {tok!r}"
     return ""
+
+
+def _uff_blocks(raw: bytes, where: str) -> list[tuple[int, int, str]]:
+    """:func:`universal_file_datasets`, a truncated file refused in one line."""
+    blocks, unterminated = universal_file_datasets(raw)
+    if unterminated is not None:
+        start, typ, end = unterminated
+        raise SceneError(f"{where} is truncated: dataset {typ + ' ' if typ else ''}opened on "
+                         f"line {start} never ends (every dataset must end with a line "
+                         f"'    -1'), got the end of the file on line {end}")
+    return blocks
 
 
 def _uff_sets(path: Path, where: str) -> list[dict]:
@@ -279,7 +333,7 @@ def _uff_sets(path: Path, where: str) -> list[dict]:
                 raise SceneError(f"{where}: dataset {t} (the file's dataset {i + 1}) cannot be "
                                  f"read: {exc}") from None
             a, b, _ = blocks[i]
-            bad = _uff_bad_value(raw, blocks[i])
+            bad = universal_file_bad_value(raw, blocks[i])
             raise SceneError(f"{where}: dataset {t} (lines {a}-{b}), "
                              + (bad if bad else f"cannot be read (its records do not follow "
                                                 f"the universal file format: {exc})")) from None
