@@ -54,9 +54,10 @@ def test_a_micrometre_profile_declared_as_metres_is_refused(tmp_path, nothing_ex
     with pytest.raises(SceneError) as info:
         assemble(scene)
     msg = str(info.value)
-    assert msg.startswith(f"roughness.path '{path}' (units = 'm') gives an input profile with "
-                          f"rms slope ")
-    assert "the model needs at most 1 " in msg and "um or nm?" in msg and "\n" not in msg
+    assert msg.startswith(f"roughness.path {path} (units = 'm'): the rms height about the mean "
+                          f"line must be at most 0.01 m for a roughness profile, got 0.35")
+    assert msg.endswith("are the file's x and heights in um (roughness.units = 'um')?")
+    assert "\n" not in msg
     assert main(["run", "--set", "roughness.kind='file'", "--set",
                  f"roughness.path='{path}'", *TINY]) == 2
     assert capsys.readouterr().err.count("\n") == 1

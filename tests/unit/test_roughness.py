@@ -391,6 +391,49 @@ def test_a_byte_order_mark_is_dropped_and_never_costs_the_first_sample(tmp_path)
     assert a.sha256 != b.sha256 and len(b.sha256) == 64
 
 
+@pytest.mark.parametrize("written, declared, layout, message", [
+    # x and heights in um read as m ran to 'success': the 10 m steps left nothing after the
+    # high-pass over the block length, and the rms slope was that of the real profile
+    ("um", "m", "x-z", "the sampling step must be in [1e-09, 0.001] m for a roughness profile, "
+                       "got 10 m; are the file's x and heights in um (roughness.units = 'um')?"),
+    ("nm", "um", "x-z", "the sampling step must be in [1e-09, 0.001] m for a roughness "
+                        "profile, got 0.01 m; are the file's x and heights in nm "
+                        "(roughness.units = 'nm')?"),
+    ("um", "m", "heights", "the rms height about the mean line must be at most 0.01 m for a "
+                           "roughness profile, got {rms:.6g} m; are the file's x and heights "
+                           "in um (roughness.units = 'um')?"),
+    ("um", "m", "traces", "the rms height about the mean line must be at most 0.01 m for a "
+                          "roughness profile, got {rms:.6g} m; are the file's x and heights "
+                          "in um (roughness.units = 'um')?"),
+])
+def test_a_file_in_other_units_than_declared_is_refused(tmp_path, heights, written, declared,
+                                                        layout, message):
+    sc = SCALE[written]
+    z = heights / heights.std() * 0.35e-6 / sc
+    x = np.arange(z.size) * 10e-6 / sc
+    cols = {"x-z": [x, z], "heights": [z], "traces": [z, np.roll(z, 99), z[::-1]]}[layout]
+    path = tmp_path / "prof.txt"
+    np.savetxt(path, np.column_stack(cols))
+    with pytest.raises(SceneError) as exc:
+        read_profile_file(path, declared, 10e-6)
+    s = np.arange(z.size)
+    rms = max(np.std(c - np.polyval(np.polyfit(s, c, 1), s)) for c in cols[layout == "x-z":])
+    assert str(exc.value) == (f"roughness.path {path} (units = {declared!r}): "
+                              f"{message.format(rms=rms * SCALE[declared])}")
+    ok = read_profile_file(path, written, 10e-6)  # declared right, the same file is read
+    assert float(np.std(ok.z.reshape(z.size, -1)[:, 0])) == pytest.approx(0.35e-6, rel=1e-9)
+
+
+def test_an_offset_or_tilt_of_the_heights_is_not_an_absurd_height(tmp_path, heights):
+    """Instruments write heights from their own datum, and a sample lies tilted: the rms is
+    taken about each trace's least-squares line."""
+    x = np.arange(heights.size) * 10e-6
+    z = heights + 0.2 + 0.05 * x  # 0.2 m above the datum, tilted by 50 mm/m
+    path = tmp_path / "prof.txt"
+    np.savetxt(path, np.column_stack([x, z]))
+    np.testing.assert_allclose(read_profile_file(path, "m").z, z)
+
+
 def test_missing_file(tmp_path):
     r = Roughness(kind="file", path="nope.txt")
     with pytest.raises(SceneError, match=r"roughness.path .*nope.txt cannot be read"):

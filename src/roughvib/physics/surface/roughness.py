@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.scene import Block, Roughness, SceneError, user_stacklevel
+from roughvib.scene import SANE_BOUNDS, Block, Roughness, SceneError, user_stacklevel
 
 __all__ = [
     "MeasuredProfile",
@@ -655,6 +655,43 @@ def _float(tok: str) -> float | None:
         return None
 
 
+#: the sampling step a measured roughness profile may have [m]: at least the lowest
+#: roughness.spacing, at most 1 mm, 200 times the coarsest step of a standard roughness
+#: measurement (ISO 3274: 5 um for the longest cut-off, 8 mm); coarser, the profile resolves
+#: only wavelengths above 2 mm (waviness). A trace in um read as m has steps of metres.
+FILE_SPACING = (SANE_BOUNDS["roughness.spacing"][0], 1e-3)
+#: the largest rms height of a measured profile about its mean line [m], the sane range of
+#: roughness.rms (form deviation of a curved sample included, which the filter removes)
+FILE_RMS = SANE_BOUNDS["roughness.rms"][1]
+
+
+def _check_scale(z: np.ndarray, dx: float | None, where: str, units: str | None) -> None:
+    """Refuse a measured profile whose sampling step (``dx``, where the file gives it) or rms
+    height about its least-squares line is absurd for a rough surface, naming the units that
+    would make it plausible (the likely mistake)."""
+    zz = z.reshape(z.shape[0], -1)
+    s = np.linspace(-1.0, 1.0, zz.shape[0]) if zz.shape[0] > 1 else np.zeros(1)
+    # each trace about its least-squares line (s has zero mean: the line is mean + b s)
+    resid = zz - zz.mean(axis=0) - np.outer(s, (s @ zz) / max(float(s @ s), 1.0))
+    rms = float(np.sqrt(np.mean(resid**2, axis=0)).max())
+    lo, hi = FILE_SPACING
+
+    def fits(f: float) -> bool:
+        return (dx is None or lo <= dx * f <= hi) and rms * f <= FILE_RMS
+
+    if fits(1.0):
+        return
+    hint = "check the file's own units" if units is None else next(
+        (f"are the file's x and heights in {u} (roughness.units = {u!r})?"
+         for u, f in _UNITS.items()
+         if u != units and fits(f / _UNITS[units])), "check roughness.units")
+    if dx is not None and not lo <= dx <= hi:
+        raise SceneError(f"{where}: the sampling step must be in [{lo:g}, {hi:g}] m for a "
+                         f"roughness profile, got {dx:.6g} m; {hint}")
+    raise SceneError(f"{where}: the rms height about the mean line must be at most "
+                     f"{FILE_RMS:g} m for a roughness profile, got {rms:.6g} m; {hint}")
+
+
 def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6, *,
                       base_dir: str | Path = ".", min_length: float | None = None,
                       min_length_reason: str = "") -> MeasuredProfile:
@@ -793,6 +830,7 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
                              f"{_X_STEP_RTOL:.0%} of the mean spacing {dx / scale:.6g} "
                              f"{units}; resample non-uniform data), got a step of "
                              f"{steps[j] / scale:.6g} {units}")
+    _check_scale(z, dx if x is not None else None, f"{where} (units = {units!r})", units)
     n = z.shape[0]
     if min_length is not None and (n - 1) * dx < min_length:
         why = f" ({min_length_reason})" if min_length_reason else ""
@@ -852,6 +890,7 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
         z, y = z[:, keep], y_all[keep]
         if z.shape[1] == 1:
             z, y = z[:, 0], None
+    _check_scale(z, float(tm.dx), f"roughness.path {p}", None)
     n = z.shape[0]
     if min_length is not None and (n - 1) * tm.dx < min_length:
         why = f" ({min_length_reason})" if min_length_reason else ""
