@@ -496,22 +496,25 @@ def _uff58_sets(path: Path) -> list[dict]:
         types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # pyuff raises plain Exceptions on damaged files
         raise RecordError(f"{path}: not a readable universal file ({exc})") from None
-    lines = blocks if len(blocks) == len(types) else [None] * len(types)
+    spans = blocks if len(blocks) == len(types) else [None] * len(types)
     sets = []
-    for i, t in enumerate(types):
+    for i, (t, span) in enumerate(zip(types, spans, strict=True)):
         if t != 58:
             continue
-        where = (f"dataset 58 (lines {lines[i][0]}-{lines[i][1]})" if lines[i] else
-                 f"dataset 58 (the file's dataset {i + 1})")
+        if span is None:
+            where = f"dataset 58 (the file's dataset {i + 1})"
+        else:
+            first, last, _ = span
+            where = f"dataset 58 (lines {first}-{last})"
         try:
             d = uff.read_sets(i)
         except Exception as exc:  # pyuff says only "Error when reading data-set(s)."
-            bad = universal_file_bad_value(raw, lines[i]) if lines[i] else ""
+            bad = universal_file_bad_value(raw, span) if span else ""
             raise RecordError(f"{path}: {where}, " + (bad or f"cannot be read ({exc})")
                               ) from None
         n = int(d.get("num_pts", 0) or 0)
         if n and np.asarray(d.get("data", [])).size != n:
-            bad = universal_file_bad_value(raw, lines[i]) if lines[i] else ""
+            bad = universal_file_bad_value(raw, span) if span else ""
             raise RecordError(f"{path}: {where} declares {n} samples, pyuff read "
                               f"{np.asarray(d['data']).size}" + (f"; {bad}" if bad else ""))
         sets.append(d)

@@ -295,12 +295,13 @@ def pchip_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 #: what a friction table may hold (its values are read as the keys they stand for are): a
 #: coefficient in the sane range of friction.mu_slip / mu_stick, a sliding speed in that of
 #: friction.stribeck_velocity
-_TABLE_MU_MAX = SANE_BOUNDS["friction.mu_stick"][1]
-_TABLE_V_MAX = SANE_BOUNDS["friction.stribeck_velocity"][1]
+_, _TABLE_MU_MAX, _ = SANE_BOUNDS["friction.mu_stick"]
+_, _TABLE_V_MAX, _ = SANE_BOUNDS["friction.stribeck_velocity"]
 #: the steepest slope |d mu / d v| of a friction table [s/m]: that of the steepest Feldmann
 #: curve within the keys' sane ranges (a coefficient step of 10 decaying at a2 = 1e8 s/m); a
 #: step of 0.05 within 1e-300 m/s made the solver divide by zero
-_TABLE_SLOPE_MAX = _TABLE_MU_MAX * SANE_BOUNDS["friction.a2"][1]
+_, _A2_MAX, _ = SANE_BOUNDS["friction.a2"]
+_TABLE_SLOPE_MAX = _TABLE_MU_MAX * _A2_MAX
 
 
 def _table_text(path: Path, where: str) -> str:

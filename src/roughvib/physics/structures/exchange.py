@@ -261,12 +261,13 @@ def universal_file_datasets(raw: bytes) -> tuple[list[tuple[int, int, str]],
         words = head.decode("ascii", "replace").split()
         return words[0] if words else ""
 
-    blocks = [(a[0], b[0], kind(a[1])) for a, b in zip(delims[::2], delims[1::2],
-                                                         strict=False)]
+    blocks = [(first, last, kind(opened)) for (first, opened), (last, _)
+              in zip(delims[::2], delims[1::2], strict=False)]
     if len(delims) % 2 == 0:
         return blocks, None
+    line, opened = delims[-1]
     end = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
-    return blocks, (delims[-1][0], kind(delims[-1][1]), end)
+    return blocks, (line, kind(opened), end)
 
 
 def universal_file_bad_value(raw: bytes, dataset: tuple[int, int, str]) -> str:

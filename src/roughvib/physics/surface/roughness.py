@@ -662,7 +662,7 @@ def _float(tok: str) -> float | None:
 FILE_SPACING = (SANE_BOUNDS["roughness.spacing"][0], 1e-3)
 #: the largest rms height of a measured profile about its mean line [m], the sane range of
 #: roughness.rms (form deviation of a curved sample included, which the filter removes)
-FILE_RMS = SANE_BOUNDS["roughness.rms"][1]
+_, FILE_RMS, _ = SANE_BOUNDS["roughness.rms"]
 
 
 def _check_scale(z: np.ndarray, dx: float | None, where: str, units: str | None) -> None:
