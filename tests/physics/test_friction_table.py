@@ -179,6 +179,7 @@ def test_table_law_calibrates_t0_to_the_target(tmp_path, monkeypatch):
                                      "'mu' in the header row"),
     ("velocity\tmu\n0\t0.3\n1\t0.3\n", "got '\\t' between 'velocity' and 'mu'"),
     ("mu velocity\n0.3 0\n0.3 1\n", "got ' ' between 'velocity' and 'mu'"),
+    ("velocity [m/s] | mu [-]\n0|0.3\n1|0.3\n", "got '|' between 'velocity' and 'mu'"),
     ("velocity,mu\n0,0.3\n0.1,nan\n", "row 2 (line 3): mu must be a finite number"),
     ("velocity,mu\n0,0.5\n0.1,0.3\n", "row 1 (line 2): mu at velocity 0 must be <= "
                                       "friction.mu_stick (0.4), got 0.5"),

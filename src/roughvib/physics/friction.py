@@ -330,8 +330,9 @@ def _table_header(rows: list[list[str]], text: str, where: str) -> tuple[int, in
     m = re.search(r"velocity(.+?)mu\b|\bmu(.+?)velocity", first, re.IGNORECASE)
     if m is not None:
         between = m.group(1) if m.group(1) is not None else m.group(2)
-        sep = between.strip() or between  # a tab or blanks are the separator themselves
-        if sep != ",":
+        bare = re.sub(r"[\[(][^\])]*[\])]", "", between)  # without units in brackets
+        sep = next((c for c in ";\t|" if c in bare), bare.strip() or bare[:1])
+        if "," not in between:
             raise SceneError(f"{where} must separate its columns with commas (a CSV file, "
                              f"decimals with a point), got {sep!r} between 'velocity' and 'mu' "
                              f"in the header row")
