@@ -26,11 +26,22 @@ The rules (docs/robustness.md, "What a run may touch"):
   were never written (:func:`sync_tree`).
 * One run at a time per directory: an exclusive ``flock`` on ``.<name>.lock`` next to the
   output directory, released when the process ends however it ends.
+
+The files the other commands write (``report``, ``plot``, ``export``, ``modes export``,
+``surface``, ``compare``) follow the same rules, through :func:`output_folder`,
+:func:`claim_files` and :func:`write_file`: a folder that cannot be made is one line
+(:class:`OutputError`); a file the user named that exists is not replaced without
+``--overwrite``; a file appears complete or not at all (written under a temporary name next to
+it and renamed); a write that fails (a full disk, a read-only file system) is one line naming
+the path and, for a full disk, the space needed and free (:class:`WriteError`), and leaves no
+temporary file behind.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
+import io
 import json
 import os
 import re
@@ -44,8 +55,10 @@ from roughvib.scene import SceneError
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 __all__ = ["OWNED_NAMES", "RUN_FILES", "DirectoryLock", "OutputError", "OutputWarning",
-           "RunDirectory",
-           "holds_run", "remove_stale", "swap_into_place", "sync_tree"]
+           "RunDirectory", "WriteError",
+           "check_room", "claim_files", "free_space", "holds_run", "output_folder",
+           "remove_stale", "swap_into_place", "sync_tree", "write_failed", "write_file",
+           "writing"]
 
 #: the files of a saved run (``summary.json`` lists which of them the run wrote)
 #: the optional tables of a run with ``output.radiation`` (and ``output.microphones``)
@@ -68,6 +81,292 @@ class OutputError(SceneError):
 
 class OutputWarning(UserWarning):
     """Something about the output directory the user should know; one line."""
+
+
+class WriteError(OSError):
+    """A file could not be written: a full disk, a read-only file system, an I/O error.
+
+    The message is one line naming the path and why, for a full disk also the space needed and
+    free (exit status 1, as for a run that fails). A subclass of :class:`OSError`, so that code
+    catching the error of the write itself still does; ``errno`` is the failed write's.
+    """
+
+    def __init__(self, message: str, errno_: int | None = None):
+        super().__init__(message)
+        self.errno = errno_
+
+
+#: errno values that mean "no room": a full file system or a full quota
+_NO_ROOM = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
+def format_bytes(n: float) -> str:
+    """A size in bytes as a short text with a decimal unit (``4.23 MB``)."""
+    for unit, size in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{int(n)} bytes"
+
+
+def free_space(path: str | os.PathLike) -> int | None:
+    """Bytes this process may still write on the file system of ``path``.
+
+    Parameters
+    ----------
+    path : path
+        A file or directory; where it does not exist yet, its nearest existing parent.
+
+    Returns
+    -------
+    int or None
+        ``shutil.disk_usage(...).free`` [bytes]; None where the file system does not say.
+    """
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    try:
+        return shutil.disk_usage(p).free
+    except OSError:
+        return None
+
+
+def check_room(path: str | os.PathLike, need: int, what: str, *,
+               shown: str | None = None) -> None:
+    """Refuse, before anything is written, a write that cannot fit on its file system.
+
+    Parameters
+    ----------
+    path : path
+        Where the files go (a directory, or a file's folder).
+    need : int
+        Bytes the files will take at least.
+    what : str
+        What needs them, for the message (``"the run's files"``).
+    shown : str, optional
+        The path as the user knows it, for the message (default ``path``).
+
+    Raises
+    ------
+    WriteError
+        ``need`` exceeds the free space: one line naming ``path``, the space needed and free.
+    """
+    free = free_space(path)
+    if free is not None and need > free:
+        raise WriteError(f"{shown or path}: no room for {what} ({format_bytes(need)} "
+                         f"needed, {format_bytes(free)} free); free some space or write "
+                         f"elsewhere", errno.ENOSPC)
+
+
+def write_failed(path: str | os.PathLike, exc: OSError, need: int | None = None,
+                 what: str | None = None, *, approx: bool = False) -> WriteError:
+    """The one-line :class:`WriteError` for a failed write of ``path``.
+
+    Parameters
+    ----------
+    path : path
+        The file or directory as the user knows it (named in the message).
+    exc : OSError
+        The error of the write; its reason (``strerror``) is named, not its traceback.
+    need : int, optional
+        Bytes the write needed: named with the free space when the file system is full.
+    what : str, optional
+        What was written, if not the path itself (``"the run's files"``).
+    approx : bool
+        ``need`` is an estimate ("about ... needed").
+
+    Returns
+    -------
+    WriteError
+    """
+    if isinstance(exc, WriteError):
+        return exc
+    why = exc.strerror or " ".join(str(exc).split())[:160] or type(exc).__name__
+    text = f"cannot write {what + ' into ' if what else ''}{path}: {why}"
+    if exc.errno in _NO_ROOM:
+        free = free_space(path)
+        room = [f"{'about ' if approx else ''}{format_bytes(need)} needed"
+                if need is not None else "",
+                f"{format_bytes(free)} free" if free is not None else ""]
+        room = [r for r in room if r]
+        text += f" ({', '.join(room)})" if room else ""
+        text += "; free some space or write elsewhere"
+    return WriteError(text, exc.errno)
+
+
+def output_folder(path: str | os.PathLike, option: str = "") -> Path:
+    """Make the folder a command writes its files into, or refuse it in one line.
+
+    Parameters
+    ----------
+    path : path
+        The folder (created with its parents if missing).
+    option : str
+        The option that named it, for the message (``"--out"``; empty for a default folder).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        ``path`` is a file, cannot be created (a parent is a file, a read-only file system, no
+        permission) or is not writable: one line naming it and why (exit status 2, as for
+        ``roughvib run --out``).
+    """
+    p = Path(path)
+    name = f"{option} {path}" if option else str(path)
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"{name} exists and is not a directory; give a directory for the "
+                          f"files")
+    if not p.is_dir():
+        a = p.parent
+        while not os.path.lexists(a) and a != a.parent:
+            a = a.parent
+        if os.path.lexists(a) and not a.is_dir():
+            raise OutputError(f"{name} cannot be created: {a} is not a directory")
+        try:
+            p.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"{name} cannot be created: {exc.strerror or exc} "
+                              f"({exc.filename or p})") from None
+    if not _writable(p):
+        why = ("a read-only file system" if _read_only(p) else "no permission")
+        raise OutputError(f"{name} is not writable ({why})")
+    return p
+
+
+def _read_only(path: Path) -> bool:
+    try:
+        return bool(os.statvfs(path).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):  # pragma: no cover - not POSIX
+        return False
+
+
+def claim_files(paths, *, overwrite: bool, option: str = "--overwrite") -> None:
+    """Refuse to replace files that exist, unless the user allowed it.
+
+    A command writes only new files, or files the user allowed it to replace: a file the user
+    named (``report --out notes.html``), or a file of the names a command writes into a folder
+    the user named (``export --out DIR``), that already exists is refused without
+    ``overwrite``. A path that is a directory is refused always.
+
+    Parameters
+    ----------
+    paths : iterable of path
+        The files about to be written.
+    overwrite : bool
+        Replace files that exist.
+    option : str
+        The option that allows it, for the message.
+
+    Raises
+    ------
+    OutputError
+        One line naming the first such path (and how many more).
+    """
+    paths = [Path(p) for p in paths]
+    for p in paths:
+        if p.is_dir():
+            raise OutputError(f"{p} is a directory; give the name of a file to write")
+    there = [p for p in paths if os.path.lexists(p)]
+    if there and not overwrite:
+        more = f" (and {len(there) - 1} more of the files to write)" if len(there) > 1 else ""
+        raise OutputError(f"{there[0]} exists{more}: choose another path, or give {option} "
+                          f"to replace it")
+
+
+def _tmp_name(path: Path) -> Path:
+    """A new name next to ``path`` for writing it: ``.<stem>.tmp-<id><suffix>``."""
+    return path.with_name(f".{path.stem}.tmp-{secrets.token_hex(4)}{path.suffix}")
+
+
+@contextlib.contextmanager
+def writing(path: str | os.PathLike, mode: str = "w", *, encoding: str = "utf-8",
+            newline: str | None = None):
+    """A file object whose contents appear at ``path`` complete or not at all.
+
+    The ``with`` block writes into memory; when it ends without an error, the bytes go to
+    ``path`` through :func:`write_file` (so their size is known for the message of a full
+    disk). For files of a few megabytes (reports, tables).
+
+    Parameters
+    ----------
+    path : path
+        The file.
+    mode : {"w", "wb"}
+        Text or bytes.
+    encoding : str
+        Of the text (mode ``"w"``).
+    newline : str, optional
+        As for :func:`open`: None writes ``"\\n"`` as ``os.linesep``, ``""`` as it is.
+
+    Yields
+    ------
+    io.StringIO or io.BytesIO
+
+    Raises
+    ------
+    WriteError
+        The file cannot be written: one line naming ``path``.
+    """
+    binary = "b" in mode
+    buf = io.BytesIO() if binary else io.StringIO(newline="")
+    yield buf
+    if binary:
+        data = buf.getvalue()
+    else:
+        text = buf.getvalue()
+        data = (text if newline is not None else text.replace("\n", os.linesep)).encode(encoding)
+    write_file(path, lambda tmp: tmp.write_bytes(data), need=len(data))
+
+
+def write_file(path: str | os.PathLike, write, *, need: int | None = None) -> Path:
+    """Write one file completely or not at all.
+
+    ``write(tmp)`` writes the file's contents to ``tmp``, a new name in the same folder
+    (``.<stem>.tmp-<id><suffix>``, the suffix kept for writers that go by it), which is then
+    renamed to ``path``, replacing a file of that name (check with :func:`claim_files` first).
+
+    Parameters
+    ----------
+    path : path
+        The file.
+    write : callable
+        ``write(tmp: Path) -> None``.
+    need : int, optional
+        Bytes the file needs, for the message of a full disk.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    WriteError
+        The write or the rename failed (an :class:`OSError`): one line naming ``path``; the
+        temporary file is removed.
+    """
+    path = Path(path)
+    tmp = _tmp_name(path)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        _unlink(tmp)  # first: the message names the space free without it
+        raise write_failed(path, exc, need) from None
+    finally:
+        _unlink(tmp)
+    return path
+
+
+def _unlink(path: Path) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
 
 
 def _now() -> str:
@@ -535,6 +834,24 @@ class RunDirectory:
             except OSError as exc:
                 raise OutputError(f"{self.given} cannot be written: {exc.strerror} ({stage})"
                                   ) from None
+
+    def require(self, need: int, what: str = "the run's files") -> None:
+        """Refuse a run whose files cannot fit: :func:`check_room` on the output directory's
+        file system, naming the directory as given.
+
+        Parameters
+        ----------
+        need : int
+            Bytes, at least (:func:`roughvib.results.expected_result_bytes`).
+        what : str
+            What needs them, for the message.
+
+        Raises
+        ------
+        WriteError
+            One line naming the directory, the space needed and the space free.
+        """
+        check_room(self.stage or self.path, need, what, shown=self.given)
 
     # ---- after the run ---------------------------------------------------------------
     def publish(self, keep: tuple[str, ...] = ()) -> list[str]:
