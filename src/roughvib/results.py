@@ -22,7 +22,9 @@ and refuses a directory that mixes files of different runs.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import json
 import math
 import os
@@ -34,7 +36,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
-from roughvib.rundir import MICROPHONES_FILE, RADIATION_FILE, RUN_FILES, RunDirectory
+from roughvib.rundir import (
+    MICROPHONES_FILE,
+    RADIATION_FILE,
+    RUN_FILES,
+    RunDirectory,
+    check_room,
+    write_failed,
+)
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME
 
 if TYPE_CHECKING:
@@ -47,8 +56,8 @@ if TYPE_CHECKING:
 
 __all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError",
            "RADIATION_FILE", "REGIME_NOTATION", "Result", "RunData", "RunDirectoryError",
-           "SUMMARY_DIGEST", "VARIABLES", "check_run_files", "load_result", "read_summary",
-           "seal_summary"]
+           "SUMMARY_DIGEST", "VARIABLES", "check_run_files", "expected_result_bytes",
+           "load_result", "read_summary", "seal_summary"]
 
 #: name -> (units, long name)
 VARIABLES: dict[str, tuple[str, str]] = {
@@ -203,11 +212,38 @@ class RunData:
         (coordinates on no variable's dimensions in the global one). ``to_dataset()
         .assign_attrs(attrs).to_netcdf(path, engine="h5netcdf")`` writes the same file
         (tested).
+
+        The file is built in memory (:meth:`netcdf_image`) and written with plain file I/O, so
+        that a failed write (a full disk) is an :class:`OSError` of that write and nothing
+        else: HDF5 itself never meets it. An HDF5 file whose close fails on a full disk stays
+        half-open, and freeing it later crashed the interpreter (SIGSEGV).
+
+        Raises
+        ------
+        OSError
+            The file cannot be written; a partial file may be left at ``path``.
+        """
+        with self.netcdf_image(attrs).getbuffer() as view, open(path, "wb") as fh:
+            fh.write(view)
+
+    def netcdf_image(self, attrs: dict) -> io.BytesIO:
+        """The netCDF-4 file of :meth:`write_netcdf`, in memory.
+
+        Parameters
+        ----------
+        attrs : dict
+            Global attributes.
+
+        Returns
+        -------
+        io.BytesIO
+            The file's bytes (``getbuffer()``), about the size of the arrays plus 30 kB.
         """
         import h5netcdf
 
         per_var, global_coords = self._coordinates_attrs()
-        with h5netcdf.File(str(path), "w") as f:
+        buf = io.BytesIO()
+        with h5netcdf.File(buf, "w") as f:
             for k, v in attrs.items():
                 f.attrs[k] = v
             if global_coords is not None:
@@ -225,6 +261,7 @@ class RunData:
                     va[k] = v
                 if name in per_var:
                     va["coordinates"] = per_var[name]
+        return buf
 
 
 class _LazyField:
@@ -402,8 +439,10 @@ class Result:
         if own:
             rd.open()
         try:
-            self.write_files(rd.stage)
+            self._write_files(rd.stage, rd.given)
             rd.publish(keep=() if self.ok else (CHECKPOINT_NAME,))
+        except OSError as exc:  # a full disk, a read-only file system: one line
+            raise write_failed(rd.given, exc, what="the run") from None
         finally:
             if own:
                 rd.close()
@@ -420,8 +459,41 @@ class Result:
         -------
         list of str
             The names written.
+
+        Raises
+        ------
+        roughvib.rundir.WriteError
+            The files do not fit on the file system (checked before anything is written), or a
+            write failed: one line naming ``directory`` (and for a full disk the space needed
+            and free).
         """
-        tmp = Path(directory)
+        return self._write_files(Path(directory), str(directory))
+
+    def _bytes_estimate(self) -> tuple[int, int]:
+        """The bytes of the run's files: at least (its arrays) and about (with the event log,
+        the scene and the metadata of the netCDF file and of the summary)."""
+        data = Result.__dict__["dataset"].raw(self)
+        arrays = (sum(v.nbytes for _, v, _ in data.variables.values())
+                  if isinstance(data, RunData) else int(data.nbytes))
+        events = Result.__dict__["events"].raw(self)
+        return arrays, (arrays + _EVENT_ROW_BYTES * len(events) + len(self.scene_toml)
+                        + _METADATA_BYTES)
+
+    def _write_files(self, tmp: Path, shown: str) -> list[str]:
+        """:meth:`write_files` into ``tmp``, with ``shown`` naming the run's directory in a
+        message."""
+        at_least, about = self._bytes_estimate()
+        check_room(tmp, at_least, "the run's time series", shown=shown)
+        try:
+            return self._write_into(tmp)
+        except OSError as exc:
+            for name in RUN_FILES:  # first: the message names the space free without them
+                with contextlib.suppress(OSError):
+                    (tmp / name).unlink(missing_ok=True)
+            raise write_failed(shown, exc, about, what="the run's files", approx=True
+                               ) from None
+
+    def _write_into(self, tmp: Path) -> list[str]:
         run_id = secrets.token_hex(8)
         names = ["scene.toml"]
         (tmp / "scene.toml").write_text(self.scene_toml, encoding="utf-8")
@@ -464,6 +536,49 @@ class Result:
         self.summary[SUMMARY_DIGEST] = sealed[SUMMARY_DIGEST]
         (tmp / "summary.json").write_text(json.dumps(sealed, indent=2), encoding="utf-8")
         return [*names, "summary.json"]
+
+
+#: bytes of a row of events.csv (12 columns, numbers of up to 12 significant digits, the
+#: regimes of the contacts) and of the metadata of a run (the netCDF file's header and
+#: attributes, summary.json), about, for the message of a full disk: with them the files of
+#: the 5 ms run of the tests (77 kB) and of paper-100mms (4.25 MB) are estimated within 5 kB
+_EVENT_ROW_BYTES = 96
+_METADATA_BYTES = 40_000
+
+
+def expected_result_bytes(scene) -> int:
+    """The bytes a complete run of ``scene`` writes at least: the time series of ``result.nc``.
+
+    Every variable of :data:`VARIABLES` on the output grid (``output.duration /
+    output.step + 1`` samples; float64, the contact and stick flags int8), per contact where it
+    is per contact, and the time; the event log and the metadata come on top. A scene with
+    ``contact.points = "auto"`` counts one contact (the count is known only once the profile
+    is built), so that the figure stays a lower bound.
+
+    Parameters
+    ----------
+    scene : roughvib.scene.Scene
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    out = scene.output
+    n = int(round(out.duration / out.step)) + 1
+    points = scene.contact.points
+    contacts = points if isinstance(points, int) else 1
+    row = _TIME_BYTES
+    for name in VARIABLES:
+        row += _VARIABLE_BYTES.get(name, 8) * (contacts if name in _PER_CONTACT else 1)
+    return n * row
+
+
+_TIME_BYTES = 8  # the time coordinate, float64
+#: bytes per sample of the variables that are not float64
+_VARIABLE_BYTES = {"contact_closed": 1, "stick": 1}
+#: the variables with one column per contact
+_PER_CONTACT = frozenset({"contact_force", "roughness_input", "contact_closed"})
 
 
 class RunDirectoryError(ValueError):
