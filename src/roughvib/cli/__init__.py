@@ -1,7 +1,8 @@
 """Command-line interface: thin argument parsing around the public API (no physics here).
 
 Exit status: 0 success, 1 solver failure (status and message in summary.json and on
-stderr), 2 bad input (one line naming the field, rule, unit and value; no traceback), 141
+stderr) or a file that could not be written (a full disk: one line naming the path and the
+space needed), 2 bad input (one line naming the field, rule, unit and value; no traceback), 141
 when the reader of the output went away (``roughvib events --json | head``), as for a command
 stopped by SIGPIPE.
 """
@@ -21,6 +22,7 @@ from roughvib.cli.args import (
     EXIT_INPUT,
     EXIT_INTERRUPT,
     EXIT_PIPE,
+    EXIT_SOLVER,
     EXIT_TERM,
     InputError,
     Terminated,
@@ -55,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
                "  roughvib sweep paper-velocity --out runs/velocity\n"
                "  roughvib validate runs/paper lab/plate.wav --signal plate --scale 50\n"
                "  roughvib export runs/paper --format uff\n\n"
-               "exit status: 0 success, 1 solver failure, 2 bad input, 130 interrupted "
+               "exit status: 0 success, 1 solver failure or a failed write (full disk), 2 bad "
+               "input, 130 interrupted "
                "(Ctrl-C), 141 output pipe closed, 143 terminated (SIGTERM)")
     p.add_argument("--version", action="version", version=f"roughvib {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -136,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     import signal
     import warnings
 
-    from roughvib.rundir import OutputWarning
+    from roughvib.rundir import OutputWarning, WriteError
     from roughvib.scene import ModelValidityWarning, SceneError
 
     show = _warning_printer()
@@ -161,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, InputError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    except WriteError as exc:  # a full disk, a read-only file system: one line, exit 1
+        print(f"roughvib: error: {exc}", file=sys.stderr)
+        return EXIT_SOLVER
     except KeyboardInterrupt as exc:
         print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
               file=sys.stderr)
