@@ -253,6 +253,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     # the output directory is checked and locked before anything expensive (imports included)
     rundir = RunDirectory(out_dir, overwrite=args.overwrite, resume=bool(args.resume)).open()
     try:
+        if not args.resume:  # a run whose time series cannot fit is refused before it starts
+            from roughvib.results import expected_result_bytes
+
+            rundir.require(expected_result_bytes(scene), "the run's time series alone")
         if rundir.replaces and not args.resume:
             print(f"roughvib: note: {out_dir} holds an earlier run; this run replaces it when it "
                   f"ends", file=sys.stderr)
