@@ -54,7 +54,7 @@ if TYPE_CHECKING:
 # a run builds its Result from plain arrays and event records and writes its files without
 # them (RunData, _write_events_csv)
 
-__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError",
+__all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError", "NotARunError",
            "RADIATION_FILE", "REGIME_NOTATION", "Result", "RunData", "RunDirectoryError",
            "SUMMARY_DIGEST", "VARIABLES", "check_run_files", "expected_result_bytes",
            "load_result", "read_summary", "seal_summary"]
@@ -590,6 +590,15 @@ class MixedRunError(RunDirectoryError):
     """A run directory whose files do not all belong to the run of its summary.json."""
 
 
+class NotARunError(RunDirectoryError, FileNotFoundError):
+    """A path that is not a run directory: missing, a file, or a directory without
+    ``summary.json``; the message is one line naming it (exit status 2).
+
+    Also a :class:`FileNotFoundError`, the error :func:`load_result` raised for it before, so
+    that code catching that still does.
+    """
+
+
 #: the key of ``summary.json`` that holds the SHA-256 of the rest of the summary
 SUMMARY_DIGEST = "summary_sha256"
 
@@ -729,8 +738,9 @@ def read_summary(directory: str | os.PathLike) -> dict:
 
     Raises
     ------
-    FileNotFoundError
-        No summary.json.
+    NotARunError
+        ``directory`` does not exist, is a file, or holds no summary.json (also a
+        FileNotFoundError).
     RunDirectoryError
         Not readable, not JSON, not an object, another format version, a value of the wrong
         type, or edited after saving (one line naming the file).
@@ -738,7 +748,10 @@ def read_summary(directory: str | os.PathLike) -> dict:
     d = Path(directory)
     path = d / "summary.json"
     if not path.is_file():
-        raise FileNotFoundError(f"{d} is not a roughvib result directory (no summary.json)")
+        why = ("no such directory" if not os.path.lexists(d) else
+               "a file; roughvib run writes a directory" if not d.is_dir() else
+               "no summary.json")
+        raise NotARunError(f"{d} is not a roughvib result directory ({why})")
     text = _read_run_text(path, "summary")
     try:
         summary = json.loads(text)
@@ -924,12 +937,14 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
 
     Raises
     ------
-    FileNotFoundError
-        No summary.json.
+    NotARunError
+        ``directory`` is missing, a file, or holds no summary.json (a
+        :class:`RunDirectoryError`, and a FileNotFoundError as before).
     RunDirectoryError
         A file that is not what roughvib wrote: not readable, of another type or shape,
-        edited after saving, or a status that contradicts the files (one line naming the
-        file); also a directory from an incompatible format version.
+        edited after saving, or a status that contradicts the files, among them both
+        ``result.nc`` and ``partial.nc`` in the directory (one line naming the files); also a
+        directory from an incompatible format version.
     MixedRunError
         A file listed in ``summary.json`` is missing or is not the one the run wrote (a
         directory left half-replaced, or edited after saving).
@@ -954,6 +969,11 @@ def load_result(directory: str | os.PathLike, *, partial: bool = False) -> Resul
             f"{d / 'summary.json'}: status {status!r} contradicts {wrong} in the directory "
             f"({'a failed' if ok else 'only a complete'} run writes it): the summary was "
             f"edited or belongs to another run")
+    if os.path.lexists(d / "result.nc") and os.path.lexists(d / "partial.nc"):
+        raise RunDirectoryError(
+            f"{d} holds both result.nc and partial.nc: a run writes one of them (result.nc "
+            f"when it succeeds, partial.nc when it fails), so one belongs to another run; "
+            f"summary.json says {status!r}, remove {wrong} if it is not this run's")
     if not ok and not (partial and (d / "partial.nc").exists()):
         return Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summary, scene_toml)
     ds = _read_dataset(d / ("result.nc" if ok else "partial.nc"))

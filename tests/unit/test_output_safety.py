@@ -24,7 +24,14 @@ import xarray as xr
 
 from roughvib import rundir as rd_mod
 from roughvib.cli import main
-from roughvib.results import EVENT_COLUMNS, FORMAT_VERSION, MixedRunError, Result, load_result
+from roughvib.results import (
+    EVENT_COLUMNS,
+    FORMAT_VERSION,
+    MixedRunError,
+    Result,
+    RunDirectoryError,
+    load_result,
+)
 from roughvib.rundir import OutputError, RunDirectory
 from roughvib.scene import Scene, scene_to_toml
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, write_checkpoint
@@ -106,7 +113,12 @@ def test_a_directory_of_other_files_is_refused_unless_overwrite(tmp_path):
     after = _listing(out)
     assert after["notes.txt"] == b"my notes"
     assert after["result.nc"] == before["result.nc"]  # not the run's: kept
-    assert _value(out, partial=True) == 2.0
+    with xr.open_dataset(out / "partial.nc", engine="h5netcdf") as ds:
+        assert float(ds["block_vertical_acceleration"][0]) == 2.0
+    # ... but a directory holding both a result.nc and a partial.nc is refused when read:
+    # one of them is not the run's
+    with pytest.raises(RunDirectoryError, match="holds both result.nc and partial.nc"):
+        load_result(out, partial=True)
     # a later successful run replaces the files of the same names (and its own earlier
     # partial.nc and events.csv), nothing else
     _result(3.0).save(out, overwrite=True)

@@ -178,6 +178,66 @@ def test_a_status_that_contradicts_the_files_is_refused(saved_run, tmp_path, cap
     _refused(["report", str(d)], capsys, "says the run succeeded, but result.nc is missing")
 
 
+def _record(path: Path) -> Path:
+    """A measured record (CSV) that ``validate`` could read: 0.1 s of a 1 kHz tone, 0.1 m/s^2
+    amplitude, sampled at 50 kHz."""
+    t = np.arange(5000) / 50e3
+    lines = ["time [s],acceleration [m/s^2]"] + [f"{a:.9g},{b:.9g}" for a, b in
+                                                  zip(t, 0.1 * np.sin(2e3 * np.pi * t),
+                                                      strict=True)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_result_nc_beside_partial_nc_is_refused_by_every_command(saved_run, tmp_path, capsys):
+    # a successful run with a partial.nc beside its result.nc (a copy by hand, another run's
+    # file): one of the two is not the run's, and nothing reads the directory
+    d = _copy(saved_run, tmp_path)
+    shutil.copyfile(d / "result.nc", d / "partial.nc")
+    record = _record(tmp_path / "lab.csv")
+    rule = (f"{d} holds both result.nc and partial.nc: a run writes one of them (result.nc "
+            f"when it succeeds, partial.nc when it fails)")
+    for cmd in [*READERS, ["export", "--format", "csv"]]:
+        _refused([*cmd, str(d)], capsys, rule, "remove partial.nc")
+    _refused(["validate", str(d), str(record), "--signal", "plate"], capsys, rule)
+    for partial in (False, True):
+        with pytest.raises(RunDirectoryError, match="holds both result.nc and partial.nc"):
+            load_result(d, partial=partial)
+    assert sorted(os.listdir(d)) == sorted([*os.listdir(saved_run), "partial.nc"])
+    # a failed run with a result.nc beside its partial.nc
+    from test_output_safety import _result
+
+    f = tmp_path / "failed"
+    _result(2.0, ok=False).save(f)
+    shutil.copyfile(f / "partial.nc", f / "result.nc")
+    for cmd in READERS:
+        _refused([*cmd, str(f)], capsys, f"{f} holds both result.nc and partial.nc",
+                 "summary.json says 'event_storm', remove result.nc")
+
+
+def test_a_directory_that_is_not_a_run_raises_roughvibs_error(tmp_path, capsys):
+    from roughvib.results import NotARunError
+
+    afile = tmp_path / "notes.txt"
+    afile.write_text("x")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for path, why in ((tmp_path / "nothing", "no such directory"),
+                      (afile, "a file; roughvib run writes a directory"),
+                      (empty, "no summary.json")):
+        with pytest.raises(NotARunError) as info:
+            load_result(path)
+        assert str(info.value) == f"{path} is not a roughvib result directory ({why})"
+        # roughvib's own error (what the CLI refuses with), and still the built-in one that
+        # load_result raised before, for code that catches that
+        assert isinstance(info.value, RunDirectoryError)
+        assert isinstance(info.value, FileNotFoundError)
+        for cmd in READERS:
+            _refused([*cmd, str(path)], capsys, f"{path} is not a roughvib result directory")
+    assert sorted(os.listdir(tmp_path)) == ["empty", "notes.txt"]
+    assert os.listdir(empty) == []
+
+
 # --------------------------------------------------------------------------------------------
 # the other files, when no file list covers them (an older roughvib)
 # --------------------------------------------------------------------------------------------
