@@ -721,7 +721,7 @@ def _scale_tag(scale: float, units: str) -> str:
 
 
 def export_run(run_dir: str | os.PathLike, fmt: str, *, out: str | os.PathLike | None = None,
-               binary: bool = False) -> list[Path]:
+               binary: bool = False, overwrite: bool = False) -> list[Path]:
     """Write a run's block and plate accelerations and normal force as exchange files.
 
     * ``uff``: one file ``<scene>.uff`` with three datasets 58 (function type 1, time
@@ -740,6 +740,8 @@ def export_run(run_dir: str | os.PathLike, fmt: str, *, out: str | os.PathLike |
       ``block_acceleration [m/s^2]``, ``plate_acceleration [m/s^2]``, ``normal_force [N]``
       (12 significant digits).
 
+    Each file appears complete or not at all (written under a temporary name and renamed).
+
     Parameters
     ----------
     run_dir : path
@@ -747,9 +749,12 @@ def export_run(run_dir: str | os.PathLike, fmt: str, *, out: str | os.PathLike |
     fmt : {'uff', 'wav', 'csv'}
         The format.
     out : path, optional
-        Directory for the files (created; default ``run_dir/export``).
+        Directory for the files (created; default ``run_dir/export``, roughvib's own folder
+        in the run directory, whose files an export replaces).
     binary : bool
         UFF only: binary instead of ASCII dataset 58.
+    overwrite : bool
+        Replace files of the same names in ``out`` (without it they are refused).
 
     Returns
     -------
@@ -761,8 +766,14 @@ def export_run(run_dir: str | os.PathLike, fmt: str, *, out: str | os.PathLike |
     RecordError
         An unknown format, ``binary`` with another format, or a run without a complete
         time series (a failed run).
+    roughvib.rundir.OutputError
+        ``out`` cannot be created or written, or holds a file of a name to write and
+        ``overwrite`` is false (one line naming it).
+    roughvib.rundir.WriteError
+        A write failed (a full disk: the space needed and free).
     """
     from roughvib.results import load_result
+    from roughvib.rundir import check_room, claim_files, output_folder
 
     if fmt not in EXPORT_FORMATS:
         raise RecordError(f"export format must be one of {', '.join(EXPORT_FORMATS)}, got "
@@ -783,66 +794,88 @@ def export_run(run_dir: str | os.PathLike, fmt: str, *, out: str | os.PathLike |
             "vertical": "positive down"}
     signals = {name: np.asarray(ds[var].values, dtype=float)
                for name, (var, _, _, _) in EXPORT_SIGNALS.items()}
-    folder = Path(out) if out is not None else Path(run_dir) / "export"
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = (output_folder(out, "--out") if out is not None
+              else output_folder(Path(run_dir) / "export"))
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(meta["scene"] or "run"))
-    if fmt == "csv":
-        return [_export_csv(folder / f"{stem}.csv", t, signals)]
+    single = folder / f"{stem}.{fmt}"  # the UFF or CSV file
     if fmt == "wav":
-        return _export_wav(folder, signals, meta)
-    return [_export_uff(folder / f"{stem}.uff", t, dt, signals, meta, binary)]
-
-
-def _atomic(path: Path, write) -> Path:
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        write(tmp)
-        tmp.replace(path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+        scales = _wav_scales(signals, meta)
+        targets = [folder / f"{_wav_stem(name, scales[name])}{ext}"
+                   for name in signals for ext in (".wav", ".json")]
+    else:
+        targets = [single]
+    claim_files(targets, overwrite=overwrite or out is None)
+    if fmt == "csv":
+        return [_export_csv(single, t, signals)]
+    # bytes per sample and signal, at least: 4 (float32 WAV), 20 (ASCII UFF: E20.11, four to
+    # a line) or 8 (binary UFF, float64)
+    need = t.size * len(signals) * {"wav": 4, "uff": 8 if binary else 20}[fmt]
+    check_room(folder, need, f"the {fmt.upper()} export")
+    if fmt == "wav":
+        return _export_wav(folder, signals, meta, scales)
+    return [_export_uff(single, t, dt, signals, meta, binary, need)]
 
 
 def _export_csv(path: Path, t: np.ndarray, signals: dict) -> Path:
+    """The CSV file, made in memory first: its size is known before the disk is touched."""
+    import io
+
+    from roughvib.rundir import check_room, write_file
+
     cols = ["time [s]"] + [f"{n} [{EXPORT_SIGNALS[n][1]}]" for n in signals]
-    table = np.column_stack([t, *signals.values()])
+    buf = io.BytesIO()
+    np.savetxt(buf, np.column_stack([t, *signals.values()]), fmt="%.12g", delimiter=",",
+               header=",".join(cols), comments="")
+    with buf.getbuffer() as view:
+        check_room(path.parent, view.nbytes, "the CSV export")
+        return write_file(path, lambda tmp: tmp.write_bytes(view), need=view.nbytes)
 
-    def write(tmp):
-        np.savetxt(tmp, table, fmt="%.12g", delimiter=",", header=",".join(cols),
-                   comments="")
-    return _atomic(path, write)
+
+def _wav_scales(signals: dict, meta: dict) -> dict[str, float]:
+    """The full scale of each signal's WAV file (the smallest power of ten at or above its
+    peak); RecordError for a sample rate a WAV file cannot hold."""
+    fs = meta["sample_rate_hz"]
+    if abs(round(fs) - fs) > 1e-6 * fs:
+        raise RecordError(f"a WAV file needs an integer sample rate; the run's is {fs} Hz")
+    return {name: _power_of_ten_at_least(float(np.max(np.abs(x))))
+            for name, x in signals.items()}
 
 
-def _export_wav(folder: Path, signals: dict, meta: dict) -> list[Path]:
+def _wav_stem(name: str, scale: float) -> str:
+    """The stem of a signal's WAV file and sidecar: the signal and its full scale."""
+    _, units, _, _ = EXPORT_SIGNALS[name]
+    return f"{name}_{_scale_tag(scale, units)}"
+
+
+def _export_wav(folder: Path, signals: dict, meta: dict, scales: dict) -> list[Path]:
     from scipy.io import wavfile
 
+    from roughvib.rundir import write_file
+
     paths = []
-    fs = meta["sample_rate_hz"]
-    rate = int(round(fs))
-    if abs(rate - fs) > 1e-6 * fs:
-        raise RecordError(f"a WAV file needs an integer sample rate; the run's is {fs} Hz")
+    rate = int(round(meta["sample_rate_hz"]))
     for name, x in signals.items():
-        units = EXPORT_SIGNALS[name][1]
-        scale = _power_of_ten_at_least(float(np.max(np.abs(x))))
-        base = f"{name}_{_scale_tag(scale, units)}"
+        variable, units, _, _ = EXPORT_SIGNALS[name]
+        scale = scales[name]
+        base = _wav_stem(name, scale)
         wav = folder / f"{base}.wav"
-        _atomic(wav, lambda tmp, x=x, scale=scale: wavfile.write(
-            tmp, rate, (x / scale).astype(np.float32)))
-        side = {"signal": name, "variable": EXPORT_SIGNALS[name][0], "units": units,
+        write_file(wav, lambda tmp, x=x, scale=scale: wavfile.write(
+            tmp, rate, (x / scale).astype(np.float32)), need=4 * x.size)
+        side = {"signal": name, "variable": variable, "units": units,
                 "scale": scale, "scale_meaning": f"{units} per full-scale unit (sample 1.0)",
                 "sample_format": "float32", **meta}
-        _atomic(folder / f"{base}.json",
-                lambda tmp, side=side: tmp.write_text(json.dumps(side, indent=2)))
+        write_file(folder / f"{base}.json",
+                   lambda tmp, side=side: tmp.write_text(json.dumps(side, indent=2)))
         paths += [wav, folder / f"{base}.json"]
     return paths
 
 
 def _export_uff(path: Path, t: np.ndarray, dt: float, signals: dict, meta: dict,
-                binary: bool) -> Path:
+                binary: bool, need: int) -> Path:
     import pyuff
 
     from roughvib._version import __version__
+    from roughvib.rundir import write_file
 
     sets = []
     for name, x in signals.items():
@@ -870,4 +903,4 @@ def _export_uff(path: Path, t: np.ndarray, dt: float, signals: dict, meta: dict,
         # a set's header when asked to overwrite
         tmp.write_bytes(b"")
         pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
-    return _atomic(path, write)
+    return write_file(path, write, need=need)

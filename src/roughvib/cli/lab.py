@@ -6,7 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from roughvib.cli.args import EXIT_OK, InputError
+from roughvib.cli.args import EXIT_OK, InputError, out_path
 
 __all__ = ["add_parsers", "cmd_export", "cmd_validate"]
 
@@ -69,7 +69,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     from roughvib.records import RecordError, export_run
 
     try:
-        paths = export_run(args.dir, args.format, out=args.out, binary=args.binary)
+        paths = export_run(args.dir, args.format, out=out_path(args.out), binary=args.binary,
+                           overwrite=args.overwrite)
     except (RecordError, FileNotFoundError, ValueError) as exc:
         raise InputError(str(exc)) from None
     for p in paths:
@@ -138,12 +139,16 @@ def add_parsers(sub) -> None:
                     "-Z); float32 WAV files named with their scale "
                     "(plate_acceleration_10ms2_per_unit.wav: sample 1.0 = 10 m/s^2) and a "
                     "JSON sidecar (units, scale, sample rate, run id); or one CSV file with a "
-                    "time column and units in the headers.",
+                    "time column and units in the headers. Files of the same names in a "
+                    "folder given with --out are not replaced without --overwrite (those in "
+                    "DIR/export are).",
         epilog="examples:\n  roughvib export runs/paper --format uff\n"
                "  roughvib export runs/paper --format wav --out lab/sim\n"
-               "  roughvib export runs/paper --format csv --out /tmp\n")
+               "  roughvib export runs/paper --format csv --out /tmp --overwrite\n")
     e.add_argument("dir", help="run directory (roughvib run)")
     e.add_argument("--format", required=True, choices=("uff", "wav", "csv"))
     e.add_argument("--out", metavar="DIR", help="output directory (default: DIR/export)")
     e.add_argument("--binary", action="store_true", help="UFF: binary dataset 58")
+    e.add_argument("--overwrite", action="store_true",
+                   help="replace files of the same names in --out DIR")
     e.set_defaults(func=cmd_export)
