@@ -19,7 +19,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     int
         0 on success (also for the report of a failed run, which shows what the run recorded
         up to the failure under a banner, with a note on stderr), 2 if DIR
-        is not a readable result directory or an option is out of range.
+        is not a readable result directory, an option is out of range or the --out file
+        exists (without --overwrite); a file that cannot be written (a full disk) is
+        :class:`~roughvib.rundir.WriteError` (exit status 1).
     """
     noise = getattr(args, "noise_floor", None)
     dpi = getattr(args, "dpi", 90)
@@ -33,7 +35,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
     try:
         path = write_report(args.dir, out=out_path(getattr(args, "out", None)), dpi=dpi,
-                            noise_rms=noise)
+                            noise_rms=noise, overwrite=getattr(args, "overwrite", False))
     except (FileNotFoundError, ValueError) as exc:
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return 2
@@ -79,9 +81,12 @@ def add_parsers(subparsers) -> argparse.ArgumentParser:
         epilog="examples:\n"
                "  roughvib run --out runs/paper && roughvib report runs/paper\n"
                "  roughvib report runs/paper --noise-floor 1e-3   # block accelerometer floor\n"
-               "  roughvib report runs/paper --out /tmp/paper.html --dpi 120\n")
+               "  roughvib report runs/paper --out /tmp/paper.html --dpi 120 --overwrite\n")
     p.add_argument("dir", help="result directory written by 'roughvib run'")
-    p.add_argument("--out", metavar="HTML", help="output file (default: DIR/report.html)")
+    p.add_argument("--out", metavar="HTML", help="output file (default: DIR/report.html, "
+                                                 "replaced by each new report)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the --out file if it exists (without it, it is refused)")
     p.add_argument("--noise-floor", type=float, metavar="RMS",
                    help="add white noise of this rms [m/s^2] to the block acceleration in the "
                         "spectra figure (the paper's simulated measuring-chain floor; "

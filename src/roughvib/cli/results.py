@@ -109,6 +109,7 @@ def cmd_events(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from roughvib.rundir import claim_files, output_folder
     from roughvib.views.figures import FIGURES, save_figure
 
     if args.figure not in FIGURES:
@@ -117,7 +118,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     given = out_path(args.out)
     r = _load(args.dir, "figure")
     out = given or Path(args.dir) / "figures" / f"{args.figure}.png"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    claim_files([out], overwrite=args.overwrite or given is None)
+    output_folder(out.parent)
     save_figure(FIGURES[args.figure](r), out)
     print(out)
     return EXIT_OK
@@ -153,8 +155,12 @@ def add_parsers(sub) -> None:
                     "normal force). 'roughvib report DIR' draws them all into one HTML file. "
                     "A failed run is drawn up to the failure, with a note on stderr.",
         epilog="examples:\n  roughvib plot runs/paper --figure events\n"
-               "  roughvib plot runs/paper --figure spectra --out spectra.png\n")
+               "  roughvib plot runs/paper --figure spectra --out spectra.png\n"
+               "  roughvib plot runs/paper --figure spectra --out spectra.png --overwrite\n")
     pl.add_argument("dir", help="result directory written by 'roughvib run'")
     pl.add_argument("--figure", default="events", help="figure name (default: events)")
-    pl.add_argument("--out", help="PNG path (default: DIR/figures/NAME.png)")
+    pl.add_argument("--out", help="PNG path (default: DIR/figures/NAME.png, replaced by each "
+                                  "new plot)")
+    pl.add_argument("--overwrite", action="store_true",
+                    help="replace the --out file if it exists (without it, it is refused)")
     pl.set_defaults(func=cmd_plot)

@@ -501,20 +501,36 @@ def plot_radiation(result: Result, *, axes=None):
 # --------------------------------------------------------------------------------------------
 
 def save_figure(fig: Figure, path, *, dpi: int = 100) -> None:
-    """Write a figure as PNG and close it.
+    """Write a figure and close it.
+
+    The file appears complete or not at all (written under a temporary name and renamed);
+    its format follows the suffix (PNG without one).
 
     Parameters
     ----------
     fig : Figure
     path : str or path-like
-        PNG file.
+        PNG file (or another format matplotlib writes, by its suffix).
     dpi : int
         Resolution [dots per inch].
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        The file cannot be written (a full disk: one line naming it, the space needed and
+        free).
     """
-    if fig.get_layout_engine() is None:  # the figures made here lay themselves out
-        fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    _plt().close(fig)
+    from pathlib import Path
+
+    from roughvib.rundir import writing
+
+    try:
+        if fig.get_layout_engine() is None:  # the figures made here lay themselves out
+            fig.tight_layout()
+        with writing(path, "wb") as fh:  # in memory first: its size is known on a full disk
+            fig.savefig(fh, dpi=dpi, format=Path(path).suffix[1:].lower() or "png")
+    finally:
+        _plt().close(fig)
 
 
 def _whole(fn: Callable, **kw) -> Callable[[Result], Figure]:

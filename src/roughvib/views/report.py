@@ -517,19 +517,24 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
 
 
 def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: int = 90,
-                 noise_rms: float | None = None) -> Path:
+                 noise_rms: float | None = None, overwrite: bool = False) -> Path:
     """Write ``report.html`` for a result directory.
+
+    The file appears complete or not at all (written under a temporary name and renamed).
 
     Parameters
     ----------
     result_dir : str or Path
         Directory written by ``roughvib run`` / :meth:`Result.save <roughvib.results.Result.save>`.
     out : str or Path, optional
-        HTML file (default ``result_dir/report.html``).
+        HTML file (default ``result_dir/report.html``, which a new report replaces); its
+        folder is created if missing.
     dpi : int
         Resolution of the embedded figures [dots per inch].
     noise_rms : float, optional
         Simulated accelerometer noise on the block in the spectra figure [m/s^2 rms].
+    overwrite : bool
+        Replace ``out`` if it exists (without it, an existing ``out`` is refused).
 
     Returns
     -------
@@ -540,14 +545,19 @@ def write_report(result_dir: str | Path, *, out: str | Path | None = None, dpi: 
     ------
     FileNotFoundError, ValueError
         Not a result directory, or an unsupported format version.
+    roughvib.rundir.OutputError
+        ``out`` exists (without ``overwrite``), is a directory, or its folder cannot be
+        created (one line).
+    roughvib.rundir.WriteError
+        The file cannot be written (a full disk: the space needed and free).
     """
     from roughvib.results import load_result
+    from roughvib.rundir import claim_files, output_folder, write_file
 
     result = load_result(result_dir, partial=True)
     path = Path(out) if out is not None else Path(result_dir) / "report.html"
+    claim_files([path], overwrite=overwrite or out is None)
+    output_folder(path.parent)
     text = build_report(result, dpi=dpi, noise_rms=noise_rms, run_dir=result_dir)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
-    return path
+    data = text.encode("utf-8")
+    return write_file(path, lambda tmp: tmp.write_bytes(data), need=len(data))
