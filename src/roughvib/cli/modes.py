@@ -17,6 +17,7 @@ EXPORT_FACTOR = 2.0
 def cmd_modes_export(args: argparse.Namespace) -> int:
     from roughvib.physics.structures import export_modes
     from roughvib.physics.structures.exchange import SUFFIXES, write_modes
+    from roughvib.rundir import claim_files, write_file
     from roughvib.scene import load_scene
 
     out = Path(args.file)
@@ -26,10 +27,11 @@ def cmd_modes_export(args: argparse.Namespace) -> int:
         raise InputError(f"FILE's folder must exist, got {str(out.parent)!r}")
     if args.max_frequency is not None and not args.max_frequency > 0:
         raise InputError(f"--max-frequency must be > 0 Hz, got {args.max_frequency}")
+    claim_files([out], overwrite=args.overwrite)  # before the modes are computed
     scene = load_scene(args.scene, parse_sets(args.set))
     modes = export_modes(scene.plate, scene.base_dir, grid=args.grid,
                          max_frequency=args.max_frequency)
-    write_modes(out, modes)
+    write_file(out, lambda tmp: write_modes(tmp, modes))
     above = int((modes.frequency > scene.plate.max_frequency * (1.0 + 1e-12)).sum())
     print(f"{out}: {len(modes)} modes, {modes.frequency[0]:.6g} to {modes.frequency[-1]:.6g} "
           f"Hz, at {modes.nodes.shape[0]} nodes; {above} of them above plate.max_frequency = "
@@ -70,9 +72,13 @@ def add_parsers(sub) -> None:
                "  roughvib modes export paper plate.unv --grid 121 105\n"
                "  roughvib modes export paper plate.npz --max-frequency 200e3   # 4 x the cut\n"
                "  roughvib modes export my_scene.toml modes.npz --max-frequency 50e3  "
-               "# the simulated modes only\n")
+               "# the simulated modes only\n"
+               "  roughvib modes export paper plate.npz --overwrite   # replace plate.npz\n")
     ex.add_argument("scene", help="scene name or .toml file")
-    ex.add_argument("file", help="output file (.npz, .unv or .uff)")
+    ex.add_argument("file", help="output file (.npz, .unv or .uff); an existing file is "
+                                 "refused unless --overwrite")
+    ex.add_argument("--overwrite", action="store_true",
+                    help="replace FILE if it exists")
     ex.add_argument("--grid", nargs=2, type=int, metavar=("NX", "NY"),
                     help="nodes along x and y (default: ten per shortest bending wavelength "
                          "of the simply supported plate's modes to plate.max_frequency; an "
