@@ -11,6 +11,7 @@ __all__ = ["add_parsers", "cmd_compare"]
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    from roughvib.rundir import claim_files, output_folder
     from roughvib.scene import SOLVER_METHODS, load_scene
     from roughvib.studies.compare import (
         DEFAULT_RTOLS,
@@ -29,7 +30,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              f"got {m!r}")
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 s, got {args.budget}")
-    out_path(args.out)  # an empty --out is refused
+    out = out_path(args.out)  # an empty --out is refused
+    # before the study: a folder that cannot be used, or the tables of an earlier study that
+    # it would replace (without --overwrite)
+    claim_files([out / f"work_precision.{ext}" for ext in ("csv", "md", "png")],
+                overwrite=args.overwrite)
+    output_folder(out, "--out")
     rtols = tuple(float(v) for v in args.rtols.split(",")) if args.rtols else DEFAULT_RTOLS
     steps = tuple(float(v) for v in args.steps.split(",")) if args.steps else DEFAULT_STEPS
     try:
@@ -65,10 +71,15 @@ def add_parsers(sub) -> None:
                     "budget bounds the whole command, the reference included: a run still "
                     "going when it is spent is stopped.",
         epilog="examples:\n  roughvib compare paper --out runs/wp --budget 900\n"
+               "  roughvib compare paper --out runs/wp --budget 900 --overwrite   # again\n"
                "  roughvib compare paper --out runs/wp --reference runs/ref "
                "--methods ida,exact-modal\n")
     c.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
-    c.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    c.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (its work_precision.* files are not replaced "
+                        "without --overwrite; a reference run there is, as by 'roughvib run')")
+    c.add_argument("--overwrite", action="store_true",
+                   help="replace the work_precision.* files of an earlier study in --out")
     c.add_argument("--budget", type=float, default=900.0,
                    help="wall-time budget of the whole command in seconds, reference "
                         "included (default 900)")

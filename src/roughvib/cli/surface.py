@@ -17,8 +17,9 @@ def cmd_surface(args: argparse.Namespace) -> int:
     from roughvib.views.surface_report import write_surface_report
 
     scene = load_scene(args.scene, parse_sets(args.set))
-    out = out_path(args.out) or Path("runs") / f"{scene.name}-surface"
-    paths = write_surface_report(scene, out)
+    given = out_path(args.out)
+    out = given or Path("runs") / f"{scene.name}-surface"
+    paths = write_surface_report(scene, out, overwrite=args.overwrite or given is None)
     info = json.loads(paths["contacts_json"].read_text())
     stat = info.get("statistical_contact", {})
     prof = info.get("profile", {}).get("stats", {})
@@ -54,10 +55,14 @@ def add_parsers(sub) -> None:
                     "Greenwood-Williamson/Tripp stiffness, micro-contacts, real area, "
                     "plasticity index, contact resonance) and profile.png, spectrum.png.",
         epilog="examples:\n  roughvib surface paper --out runs/paper-surface\n"
+               "  roughvib surface paper --out runs/paper-surface --overwrite   # again\n"
                "  roughvib surface paper --set contact.model=gt --set block.mass=0.543\n"
                "  roughvib surface my_scene.toml --set roughness.reduce_3d=true\n")
     su.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
     su.add_argument("--out", metavar="DIR", help="output directory (default: "
-                    "runs/<scene name>-surface)")
+                    "runs/<scene name>-surface, whose files each new report replaces)")
+    su.add_argument("--overwrite", action="store_true",
+                    help="replace files of the report's names in --out DIR (without it, they "
+                         "are refused)")
     su.add_argument("--set", action="append", metavar="KEY=VALUE", help="scene override")
     su.set_defaults(func=cmd_surface)

@@ -35,7 +35,7 @@ from roughvib.physics.surface.roughness import (
 )
 from roughvib.scene import Scene, SceneError
 
-__all__ = ["scan_range", "write_surface_report"]
+__all__ = ["SURFACE_FILES", "scan_range", "write_surface_report"]
 
 
 def scan_range(scene: Scene) -> tuple[float, float, str]:
@@ -111,14 +111,25 @@ def _json_ready(value):
     return value
 
 
-def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
+#: the files of a surface report
+SURFACE_FILES = ("profile.csv", "contacts.csv", "spectrum_bands.csv", "spectrum_psd.csv",
+                 "contacts.json", "profile.png", "spectrum.png")
+
+
+def write_surface_report(scene: Scene, out_dir: str | Path, *,
+                         overwrite: bool = False) -> dict[str, Path]:
     """Write the surface inspection report of a scene (see the module docstring).
+
+    Each file appears complete or not at all (written under a temporary name and renamed).
 
     Parameters
     ----------
     scene : Scene
     out_dir : str or Path
-        Created if missing; existing report files are overwritten.
+        Created if missing.
+    overwrite : bool
+        Replace report files of the same names (:data:`SURFACE_FILES`) in ``out_dir``
+        (without it they are refused, before anything is computed).
 
     Returns
     -------
@@ -130,11 +141,18 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
     ------
     SceneError
         The profile cannot be built (e.g. a bad profile file).
+    roughvib.rundir.OutputError
+        ``out_dir`` cannot be created or written, or holds a report file and ``overwrite``
+        is False (one line).
+    roughvib.rundir.WriteError
+        A file cannot be written (a full disk: the space needed and free).
     """
     from roughvib.analysis.spectra import wavenumber_band_levels, wavenumber_spectrum
+    from roughvib.rundir import claim_files, output_folder, write_file, writing
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_files([out / n for n in SURFACE_FILES], overwrite=overwrite)
+    output_folder(out)
     lo, hi, how = scan_range(scene)
     stroke = hi - lo
     profile = build_profile(scene.roughness, scene.block, scene.base_dir,
@@ -160,7 +178,7 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
 
     # ---- profile ----------------------------------------------------------------------
     p = out / "profile.csv"
-    with p.open("w", newline="") as fh:
+    with writing(p, newline="") as fh:
         fh.write(f"# roughvib surface report, scene {scene.name!r}\n")
         for key, val in profile.stats.items():
             fh.write(f"# {key} = {val}\n")
@@ -184,7 +202,7 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
                      "stiffness_N_per_m": s_used / n_pts,
                      "scan_from_m": float(sp + lo), "scan_to_m": float(sp + hi)})
     p = out / "contacts.csv"
-    with p.open("w", newline="") as fh:
+    with writing(p, newline="") as fh:
         fh.write(f"# s_total = {s_used} N/m ({s_source}), {n_pts} equal springs "
                  f"(contact.points: {cl.points_source}, selection {cl.selection})\n")
         if cs is not None:
@@ -220,7 +238,7 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
     else:
         lev_model = np.full(lam_c.size, np.nan)
     p = out / "spectrum_bands.csv"
-    with p.open("w", newline="") as fh:
+    with writing(p, newline="") as fh:
         fh.write("# third-octave wavelength bands, levels in dB re 1 um; contact = the stretch "
                  f"of contact {j_ref} scanned over the stroke {lo:.6g} .. {hi:.6g} m ({how}); "
                  "empty = no FFT bin in the band\n")
@@ -233,7 +251,7 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
 
     k_nb, psd_nb = wavenumber_spectrum(z, dx)
     p = out / "spectrum_psd.csv"
-    with p.open("w", newline="") as fh:
+    with writing(p, newline="") as fh:
         fh.write("# one-sided wavenumber PSD (Welch, Hann), integral psd dk = variance\n")
         w = csv.writer(fh)
         w.writerow(["wavenumber_rad_per_m", "psd_m2_per_rad_per_m"])
@@ -250,14 +268,15 @@ def write_surface_report(scene: Scene, out_dir: str | Path) -> dict[str, Path]:
               "stroke": {"from_m": lo, "to_m": hi, "peak_to_peak_m": stroke, "estimate": how,
                          "reference_contact": j_ref}}
     p = out / "contacts.json"
-    p.write_text(json.dumps(_json_ready(report), indent=2) + "\n")
+    with writing(p) as fh:
+        fh.write(json.dumps(_json_ready(report), indent=2) + "\n")
     paths["contacts_json"] = p
 
     # ---- plots ------------------------------------------------------------------------
-    paths["profile_png"] = _plot_profile(out / "profile.png", profile, s_pts, heights,
-                                         scene.block.length, j_ref, lo, hi)
-    paths["spectrum_png"] = _plot_spectrum(out / "spectrum.png", lam_c, lev_global,
-                                           lev_contact, lev_model, stroke, k_nb, psd_nb)
+    paths["profile_png"] = write_file(out / "profile.png", lambda tmp: _plot_profile(
+        tmp, profile, s_pts, heights, scene.block.length, j_ref, lo, hi))
+    paths["spectrum_png"] = write_file(out / "spectrum.png", lambda tmp: _plot_spectrum(
+        tmp, lam_c, lev_global, lev_contact, lev_model, stroke, k_nb, psd_nb))
     return paths
 
 
