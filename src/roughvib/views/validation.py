@@ -108,25 +108,29 @@ def _stem(path: str) -> str:
 
 
 def _write(v: Validation, folder: Path, dpi: int) -> Path:
+    """The files of one validation in ``folder`` (roughvib's own, replaced by a new
+    validation of the same record); each appears complete or not at all."""
+    from roughvib.rundir import output_folder, writing
     from roughvib.views.figures import _plt
 
-    folder.mkdir(parents=True, exist_ok=True)
+    output_folder(folder)
     table = v.table.copy()
-    table.to_csv(folder / "bands.csv", index=False, float_format="%.4f")
+    with writing(folder / "bands.csv", newline="") as fh:
+        table.to_csv(fh, index=False, float_format="%.4f")
     plt = _plt()
     fig = plot_validation(v)[0].figure
     try:
         fig.suptitle(f"{v.signal} acceleration: run {v.info.get('scene')} "
                      f"({v.info.get('run_id')}) vs {Path(v.record).name}", fontsize=10)
         fig.tight_layout()
-        fig.savefig(folder / "validation.png", dpi=dpi)
+        with writing(folder / "validation.png", "wb") as fh:
+            fig.savefig(fh, dpi=dpi, format="png")
     finally:
         plt.close(fig)
     summary = v.to_summary()
     summary["files"] = {"bands": "bands.csv", "figure": "validation.png"}
-    tmp = folder / ".validation.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2, default=float))
-    tmp.replace(folder / "validation.json")
+    with writing(folder / "validation.json") as fh:
+        fh.write(json.dumps(summary, indent=2, default=float))
     return folder
 
 
