@@ -300,7 +300,7 @@ def writing(path: str | os.PathLike, mode: str = "w", *, encoding: str = "utf-8"
     encoding : str
         Of the text (mode ``"w"``).
     newline : str, optional
-        As for :func:`open`: None writes ``"\\n"`` as ``os.linesep``, ``""`` as it is.
+        As for ``open()``: None writes ``"\\n"`` as ``os.linesep``, ``""`` as it is.
 
     Yields
     ------
