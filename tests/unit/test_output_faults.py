@@ -353,3 +353,30 @@ _FULL = textwrap.dedent("""
     from roughvib.cli import main
     sys.exit(main(sys.argv[1:]))
 """)
+
+
+def test_a_write_error_that_reaches_the_command_line_is_one_line(tmp_path, capsys,
+                                                                  monkeypatch):
+    # e.g. a checkpoint written while the disk fills up: an OSError of the write itself, not
+    # turned into a WriteError, reaches the command line
+    import roughvib.api
+
+    def failing(*error):
+        def simulate(*a, **k):
+            raise OSError(*error)
+        return simulate
+
+    argv = ["run", *SHORT, "--out", str(tmp_path / "run")]
+    monkeypatch.setattr(roughvib.api, "simulate", failing(errno.ENOSPC, "No space left on "
+                                                          "device"))
+    _one_line(capsys, main(argv), 1, "a write failed: No space left on device (the error "
+                                     "does not name the file); free some space")
+    monkeypatch.setattr(roughvib.api, "simulate", failing(errno.EROFS, "Read-only file system",
+                                                          "/mnt/x/checkpoint.pkl"))
+    _one_line(capsys, main(argv), 1, "cannot write /mnt/x/checkpoint.pkl: Read-only file "
+                                     "system")
+    # any other OSError is not a failed write: not hidden behind one
+    monkeypatch.setattr(roughvib.api, "simulate", failing(errno.EBADF, "Bad file descriptor"))
+    with pytest.raises(OSError, match="Bad file descriptor"):
+        main(argv)
+    assert not (tmp_path / "run").exists()

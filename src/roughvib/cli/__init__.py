@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import gc
 import os
 import sys
@@ -167,6 +168,12 @@ def main(argv: list[str] | None = None) -> int:
     except WriteError as exc:  # a full disk, a read-only file system: one line, exit 1
         print(f"roughvib: error: {exc}", file=sys.stderr)
         return EXIT_SOLVER
+    except OSError as exc:  # the same met by a write that does not say which file it was
+        line = _write_failure(exc)
+        if line is None:
+            raise
+        print(f"roughvib: error: {line}", file=sys.stderr)
+        return EXIT_SOLVER
     except KeyboardInterrupt as exc:
         print(f"roughvib: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}",
               file=sys.stderr)
@@ -194,6 +201,27 @@ def _process_age() -> float:
     except (OSError, ValueError, IndexError):
         return 0.0
     return age if 0.0 <= age < 3600.0 else 0.0
+
+
+#: errno values of a write that cannot succeed where it is: a full file system or quota, a file
+#: too large for it, a read-only file system
+_WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+
+
+def _write_failure(exc: OSError) -> str | None:
+    """The one line for an :class:`OSError` of a write that reached the command line as it is
+    (not as a ``WriteError``; e.g. a checkpoint on a full disk); None for any other error.
+
+    The file is named where the error names it (an ``open``); a failed ``write`` does not.
+    """
+    from roughvib.rundir import write_failed
+
+    if exc.errno not in _WRITE_ERRNOS:
+        return None
+    if exc.filename:
+        return str(write_failed(exc.filename, exc))
+    return (f"a write failed: {exc.strerror or exc} (the error does not name the file); free "
+            f"some space or write elsewhere")
 
 
 def _warning_line(message: Warning | str, category: type[Warning]) -> str:
