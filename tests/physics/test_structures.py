@@ -437,10 +437,11 @@ def test_cli_modes_export(tmp_path, capsys):
     m = read_modes(out)  # by default to 2 x the cut: the modes above it give the residual
     assert m.nodes.shape == (21 * 19, 2) and len(m) == len(plate_modes(Plate(max_frequency=2e3)))
     assert main(["modes", "export", "paper", str(out), "--grid", "21", "19", "--set",
-                 "plate.max_frequency=1000", "--max-frequency", "1000"]) == 0
+                 "plate.max_frequency=1000", "--max-frequency", "1000", "--overwrite"]) == 0
     assert len(read_modes(out)) == len(plate_modes(Plate(max_frequency=1e3)))
     assert main(["modes", "export", "paper", str(tmp_path / "m.txt")]) == 2
-    assert main(["modes", "export", "paper", str(out), "--set", "plate.kind=rigid"]) == 2
+    assert main(["modes", "export", "paper", str(out), "--set", "plate.kind=rigid",
+                 "--overwrite"]) == 2
     captured = capsys.readouterr()
     assert "above plate.max_frequency = 1000 Hz" in captured.out
     err = captured.err.strip().splitlines()
