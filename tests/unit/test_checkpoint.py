@@ -1,12 +1,11 @@
 """Checkpoints and resume: a stopped run continues to results identical to an uninterrupted one,
 and an interrupted run never leaves a half-written result."""
 
-import os
 import random
 import signal
 import subprocess
 import sys
-import time
+import textwrap
 
 import numpy as np
 import pandas as pd
@@ -202,18 +201,83 @@ def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 
 
-def _wait_for(path, proc, timeout=240.0):
-    t0 = time.monotonic()
-    while not path.exists():
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() - t0 < timeout, "no checkpoint appeared"
-        time.sleep(0.05)
+#: ``roughvib run`` in a child process that sends itself a signal at a chosen point of its
+#: work, so that the signal lands where the test means it to however fast the solver and the
+#: machine are (a test that waits on the wall clock for a run to be still running breaks when
+#: the solver gets faster). argv: signal name, where, count, then the arguments of ``run``.
+#: where = "progress": the count-th time the solver reports progress before the end of the
+#: run (after a chunk of steps, in the integration); "checkpoint": just after the count-th
+#: checkpoint is in place; "checkpoint-rename": the count-th checkpoint written to its
+#: temporary file, before it replaces the previous one.
+_SELF_STOPPING_RUN = textwrap.dedent("""
+    import os, signal, sys
+    from roughvib import _progress
+    from roughvib.cli import main
+    from roughvib.solvers import adaptive_modal, checkpoint, ida
+
+    sig, where, count = signal.Signals[sys.argv[1]], sys.argv[2], int(sys.argv[3])
+    calls = []
+
+    def stop():
+        calls.append(1)
+        if len(calls) == count:
+            os.kill(os.getpid(), sig)
+
+    def on_progress(cls):
+        real = cls.refresh
+
+        def refresh(self):
+            real(self)
+            if 0 < self.n < self.total:
+                stop()
+        cls.refresh = refresh
+
+    def after_checkpoint(module):
+        real = module.write_checkpoint
+
+        def write(directory, cp):
+            path = real(directory, cp)
+            stop()
+            return path
+        module.write_checkpoint = write
+
+    class BeforeRename:  # the checkpoint module's view of os
+        def __getattr__(self, name):
+            return getattr(os, name)
+
+        def replace(self, src, dst):
+            stop()
+            return os.replace(src, dst)
+
+    if where == "progress":
+        on_progress(_progress.LineProgress)
+        on_progress(_progress.NoProgress)
+    elif where == "checkpoint":
+        after_checkpoint(adaptive_modal)
+        after_checkpoint(ida)
+    elif where == "checkpoint-rename":
+        checkpoint.os = BeforeRename()
+    else:
+        raise SystemExit(f"unknown point {where!r}")
+    status = main(["run", *sys.argv[4:]])
+    print(f"the run ended without the signal: {len(calls)} of {count} calls", file=sys.stderr)
+    sys.exit(status)
+""")
 
 
-# long enough (1 s simulated) that the signal, sent once the first checkpoint (0.01 s) exists,
-# lands in the integration: at 0.12 s the rest of the run could end first
-KILLED_SETS = ["--set", "output.duration=1.0", "--set", "plate.max_frequency=5000",
-               "--set", "output.checkpoint_interval=0.01", "--no-progress", "--quiet"]
+def _self_stopping_run(sig, where, count, *args):
+    """Start :data:`_SELF_STOPPING_RUN` (SIGINT at its default, as in a terminal)."""
+    return subprocess.Popen([sys.executable, "-c", _SELF_STOPPING_RUN, sig.name, where,
+                             str(count), *args], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=sigint_as_on_a_terminal)
+
+
+#: the checkpoints of these runs are 0.01 s apart; the signal comes from the run itself just
+#: after the first one, so the run need not outlast the test's reaction
+CHECKPOINT_STEP = 0.01
+KILLED_SETS = ["--set", "output.duration=0.05", "--set", "plate.max_frequency=5000",
+               "--set", f"output.checkpoint_interval={CHECKPOINT_STEP}", "--no-progress",
+               "--quiet"]
 
 
 @pytest.fixture(scope="module")
@@ -231,18 +295,13 @@ def straight_killed_sets(tmp_path_factory):
                                            (signal.SIGINT, 130, "interrupted")])
 def test_killed_cli_run_keeps_its_checkpoint_and_resumes_identically(tmp_path, sig, code, word,
                                                                      straight_killed_sets):
-    sets = KILLED_SETS
     killed = tmp_path / "killed"
-    proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-                            preexec_fn=sigint_as_on_a_terminal)
-    _wait_for(killed / CHECKPOINT_NAME, proc)
-    proc.send_signal(sig)
-    _, err = proc.communicate(timeout=120)
+    proc = _self_stopping_run(sig, "checkpoint", 1, "--out", str(killed), *KILLED_SETS)
+    _, err = proc.communicate(timeout=600)
     assert proc.returncode == code, err
     assert word in err and "--resume" in err and "Traceback" not in err
     assert not (killed / "result.nc").exists()  # nothing half-written
-    assert read_checkpoint(killed).t < 0.12
+    assert read_checkpoint(killed).t == pytest.approx(CHECKPOINT_STEP, abs=1e-12)
 
     ok = subprocess.run(_cli("--resume", str(killed), "--no-progress", "--quiet"),
                         capture_output=True, text=True, timeout=600)
@@ -323,54 +382,47 @@ def test_adaptive_modal_resumes_a_coulomb_stick_phase_identically(tmp_path):
     assert list(a.events["kind"]) == ["slip", "stick"]
 
 
-def test_adaptive_modal_run_killed_at_a_random_time_resumes_identically(tmp_path):
-    """SIGKILL (no handler runs, a checkpoint may be half-written) at a random time after the
-    first checkpoint: the resumed run equals an uninterrupted one bit for bit."""
-    # the run lasts about 1 s of CPU after its first checkpoint (0.6 s simulated), the kill
-    # comes within 0.3 s of it: a kill never misses the run, whatever the random delay
-    duration = 0.6
+def test_adaptive_modal_run_killed_at_a_random_point_resumes_identically(tmp_path):
+    """SIGKILL (no handler runs) at a random checkpoint of the run, either in the integration
+    just after it is in place or while it is written (its temporary file complete, the
+    previous checkpoint not yet replaced): the resumed run equals an uninterrupted one bit for
+    bit. The run sends the signal to itself, so it lands there however fast the run is."""
+    # 400 output rows apart: the Hermite loop rounds a checkpoint interval up to a multiple
+    # of 8 rows (test_hermite_loop_checkpoints_end_a_pair), 400 is one
+    step, duration = 0.004, 0.1
     sets = ["--set", "solver.method=adaptive-modal", "--set", f"output.duration={duration}",
-            "--set", "output.checkpoint_interval=0.005", "--no-progress", "--quiet"]
+            "--set", f"output.checkpoint_interval={step}", "--no-progress", "--quiet"]
+    n_cp = round(duration / step) - 1  # none at the end of the run
+    where = random.choice(["checkpoint", "checkpoint-rename"])
+    count = random.randint(1 if where == "checkpoint" else 2, n_cp)
+    point = f"SIGKILL at {where} {count} of {n_cp}"
     killed = tmp_path / "killed"
-    proc = subprocess.Popen(_cli("--out", str(killed), *sets), stderr=subprocess.PIPE,
-                            text=True)
-    _wait_for(killed / CHECKPOINT_NAME, proc)
-    delay = random.uniform(0.0, 0.3)
-    time.sleep(delay)
-    assert proc.poll() is None, f"the run ended within {delay:.2f} s: nothing to kill"
-    proc.kill()
-    proc.communicate(timeout=60)
-    assert proc.returncode == -signal.SIGKILL
-    assert not (killed / "result.nc").exists()
-    t_cp = read_checkpoint(killed).t
-    assert 0 < t_cp < duration, t_cp
+    proc = _self_stopping_run(signal.SIGKILL, where, count, "--out", str(killed), *sets)
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == -signal.SIGKILL, (point, err)
+    assert not (killed / "result.nc").exists(), point
+    kept = count if where == "checkpoint" else count - 1
+    assert read_checkpoint(killed).t == pytest.approx(kept * step, abs=1e-12), point
+    temporary = [p.name for p in killed.iterdir() if p.name.startswith(".")]
+    assert len(temporary) == (where == "checkpoint-rename"), (point, temporary)
 
     ok = subprocess.run(_cli("--resume", str(killed), "--no-progress", "--quiet"),
                         capture_output=True, text=True, timeout=600)
-    assert ok.returncode == 0, (delay, ok.stderr)
-    assert not (killed / CHECKPOINT_NAME).exists()
+    assert ok.returncode == 0, (point, ok.stderr)
+    assert not (killed / CHECKPOINT_NAME).exists(), point
+    assert not [p.name for p in killed.iterdir() if p.name.startswith(".")], point
     _assert_same_as_straight_run(tmp_path / "straight", killed, sets)
 
 
 def test_interrupted_run_without_checkpoints_writes_nothing(tmp_path):
+    """Ctrl-C in the integration of a run without checkpoints: exit status 130, one line
+    saying nothing was written, no file. The run sends SIGINT to itself the first time the
+    solver reports progress, so the signal lands in the integration however fast it is."""
     out = tmp_path / "run"
-    proc = subprocess.Popen(_cli("--out", str(out), "--set", "output.duration=20.0",
-                                 "--set", "plate.max_frequency=5000", "--quiet"),
-                            stderr=subprocess.PIPE, text=True,
-                            preexec_fn=sigint_as_on_a_terminal)
-    # stderr is a pipe, so the progress comes as whole lines (at a tenth of the run, at most
-    # one every 5 s): the first one says the integration runs, and the interrupt lands there,
-    # however slow the machine (a fixed sleep could land in the imports, before any handler
-    # is installed). The run is long (20 s simulated, ~20 s of work) so that the first line
-    # comes before its end: a run shorter than the 5 s gap shows only its 100 % line, and the
-    # interrupt could then land after the files were written
-    first, deadline = "", time.monotonic() + 240
-    while " s sim (" not in first:
-        assert proc.poll() is None and time.monotonic() < deadline, first
-        first = proc.stderr.readline()
-    assert "(100 %)" not in first, f"the run ended before the test could interrupt it: {first}"
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    proc = _self_stopping_run(signal.SIGINT, "progress", 1, "--out", str(out),
+                              "--set", "output.duration=0.3", "--set",
+                              "plate.max_frequency=5000", "--quiet")
+    _, err = proc.communicate(timeout=600)
     assert proc.returncode == 130, err
     assert "nothing was written" in err and "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
