@@ -5,13 +5,12 @@ import random
 import signal
 import subprocess
 import sys
-import textwrap
 
 import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
-from terminal import sigint_as_on_a_terminal
+from self_signal import start_stopping_itself
 
 import roughvib
 from roughvib.analysis.compare import band_level_errors, max_abs_db, relative_rms_error
@@ -201,75 +200,10 @@ def _cli(*args):
     return [sys.executable, "-m", "roughvib.cli", "run", *args]
 
 
-#: ``roughvib run`` in a child process that sends itself a signal at a chosen point of its
-#: work, so that the signal lands where the test means it to however fast the solver and the
-#: machine are (a test that waits on the wall clock for a run to be still running breaks when
-#: the solver gets faster). argv: signal name, where, count, then the arguments of ``run``.
-#: where = "progress": the count-th time the solver reports progress before the end of the
-#: run (after a chunk of steps, in the integration); "checkpoint": just after the count-th
-#: checkpoint is in place; "checkpoint-rename": the count-th checkpoint written to its
-#: temporary file, before it replaces the previous one.
-_SELF_STOPPING_RUN = textwrap.dedent("""
-    import os, signal, sys
-    from roughvib import _progress
-    from roughvib.cli import main
-    from roughvib.solvers import adaptive_modal, checkpoint, ida
-
-    sig, where, count = signal.Signals[sys.argv[1]], sys.argv[2], int(sys.argv[3])
-    calls = []
-
-    def stop():
-        calls.append(1)
-        if len(calls) == count:
-            os.kill(os.getpid(), sig)
-
-    def on_progress(cls):
-        real = cls.refresh
-
-        def refresh(self):
-            real(self)
-            if 0 < self.n < self.total:
-                stop()
-        cls.refresh = refresh
-
-    def after_checkpoint(module):
-        real = module.write_checkpoint
-
-        def write(directory, cp):
-            path = real(directory, cp)
-            stop()
-            return path
-        module.write_checkpoint = write
-
-    class BeforeRename:  # the checkpoint module's view of os
-        def __getattr__(self, name):
-            return getattr(os, name)
-
-        def replace(self, src, dst):
-            stop()
-            return os.replace(src, dst)
-
-    if where == "progress":
-        on_progress(_progress.LineProgress)
-        on_progress(_progress.NoProgress)
-    elif where == "checkpoint":
-        after_checkpoint(adaptive_modal)
-        after_checkpoint(ida)
-    elif where == "checkpoint-rename":
-        checkpoint.os = BeforeRename()
-    else:
-        raise SystemExit(f"unknown point {where!r}")
-    status = main(["run", *sys.argv[4:]])
-    print(f"the run ended without the signal: {len(calls)} of {count} calls", file=sys.stderr)
-    sys.exit(status)
-""")
-
-
 def _self_stopping_run(sig, where, count, *args):
-    """Start :data:`_SELF_STOPPING_RUN` (SIGINT at its default, as in a terminal)."""
-    return subprocess.Popen([sys.executable, "-c", _SELF_STOPPING_RUN, sig.name, where,
-                             str(count), *args], stderr=subprocess.PIPE, text=True,
-                            preexec_fn=sigint_as_on_a_terminal)
+    """``roughvib run *args`` in a child process that sends itself ``sig`` at the
+    ``count``-th time its work passes ``where`` (:mod:`self_signal`)."""
+    return start_stopping_itself(sig, where, count, "run", *args)
 
 
 #: the checkpoints of these runs are 0.01 s apart; the signal comes from the run itself just
