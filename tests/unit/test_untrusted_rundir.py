@@ -12,15 +12,13 @@ import pickle
 import shutil
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import xarray as xr
-from terminal import sigint_as_on_a_terminal
+from self_signal import start_stopping_itself
 
 import roughvib
 from roughvib.cli import main
@@ -488,29 +486,18 @@ def test_a_sweep_stopped_by_a_signal_exits_with_one_line(tmp_path, signum, code,
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(Path(roughvib.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, "-m", "roughvib", "sweep", str(spec), "--out",
-                             str(out), "--workers", "1", "--no-progress"], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            start_new_session=True, preexec_fn=sigint_as_on_a_terminal)
+    # stopped while cases are queued and one is running (the cancelled tasks used to print
+    # Dask worker warnings): the command sends the signal itself once the first case has
+    # ended, so that it lands there however fast the cases run
+    proc = start_stopping_itself(signum, "case", 1, "sweep", str(spec), "--out", str(out),
+                                 "--workers", "1", "--no-progress", cwd=tmp_path,
+                                 stdout=subprocess.PIPE, env=env, start_new_session=True,
+                                 group=signum == signal.SIGINT)
     try:
-        deadline = time.monotonic() + 240
-        cases = out / "cases"
-        # stop it while cases are queued and one is running: the cancelled tasks used to
-        # print Dask worker warnings
-        while not (cases.is_dir() and any(not p.name.startswith(".") for p in cases.iterdir())):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"the sweep ended or stalled before a case completed: "
-                            f"{proc.communicate()[1].decode()[-2000:]}")
-            time.sleep(0.2)
-        if signum == signal.SIGINT:
-            os.killpg(proc.pid, signum)
-        else:
-            proc.send_signal(signum)
-        _, err = proc.communicate(timeout=120)
+        _, err = proc.communicate(timeout=600)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    err = err.decode()
     assert proc.returncode == code, err
     assert err.strip().splitlines() == [
         f"roughvib: sweep {word}; completed cases are kept in {out}/cases, run the same "
