@@ -19,7 +19,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import tomllib
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import pandas as pd
 import pytest
 import xarray as xr
 from browser import inspect_page
+from self_signal import start_stopping_itself
 
 import roughvib
 from roughvib.cli.sweep import add_parsers
@@ -403,13 +403,6 @@ def test_small_sweep_completes_and_its_table_is_right(small_run, tmp_path):
     assert {c: _stamp(out / "cases" / c) for c in table["case"]} == before
 
 
-_KILLABLE = """
-import sys
-from roughvib.studies.sweep import run_sweep
-run_sweep(sys.argv[1], sys.argv[2], workers=2, progress=False)
-"""
-
-
 def _completed(cases_dir: Path) -> set[str]:
     done = set()
     if not cases_dir.is_dir():
@@ -428,21 +421,18 @@ def _completed(cases_dir: Path) -> set[str]:
 def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, client, tmp_path):
     spec = _write(tmp_path / "small.toml", SMALL)
     out = tmp_path / "out"
-    err = open(tmp_path / "stderr.txt", "w")  # noqa: SIM115 - closed below
-    proc = subprocess.Popen([sys.executable, "-c", _KILLABLE, str(spec), str(out)],
-                            stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
+    # SIGKILL to the whole process group (the command and its local pool's workers), sent by
+    # the command itself once its first case has ended: the kill lands between cases however
+    # fast they run (a test polling for a finished case could miss the last one)
+    proc = start_stopping_itself(signal.SIGKILL, "case", 1, "sweep", str(spec), "--out",
+                                 str(out), "--workers", "2", "--no-progress", group=True,
+                                 start_new_session=True, stdout=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 150
-        while not _completed(out / "cases"):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                pytest.fail("the sweep subprocess ended or stalled before a case completed:\n"
-                            + (tmp_path / "stderr.txt").read_text()[-2000:])
-            time.sleep(0.02)
+        _, err = proc.communicate(timeout=600)
     finally:
-        # the whole process group: the client and its LocalCluster's worker processes
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-        err.close()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == -signal.SIGKILL, err
     done = _completed(out / "cases")
     assert 1 <= len(done) < 4
     stamps = {c: _stamp(out / "cases" / c) for c in done}
@@ -458,31 +448,34 @@ def test_killed_sweep_resumes_without_rerunning_completed_cases(small_run, clien
 
 
 @pytest.mark.parametrize("pool", ["dask", "local"])
-def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path, pool):
+def test_killing_a_worker_recomputes_no_finished_case(client, tmp_path, pool, monkeypatch):
     # a killed worker loses the results it held; Dask would recompute them (4 of 12 cases
     # ran twice in the report of issue 18): finished cases must stay untouched on disk. The
     # local pool starts a new worker and gives it the case the killed one was running.
-    import threading
+    # The worker is killed when the sweep counts its first ended case, from the sweep's own
+    # progress counter: before the sweep goes on, however fast the cases run
+    from roughvib import _progress
 
     spec = _write(tmp_path / "small.toml", SMALL)
     out = tmp_path / "out"
-    box: dict = {}
-    thread = threading.Thread(target=lambda: box.update(
-        run=sw.run_sweep(spec, out, client=client if pool == "dask" else None, workers=2,
-                         progress=False)))
-    thread.start()
-    deadline = time.monotonic() + 150
-    while not _completed(out / "cases"):
-        assert thread.is_alive() and time.monotonic() < deadline, "no case completed"
-        time.sleep(0.02)
-    done = _completed(out / "cases")
-    stamps = {c: _stamp(out / "cases" / c) for c in done}
-    pid = json.loads((out / "cases" / sorted(done)[0] / "case.json").read_text())["pid"]
-    os.kill(pid, signal.SIGKILL)  # the worker that ran a finished case
-    thread.join(timeout=300)
-    run = box["run"]
+    stamps: dict = {}
+    count = _progress.NoProgress.update
+
+    def update(self, n=1):
+        count(self, n)
+        if stamps:
+            return
+        done = _completed(out / "cases")
+        stamps.update({c: _stamp(out / "cases" / c) for c in done})
+        pid = json.loads((out / "cases" / sorted(done)[0] / "case.json").read_text())["pid"]
+        os.kill(pid, signal.SIGKILL)  # the worker that ran a finished case
+
+    monkeypatch.setattr(_progress.NoProgress, "update", update)
+    run = sw.run_sweep(spec, out, client=client if pool == "dask" else None, workers=2,
+                       progress=False)
+    assert stamps, "no case ended"
     assert run.failed == 0 and run.ran == 4
-    assert {c: _stamp(out / "cases" / c) for c in done} == stamps
+    assert {c: _stamp(out / "cases" / c) for c in stamps} == stamps
     assert not [p.name for p in (out / "cases").iterdir() if p.name.startswith(".")]
 
 
