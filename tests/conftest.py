@@ -7,13 +7,17 @@
   depends on, or writes into, the directory pytest was started from: a ``runs/`` left there by
   ``roughvib run`` (README's first command) changes nothing.
 - The session checks that claim: it lists the files below the start directory before the first
-  test and after the last, and fails the run, naming the files, if a test added, changed or
-  removed one (caches of Python and numba excepted).
+  test and after the last, and fails the run if a file was added, changed or removed meanwhile
+  (caches of Python and numba excepted). It names each file with when it was written, against
+  the session's start and end: the writer may be another process (a ``roughvib`` command run in
+  that directory in a second terminal during the session), which the check cannot tell from a
+  test.
 """
 
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -46,6 +50,7 @@ def pytest_configure(config):
     _saved["tmp"] = tempfile.mkdtemp(prefix="roughvib-test-cache-")
     os.environ["ROUGHVIB_CACHE_DIR"] = _saved["tmp"]
     _saved["start"] = Path.cwd()
+    _saved["t_start"] = time.time()
     _saved["before"] = _snapshot(_saved["start"])
     # hypothesis keeps its caches (constants, unicode data) and example database in
     # ./.hypothesis unless told: its storage goes to the session's temporary directory
@@ -60,17 +65,49 @@ def pytest_configure(config):
         pass
 
 
+def _clock(t: float) -> str:
+    return time.strftime("%H:%M:%S", time.localtime(t))
+
+
+def _when(mtime_ns: int, start: float, end: float) -> str:
+    """When a file was written, against the session's start and end."""
+    t = mtime_ns / 1e9
+    if t < start:
+        return f"modified {_clock(t)}, before the session (its time kept from elsewhere)"
+    if t > end:
+        return f"modified {_clock(t)}, after the session"
+    return f"modified {_clock(t)}, {t - start:.0f} s into the session"
+
+
+def _changes(before: dict, after: dict, start: float, end: float) -> list[str]:
+    """One line per file added, changed or removed between the snapshots ``before`` and
+    ``after`` (:func:`_snapshot`), in path order."""
+    lines = []
+    for path in sorted(set(before) | set(after)):
+        if path not in after:
+            lines.append(f"{path}: removed")
+        elif path not in before:
+            lines.append(f"{path}: added, {_when(after[path][1], start, end)}")
+        elif before[path] != after[path]:
+            lines.append(f"{path}: changed, {_when(after[path][1], start, end)}")
+    return lines
+
+
 def pytest_sessionfinish(session, exitstatus):
     before, after = _saved.get("before"), _snapshot(_saved["start"])
     if before is None:
         return
-    touched = sorted(set(before) ^ set(after)
-                     | {p for p in set(before) & set(after) if before[p] != after[p]})
-    if touched:
-        shown = ", ".join(touched[:10]) + (f" and {len(touched) - 10} more"
-                                            if len(touched) > 10 else "")
-        print(f"\nERROR: tests changed files in the directory pytest was started from "
-              f"({_saved['start']}): {shown}")
+    start, end = _saved["t_start"], time.time()
+    lines = _changes(before, after, start, end)
+    if lines:
+        shown = lines[:10] + ([f"and {len(lines) - 10} more"] if len(lines) > 10 else [])
+        print(f"\nERROR: changed files in the directory pytest was started from "
+              f"({_saved['start']}) during the test session ({_clock(start)} to {_clock(end)}):"
+              + "".join(f"\n  {line}" for line in shown)
+              + "\nEach test runs in its own temporary directory, so either a test escaped it, or "
+                "another process wrote these files: if you ran roughvib (or anything else) in "
+                "this directory during the session, that was the writer; run the tests again "
+                "without it to tell.")
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
