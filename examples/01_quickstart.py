@@ -2,13 +2,14 @@
 Quickstart: a short run
 =======================
 
-Run a shortened paper scene, look at the result, save it. Run with
-``python examples/01_quickstart.py [OUT_DIR]``; the test suite runs it too.
+Run a shortened paper scene, look at the result, draw the block's velocity, save it. Run
+with ``python examples/01_quickstart.py [OUT_DIR]``; the test suite runs it too.
 """
 
 import sys
 
 import roughvib
+from roughvib.views.figures import plot_velocity
 
 
 def main(out_dir: str = "runs/quickstart") -> roughvib.Result:
@@ -26,6 +27,9 @@ def main(out_dir: str = "runs/quickstart") -> roughvib.Result:
     print(f"events: {len(result.events)} ({', '.join(result.events['kind'].unique())})")
     print(f"energy audit relative residual: "
           f"{result.summary['energy_audit']['relative_residual']:.2e}")
+    # the block's tangential velocity: it sticks (grey) twice per period (the paper's Fig. 6);
+    # `roughvib report OUT_DIR` draws this and every other figure of the run
+    plot_velocity(result)
     result.save(out_dir)
     print(f"saved to {out_dir}")
     return result
