@@ -70,6 +70,21 @@ def test_friction_displacement_title_states_a_clean_guard(run):
     assert "|v| < 1 µm/s" in title, title
 
 
+def test_surface_spectrum_figure_texts_stand_free(tmp_path):
+    """spectrum.png of ``roughvib surface paper``: two titles, wavelength axes on top."""
+    from roughvib.analysis.spectra import wavenumber_band_levels, wavenumber_spectrum
+    from roughvib.physics.surface.roughness import build_profile
+    from roughvib.views.surface_report import _spectrum_figure
+
+    scene = roughvib.load_scene("paper")
+    prof = build_profile(scene.roughness, scene.block, scene.base_dir)
+    lam, lev = wavenumber_band_levels(prof.z, prof.dx, lambda_min=2 * prof.dx,
+                                      lambda_max=prof.length)
+    k, psd = wavenumber_spectrum(prof.z, prof.dx)
+    fig = _spectrum_figure(lam, lev, lev - 3.0, np.full(lam.size, np.nan), 6e-4, k, psd)
+    assert text_problems(fig) == []
+
+
 def _dense_table():
     """Like the paper scene's study: five methods, ladders and presets, some runs of two
     methods at about one cost and error, presets on ladder rungs."""

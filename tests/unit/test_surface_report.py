@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from roughvib.analysis import figures_data as fd
 from roughvib.physics.surface.contact import contact_stiffness
 from roughvib.physics.surface.roughness import build_profile, select_contacts
 from roughvib.scene import load_scene
@@ -67,6 +68,63 @@ def test_contact_spectrum_loses_wavelengths_longer_than_the_stroke(report):
     np.testing.assert_allclose(glob[live], model[live], atol=0.01)
     short = (lam > 60e-6) & (lam < 0.5e-3)
     assert abs(np.nanmean(cont[short] - glob[short])) < 3.0
+
+
+def _spectrum_data(paths):
+    """The numbers behind spectrum.png, read back from the report's CSV files."""
+    def col(rows, name):
+        return np.array([float(r[name]) if r[name] else np.nan for r in rows])
+
+    bands, psd = _rows(paths["spectrum_csv"]), _rows(paths["psd_csv"])
+    return (col(bands, "wavelength_m"), col(bands, "global_dB"), col(bands, "contact_dB"),
+            col(bands, "model_dB"), col(psd, "wavenumber_rad_per_m"),
+            col(psd, "psd_m2_per_rad_per_m"))
+
+
+def test_spectrum_figure_shows_where_the_profile_has_content(report):
+    """spectrum.png runs over wavenumber across the roughness band and shows the levels and
+    the density down to a floor below it, not the numerical floors of the bands the filter
+    emptied (about -300 dB) and of the density beyond the shortest wavelength (1e-36)."""
+    scene, paths = report
+    lam, glob, cont, model, k, psd = _spectrum_data(paths)
+    view = fd.surface_spectrum_view(2 * np.pi / lam, glob, k, psd, others=(cont, model))
+    r = scene.roughness
+    # the bands of the synthesis target (the scene's band, less what the block-length filter
+    # removes) are shown whole, little more on either side
+    target = np.isfinite(model)
+    k_target = 2 * np.pi / lam[target]
+    assert view.k_range[0] <= k_target.min() < 2 * view.k_range[0]
+    assert view.k_range[1] / 2 < k_target.max() <= view.k_range[1]
+    # every level of the profile in them is shown, the bands the filter emptied are not
+    assert view.level_range[0] < glob[target].min() and view.level_range[1] > glob[target].max()
+    assert np.nanmin(glob) < -200 < view.level_range[0]
+    # the density: every value inside the scene's band is shown; the floor beyond it is cut
+    k_band = (2 * np.pi / r.longest_wavelength, 2 * np.pi / r.shortest_wavelength)
+    band = (k >= k_band[0]) & (k <= k_band[1] / 1.2)
+    assert psd[band].min() > view.psd_range[0] > 1e-30 > psd.min()
+    assert psd[k > 1.5 * k_band[1]].max() < view.psd_range[0]
+    assert view.psd_range[1] > psd[band].max()
+
+
+def test_spectrum_figure_axes_are_the_view(report):
+    from roughvib.views.surface_report import _spectrum_figure
+
+    scene, paths = report
+    lam, glob, cont, model, k, psd = _spectrum_data(paths)
+    lo, hi, _ = scan_range(scene)
+    view = fd.surface_spectrum_view(2 * np.pi / lam, glob, k, psd, others=(cont, model))
+    fig = _spectrum_figure(lam, glob, cont, model, hi - lo, k, psd)
+    bands, narrow = fig.axes[:2]
+    for ax in (bands, narrow):  # wavenumber, increasing to the right
+        assert ax.get_xscale() == "log" and ax.get_xlim() == pytest.approx(view.k_range)
+        assert ax.get_xlabel() == "wavenumber k [rad/m]"
+    assert bands.get_ylim() == pytest.approx(view.level_range)
+    assert narrow.get_ylim() == pytest.approx(view.psd_range)
+    # each panel has a wavelength axis on top
+    for ax in (bands, narrow):
+        assert [a.get_xlabel() for a in ax.child_axes] == ["wavelength [mm]"]
+    assert "cut 3 decades below" in narrow.get_title()
+    assert "cut 10 dB below" in bands.get_title()
 
 
 def test_scan_range_estimates():

@@ -9,7 +9,7 @@ This module owns the reductions that the figures (:mod:`roughvib.views.figures`)
 * acceleration spectra of block and plate (Fig. 14): third-octave band levels and a Welch narrow
   band in dB re 1e-6 m/s^2, with an optional simulated accelerometer noise floor on the block;
 * the wavenumber spectra of the global input profile and of the stretch of it one contact
-  actually crosses (Fig. 5);
+  actually crosses (Fig. 5), and the ranges the surface report's spectrum figure shows;
 * estimates of the contact resonance, and the velocity exponent over a set of runs.
 
 Third-octave levels of the accelerations (:func:`acceleration_spectra`) come from the IEC
@@ -57,8 +57,10 @@ from roughvib.results import Result
 from roughvib.scene import Scene, scene_from_dict
 
 __all__ = ["ACCELERATIONS", "AccelerationSpectra", "ContactInputSpectra", "ContactResonance",
-           "FrictionLoop", "acceleration_spectra", "analysis_window", "contact_input_spectra",
-           "contact_resonance", "friction_loop", "scene_of", "stick_slip_levels",
+           "FrictionLoop", "SurfaceSpectrumView",
+           "acceleration_spectra", "analysis_window", "contact_input_spectra",
+           "contact_resonance", "friction_loop", "scene_of",
+           "stick_slip_levels", "surface_spectrum_view",
            "tangential_stiffness", "tapered_band_levels", "transmissibility", "velocity_sweep"]
 
 #: block and plate acceleration variables (the paper's "mass" and "plate")
@@ -660,6 +662,101 @@ def contact_input_spectra(result: Result, *, contact: int = 0) -> ContactInputSp
     k_c, p_c = wavenumber_spectrum(seg, prof.dx, resolution=2.0 * np.pi / (seg.size * prof.dx))
     return ContactInputSpectra(k_global=k_g, psd_global=p_g, k_contact=k_c, psd_contact=p_c,
                                stroke=float(np.ptp(x)), contact=contact)
+
+
+#: half the width of a third-octave band as a wavenumber ratio
+_THIRD_HALF = 10.0 ** 0.05
+
+
+@dataclass(frozen=True)
+class SurfaceSpectrumView:
+    """The axes of a surface report's spectrum figure (``spectrum.png``), from its data.
+
+    Both panels run over angular wavenumber (increasing to the right) across the bands where
+    the profile has content; the band levels and the narrow-band density are shown down to a
+    floor below that content, not down to the numerical floor of emptied bands (about -300
+    dB) or of the density beyond the shortest wavelength (down to 1e-36 m^2/(rad/m)).
+
+    Attributes
+    ----------
+    k_range : (float, float)
+        Wavenumbers shown [rad/m]: the content bands' edges, one third octave wider.
+    level_range : (float, float)
+        Band levels shown [dB re 1 µm]: from ``margin_db`` below the lowest content band of
+        the whole profile to 5 dB above the highest level.
+    psd_range : (float, float)
+        Densities shown [m^2/(rad/m)]: from ``decades`` below the lowest band average of the
+        density over the content bands to 3 times its highest value.
+    margin_db : float
+        Decibels shown below the lowest content band.
+    decades : float
+        Decades shown below the density's lowest band average.
+    content : ndarray of bool, shape (n_bands,)
+        The content bands: a finite level of the whole profile within ``span_db`` of its
+        highest band.
+    """
+
+    k_range: tuple[float, float]
+    level_range: tuple[float, float]
+    psd_range: tuple[float, float]
+    margin_db: float
+    decades: float
+    content: np.ndarray
+
+
+def surface_spectrum_view(k_bands: ArrayLike, levels: ArrayLike, k_psd: ArrayLike,
+                          psd: ArrayLike, *, others: Iterable[ArrayLike] = (),
+                          span_db: float = 60.0, margin_db: float = 10.0,
+                          decades: float = 3.0) -> SurfaceSpectrumView:
+    """The ranges a surface spectrum figure shows: where the profile's spectrum lives.
+
+    Parameters
+    ----------
+    k_bands : array_like, shape (n_bands,)
+        Centre wavenumbers of the third-octave bands [rad/m].
+    levels : array_like, shape (n_bands,)
+        Band levels of the whole profile [dB re 1 µm] (NaN or very low where a band is empty).
+    k_psd, psd : array_like, shape (n,)
+        Narrow-band wavenumber [rad/m] and density [m^2/(rad/m)] of the profile.
+    others : iterable of array_like, shape (n_bands,)
+        Further band levels drawn in the same panel (their highest level sets the top).
+    span_db : float
+        A band within ``span_db`` of the highest is content.
+    margin_db : float
+        Shown below the lowest content band [dB].
+    decades : float
+        Decades of density shown below its lowest band average over the content bands.
+
+    Returns
+    -------
+    SurfaceSpectrumView
+    """
+    kb = np.asarray(k_bands, dtype=float)
+    lev = np.asarray(levels, dtype=float)
+    k = np.asarray(k_psd, dtype=float)
+    p = np.asarray(psd, dtype=float)
+    finite = np.isfinite(lev)
+    if not finite.any():
+        raise ValueError("no band of the profile has a finite level")
+    content = finite & (lev >= np.max(lev[finite]) - span_db)
+    k_lo = float(kb[content].min()) / _THIRD_HALF**3
+    k_hi = float(kb[content].max()) * _THIRD_HALF**3
+    top = max([float(np.max(lev[finite]))]
+              + [float(np.nanmax(o)) for o in map(np.asarray, others)
+                 if np.isfinite(o).any()])
+    level_range = (float(np.min(lev[content])) - margin_db, top + 5.0)
+    means = []
+    for kc in kb[content]:
+        sel = (k >= kc / _THIRD_HALF) & (k < kc * _THIRD_HALF) & (p > 0)
+        if sel.any():
+            means.append(float(np.mean(p[sel])))
+    shown = (k >= k_lo) & (k <= k_hi) & (p > 0)
+    if not means or not shown.any():
+        raise ValueError("the narrow-band density has no positive value in the content bands")
+    psd_range = (min(means) * 10.0**-decades, 3.0 * float(np.max(p[shown])))
+    return SurfaceSpectrumView(k_range=(k_lo, k_hi), level_range=level_range,
+                               psd_range=psd_range, margin_db=margin_db, decades=decades,
+                               content=content)
 
 
 # --------------------------------------------------------------------------------------------

@@ -11,7 +11,9 @@
 * ``contacts.csv`` and ``contacts.json``: the contact points (profile and plate coordinates,
   heights, per-spring stiffness, scanned range) and the statistical contact (stiffness,
   micro-contacts, real area, pressure, plasticity index, resonance);
-* ``profile.png`` and ``spectrum.png``.
+* ``profile.png`` and ``spectrum.png`` (band levels and narrow band over wavenumber, with a
+  wavelength axis on top, each shown across the profile's bands and cut a stated margin
+  below its content: :func:`roughvib.analysis.figures_data.surface_spectrum_view`).
 
 The band levels reuse :func:`roughvib.analysis.spectra.wavenumber_band_levels` (imported when
 the report is written; this is a report, downstream of the analysis stage). matplotlib is
@@ -318,27 +320,48 @@ def _plot_profile(path: Path, profile: Profile, s_pts: np.ndarray, heights: np.n
 def _plot_spectrum(path: Path, lam: np.ndarray, lev_g: np.ndarray, lev_c: np.ndarray,
                    lev_m: np.ndarray, stroke: float, k_nb: np.ndarray, psd_nb: np.ndarray
                    ) -> Path:
+    _spectrum_figure(lam, lev_g, lev_c, lev_m, stroke, k_nb, psd_nb).savefig(path, dpi=120)
+    return path
+
+
+def _spectrum_figure(lam: np.ndarray, lev_g: np.ndarray, lev_c: np.ndarray, lev_m: np.ndarray,
+                     stroke: float, k_nb: np.ndarray, psd_nb: np.ndarray):
+    """Both panels over wavenumber (a wavelength axis on top) across the profile's bands,
+    each cut below its content (:func:`roughvib.analysis.figures_data.surface_spectrum_view`);
+    returns the figure."""
+    from roughvib.analysis.figures_data import surface_spectrum_view
+
+    k_c = 2.0 * np.pi / lam
+    view = surface_spectrum_view(k_c, lev_g, k_nb, psd_nb, others=(lev_c, lev_m))
     fig, (ax1, ax2) = _figure(2)
-    lam_mm = lam * 1e3
-    ax1.semilogx(lam_mm, lev_g, "o-", ms=3, label="whole profile")
-    ax1.semilogx(lam_mm, lev_c, "s-", ms=3, label="seen by one contact (stroke)")
+    ax1.semilogx(k_c, lev_g, "o-", ms=3, label="whole profile")
+    ax1.semilogx(k_c, lev_c, "s-", ms=3, label="seen by one contact (stroke)")
     if np.any(np.isfinite(lev_m)):
-        ax1.semilogx(lam_mm, lev_m, "k--", lw=0.8, label="synthesis target")
+        ax1.semilogx(k_c, lev_m, "k--", lw=0.8, label="synthesis target")
     if stroke > 0:
-        ax1.axvline(stroke * 1e3, color="0.5", ls=":", label="peak-to-peak stroke")
-    finite = np.concatenate([v[np.isfinite(v)] for v in (lev_g, lev_c, lev_m)])
-    if finite.size:
-        top = float(finite.max())
-        ax1.set_ylim(top - 60.0, top + 5.0)  # bands emptied by the filter sit at -300 dB
-    ax1.invert_xaxis()
-    ax1.set_xlabel("wavelength [mm]")
+        ax1.axvline(2.0 * np.pi / stroke, color="0.5", ls=":",
+                    label="wavelength = peak-to-peak stroke")
+    ax1.set_ylim(*view.level_range)
     ax1.set_ylabel("roughness level [dB re 1 µm]")
-    ax1.set_title("third-octave wavelength bands")
+    ax1.set_title(f"third-octave wavelength bands (cut {view.margin_db:g} dB below the profile's "
+                  f"lowest band)", fontsize=10)
     ax1.legend(fontsize=8)
     pos = (k_nb > 0) & (psd_nb > 0)
     ax2.loglog(k_nb[pos], psd_nb[pos], lw=0.8)
-    ax2.set_xlabel("wavenumber k [rad/m]")
+    ax2.set_ylim(*view.psd_range)
     ax2.set_ylabel("PSD [m² / (rad/m)]")
-    ax2.set_title("narrow-band wavenumber spectrum (Welch)")
-    fig.savefig(path, dpi=120)
-    return path
+    ax2.set_title(f"narrow-band wavenumber spectrum (Welch; cut {view.decades:g} decades below "
+                  f"its lowest band average)", fontsize=10)
+    for ax in (ax1, ax2):
+        ax.set_xlim(*view.k_range)
+        ax.set_xlabel("wavenumber k [rad/m]")
+        # wavelength in mm = 2 pi / k * 1e3 (its own inverse)
+        top = ax.secondary_xaxis("top", functions=(_k_to_mm, _k_to_mm))
+        top.set_xlabel("wavelength [mm]")
+    return fig
+
+
+def _k_to_mm(x):
+    x = np.asarray(x, dtype=float)
+    with np.errstate(divide="ignore"):
+        return np.where(x > 0, 2.0e3 * np.pi / np.where(x > 0, x, 1.0), np.inf)
