@@ -29,6 +29,7 @@ from roughvib.analysis.spectra import band_levels
 from roughvib.cli.report import add_parsers
 from roughvib.results import EVENT_COLUMNS, Result
 from roughvib.scene import Scene, scene_to_toml
+from roughvib.views import figures as plots
 from roughvib.views.figures import FIGURES, save_figure
 from roughvib.views.report import build_report, write_report
 
@@ -261,6 +262,42 @@ def test_stiffness_guard_and_contact_input_stroke(run):
     assert cs.k_contact[1] == pytest.approx(2 * np.pi / cs.stroke, rel=0.5)
     with pytest.raises(ValueError, match="contact must be"):
         fd.contact_input_spectra(result, contact=99)
+
+
+def _timeline_result(n_contacts: int, events: list[dict]) -> Result:
+    """A 0.4 s Result that holds only its time axis, contacts and event log."""
+    ds = xr.Dataset(coords={"time": np.linspace(0.0, 0.4, 401),
+                            "contact": np.arange(n_contacts)})
+    return Result(ds, pd.DataFrame(events, columns=EVENT_COLUMNS), {}, "")
+
+
+def test_events_figure_says_no_lift_off_when_no_contact_opens(run):
+    result, _ = run
+    # the contact force stays positive throughout: the contact never opens
+    assert float(result.dataset["contact_force"].min()) > 0.0
+    tl = fd.regime_timeline(result)
+    assert not tl.lifts_off and tl.lift_off == [[]] * result.dataset.sizes["contact"]
+    assert tl.stick  # the block does stick: the panel is not empty
+    ax = FIGURES["events"](result).axes[2]
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["lift-off", "block stick"]
+    assert [t.get_text() for t in ax.texts] == ["none: the contact stays closed throughout"]
+    assert "no lift-off" in ax.get_title() and "red" not in ax.get_title()
+    # several contacts, none of which opens: one row for all of them
+    ax = plots.plot_regime_timeline(_timeline_result(3, []))
+    assert [t.get_text() for t in ax.texts] == ["none: all 3 contacts stay closed throughout"]
+
+
+def test_events_figure_draws_a_row_per_contact_when_one_lifts_off():
+    result = _timeline_result(3, [{"time": 0.1, "kind": "lift_off", "contact": 1},
+                                  {"time": 0.15, "kind": "touch_down", "contact": 1},
+                                  {"time": 0.3, "kind": "lift_off", "contact": 2}])
+    tl = fd.regime_timeline(result)
+    # contact 2 is still open when the run ends
+    assert tl.lifts_off and tl.lift_off == [[], [(0.1, 0.15)], [(0.3, 0.4)]]
+    ax = plots.plot_regime_timeline(result)
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["contact 0", "contact 1",
+                                                            "contact 2", "block stick"]
+    assert "red: contact open" in ax.get_title() and not ax.texts
 
 
 def test_contact_resonance_spring_mass_from_the_scene(run):

@@ -8,6 +8,7 @@ This module owns the reductions that the figures (:mod:`roughvib.views.figures`)
   with the global tangential stiffness dT/dx (Fig. 9);
 * acceleration spectra of block and plate (Fig. 14): third-octave band levels and a Welch narrow
   band in dB re 1e-6 m/s^2, with an optional simulated accelerometer noise floor on the block;
+* the regimes over time (lift-off per contact, stick, guards) of the events figure;
 * the wavenumber spectra of the global input profile and of the stretch of it one contact
   actually crosses (Fig. 5), and the ranges the surface report's spectrum figure shows;
 * estimates of the contact resonance, and the velocity exponent over a set of runs.
@@ -57,9 +58,9 @@ from roughvib.results import Result
 from roughvib.scene import Scene, scene_from_dict
 
 __all__ = ["ACCELERATIONS", "AccelerationSpectra", "ContactInputSpectra", "ContactResonance",
-           "FrictionLoop", "SurfaceSpectrumView",
+           "FrictionLoop", "RegimeTimeline", "SurfaceSpectrumView",
            "acceleration_spectra", "analysis_window", "contact_input_spectra",
-           "contact_resonance", "friction_loop", "scene_of",
+           "contact_resonance", "friction_loop", "regime_timeline", "scene_of",
            "stick_slip_levels", "surface_spectrum_view",
            "tangential_stiffness", "tapered_band_levels", "transmissibility", "velocity_sweep"]
 
@@ -133,6 +134,61 @@ def analysis_window(result: Result, *, periods: float | None = None) -> slice:
         else:
             win = slice(win.start, t.size)
     return win
+
+
+# --------------------------------------------------------------------------------------------
+# regimes over time (the events figure)
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RegimeTimeline:
+    """The regimes of a run over time: what the events figure's bottom panel draws.
+
+    Attributes
+    ----------
+    t_end : float
+        End of the run [s].
+    lift_off : list of list of (float, float)
+        Per contact, its lift-off phases (start, end) [s].
+    stick : list of (float, float)
+        The block's stick phases (start, end) [s].
+    guards : ndarray, shape (g,)
+        Times of the solver's guard events [s] (event storms left out).
+    """
+
+    t_end: float
+    lift_off: list[list[tuple[float, float]]]
+    stick: list[tuple[float, float]]
+    guards: np.ndarray
+
+    @property
+    def lifts_off(self) -> bool:
+        """Whether any contact lifts off during the run."""
+        return any(self.lift_off)
+
+
+def regime_timeline(result: Result) -> RegimeTimeline:
+    """Lift-off phases per contact, stick phases and guard events of a run, from its log.
+
+    Parameters
+    ----------
+    result : Result
+
+    Returns
+    -------
+    RegimeTimeline
+    """
+    from roughvib.analysis.events import GUARD_KINDS, lift_off_intervals, stick_intervals
+
+    ds = result.dataset
+    t_end = float(ds["time"].values[-1])
+    ev = result.events
+    guards = ev[ev["kind"].isin([k for k in GUARD_KINDS if k != "event_storm"])]
+    return RegimeTimeline(
+        t_end=t_end,
+        lift_off=[lift_off_intervals(ev, k, t_end) for k in range(ds.sizes["contact"])],
+        stick=stick_intervals(ev, t_end),
+        guards=np.asarray(guards["time"], dtype=float))
 
 
 # --------------------------------------------------------------------------------------------

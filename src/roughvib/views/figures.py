@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from roughvib.analysis import figures_data as fd
-from roughvib.analysis.events import GUARD_KINDS, lift_off_intervals, stick_intervals
+from roughvib.analysis.events import stick_intervals
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -148,6 +148,8 @@ def plot_acceleration(result: Result, *, axes=None):
 def plot_regime_timeline(result: Result, *, ax: Axes | None = None) -> Axes:
     """Regimes over time: one row per contact (bar = lift-off) and one for the block (stick).
 
+    A run in which no contact lifts off has one row that says so instead of empty contact rows.
+
     Parameters
     ----------
     result : Result
@@ -158,28 +160,34 @@ def plot_regime_timeline(result: Result, *, ax: Axes | None = None) -> Axes:
     Axes
     """
     ax = _ax(ax)
-    ds = result.dataset
-    t_end = float(ds["time"].values[-1])
-    K = ds.sizes["contact"]
-    for k in range(K):
-        iv = lift_off_intervals(result.events, k, t_end)
-        if iv:
-            ax.broken_barh([(s, e - s) for s, e in iv], (k - 0.4, 0.8), color="C3")
-    iv = stick_intervals(result.events, t_end)
-    if iv:
-        ax.broken_barh([(s, e - s) for s, e in iv], (K - 0.4 + 0.5, 0.8), color="C0")
-    guards = result.events[result.events["kind"].isin(
-        [k for k in GUARD_KINDS if k != "event_storm"])]
-    if len(guards):
-        ax.plot(guards["time"], np.full(len(guards), K + 0.5), "k|", ms=8, label="guard")
+    tl = fd.regime_timeline(result)
+    K = len(tl.lift_off)
+    if tl.lifts_off:
+        for k, iv in enumerate(tl.lift_off):
+            if iv:
+                ax.broken_barh([(s, e - s) for s, e in iv], (k - 0.4, 0.8), color="C3")
+        rows = [f"contact {k}" for k in range(K)]
+        title = "regimes (red: contact open, blue: stick)"
+    else:  # one row for all contacts, saying that none opens
+        K = 1
+        n = len(tl.lift_off)
+        who = "the contact stays" if n == 1 else f"all {n} contacts stay"
+        ax.text(0.5 * tl.t_end, 0.0, f"none: {who} closed throughout", ha="center",
+                va="center", fontsize=9, color="0.25")
+        rows = ["lift-off"]
+        title = "regimes (blue: stick; no lift-off)"
+    if tl.stick:
+        ax.broken_barh([(s, e - s) for s, e in tl.stick], (K - 0.4 + 0.5, 0.8), color="C0")
+    if tl.guards.size:
+        ax.plot(tl.guards, np.full(tl.guards.size, K + 0.5), "k|", ms=8, label="guard")
         ax.legend(loc="upper right", fontsize=7)
     ax.set_yticks(list(range(K)) + [K + 0.5])
-    ax.set_yticklabels([f"contact {k}" for k in range(K)] + ["block stick"], fontsize=7)
+    ax.set_yticklabels(rows + ["block stick"], fontsize=7)
     ax.set_ylim(-0.7, K + 1.2)
-    ax.set_xlim(0, t_end)
+    ax.set_xlim(0, tl.t_end)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("regime")
-    ax.set_title("regimes (red: contact open, blue: stick)")
+    ax.set_title(title)
     return ax
 
 
