@@ -300,6 +300,34 @@ def test_events_figure_draws_a_row_per_contact_when_one_lifts_off():
     assert "red: contact open" in ax.get_title() and not ax.texts
 
 
+def test_stiffness_scale_covers_the_slip_branch_not_the_spikes():
+    rng = np.random.default_rng(1)
+    slip = rng.uniform(-1e3, 1e3, 2000)  # |dT/dx| uniform on [0, 1e3] N/m
+    k = np.concatenate([slip, [5e8, -5e8], np.full(300, 4e5), [np.nan]])
+    stick = np.r_[np.zeros(2002, dtype=bool), np.ones(301, dtype=bool)]
+    sc = fd.stiffness_scale(k, stick)
+    assert sc.limit == pytest.approx(950.0, rel=0.03)  # the 95 % quantile of |U(-1e3, 1e3)|
+    assert sc.stick_median == 4e5 and sc.coverage == 0.95
+    assert sc.beyond == pytest.approx((0.05 * 2000 + 2 + 300) / 2302, abs=0.01)
+    with pytest.raises(ValueError, match="coverage must be in"):
+        fd.stiffness_scale(k, stick, coverage=0.0)
+
+
+def test_stiffness_panel_is_linear_over_the_slip_branch(run):
+    result, _ = run
+    loop, k, _ = fd.tangential_stiffness(result)
+    sc = fd.stiffness_scale(k, loop.stick)
+    # paper Fig. 9b: in stick dT/dx is far above its value in slip
+    assert sc.stick_median > 5 * sc.limit
+    ax = plots.plot_tangential_stiffness(result)
+    assert ax.get_yscale() == "linear"
+    assert ax.get_ylim() == pytest.approx((-1.1e-3 * sc.limit, 1.1e-3 * sc.limit))
+    said = re.search(r"median ([0-9.]+) (kN|MN)/m, off the scale", ax.get_title())
+    assert said, ax.get_title()
+    value = float(said[1]) * {"kN": 1e3, "MN": 1e6}[said[2]]
+    assert value == pytest.approx(sc.stick_median, rel=5e-3)
+
+
 def test_contact_resonance_spring_mass_from_the_scene(run):
     result, _ = run
     scene = fd.scene_of(result)

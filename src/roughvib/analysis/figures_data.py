@@ -58,10 +58,10 @@ from roughvib.results import Result
 from roughvib.scene import Scene, scene_from_dict
 
 __all__ = ["ACCELERATIONS", "AccelerationSpectra", "ContactInputSpectra", "ContactResonance",
-           "FrictionLoop", "RegimeTimeline", "SurfaceSpectrumView",
+           "FrictionLoop", "RegimeTimeline", "StiffnessScale", "SurfaceSpectrumView",
            "acceleration_spectra", "analysis_window", "contact_input_spectra",
            "contact_resonance", "friction_loop", "regime_timeline", "scene_of",
-           "stick_slip_levels", "surface_spectrum_view",
+           "stick_slip_levels", "stiffness_scale", "surface_spectrum_view",
            "tangential_stiffness", "tapered_band_levels", "transmissibility", "velocity_sweep"]
 
 #: block and plate acceleration variables (the paper's "mass" and "plate")
@@ -300,6 +300,67 @@ def tangential_stiffness(result: Result, *, periods: float | None = 2.5,
     k = global_tangential_stiffness(loop.friction, loop.displacement, loop.velocity, dt,
                                     v_guard=v_guard)
     return loop, k, float(v_guard)
+
+
+@dataclass(frozen=True)
+class StiffnessScale:
+    """The linear ordinate of the tangential-stiffness panel (paper Fig. 9b), from its data.
+
+    In slip dT/dx fluctuates about zero; in stick it is the stiff branch, an order of magnitude
+    and more above, with spikes at the transitions. One axis cannot show both readably: the panel's
+    axis covers the slip branch, and the stick branch is named by its median (the stick phases
+    are shaded).
+
+    Attributes
+    ----------
+    limit : float
+        Half range of the ordinate [N/m]: the ``coverage`` quantile of |dT/dx| over the slip
+        samples (1e3 N/m without any evaluated slip sample).
+    coverage : float
+        Share of the evaluated slip samples within ±``limit`` [-].
+    stick_median : float
+        Median dT/dx over the evaluated stick samples [N/m]; NaN without stick.
+    beyond : float
+        Share of all evaluated samples beyond ±``limit`` [-] (drawn cut at the frame).
+    """
+
+    limit: float
+    coverage: float
+    stick_median: float
+    beyond: float
+
+
+def stiffness_scale(stiffness: ArrayLike, stick: ArrayLike, *, coverage: float = 0.95
+                    ) -> StiffnessScale:
+    """The ordinate of the tangential-stiffness panel: the slip branch's range.
+
+    Parameters
+    ----------
+    stiffness : array_like, shape (n,)
+        dT/dx [N/m] (NaN where not evaluated), from :func:`tangential_stiffness`.
+    stick : array_like of bool, shape (n,)
+        Samples inside a stick phase.
+    coverage : float
+        Share of the slip samples the ordinate shows uncut, in (0, 1].
+
+    Returns
+    -------
+    StiffnessScale
+    """
+    k = np.asarray(stiffness, dtype=float)
+    st = np.asarray(stick, dtype=bool)
+    if not 0.0 < coverage <= 1.0:
+        raise ValueError(f"coverage must be in (0, 1], got {coverage}")
+    ok = np.isfinite(k)
+    slip = np.abs(k[ok & ~st])
+    limit = float(np.quantile(slip, coverage)) if slip.size else 0.0
+    if not limit > 0.0:
+        limit = 1e3
+    held = k[ok & st]
+    evaluated = np.abs(k[ok])
+    return StiffnessScale(limit=limit, coverage=coverage,
+                          stick_median=float(np.median(held)) if held.size else math.nan,
+                          beyond=float(np.mean(evaluated > limit)) if evaluated.size else 0.0)
 
 
 def stick_slip_levels(result: Result, *, settle: float = 0.0) -> dict[str, dict[str, float]]:

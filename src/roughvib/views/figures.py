@@ -287,9 +287,11 @@ def plot_tangential_stiffness(result: Result, *, ax: Axes | None = None,
     """Global tangential stiffness dT/dx against time (paper Fig. 9b), stick shaded.
 
     dT/dx is not evaluated where ``|v| < v_guard`` (gaps in the line); see
-    :func:`roughvib.analysis.figures_data.tangential_stiffness`. The ordinate is symmetric-
-    logarithmic: linear within ±1e3 N/m (sliding, about 0; as tall as four decades, so that its
-    labels stand apart), logarithmic beyond (the stiff stick branch, up to 1e9 N/m).
+    :func:`roughvib.analysis.figures_data.tangential_stiffness`. The ordinate is linear, in
+    kN/m, and covers the slip branch (95 % of its samples,
+    :func:`roughvib.analysis.figures_data.stiffness_scale`): in stick dT/dx is the stiff
+    branch, an order of magnitude and more above, cut at the frame; the title gives its
+    median.
 
     Parameters
     ----------
@@ -306,18 +308,20 @@ def plot_tangential_stiffness(result: Result, *, ax: Axes | None = None,
     """
     ax = _ax(ax)
     loop, k, guard = fd.tangential_stiffness(result, periods=periods, v_guard=v_guard)
-    ax.plot(loop.time, k, lw=0.5, color="C2")
+    scale = fd.stiffness_scale(k, loop.stick)
+    ax.plot(loop.time, k / 1e3, lw=0.5, color="C2")
     _shade_stick(ax, result, float(loop.time[0]), float(loop.time[-1]))
-    ax.set_yscale("symlog", linthresh=1e3, linscale=2.0)  # room for the labels -1e3, 0, 1e3
-    top = np.nanmax(np.abs(k)) if np.isfinite(k).any() else 1e3
-    decades = [10.0**e for e in range(3, max(4, int(math.ceil(math.log10(max(top, 1e3)))) + 1),
-                                      3)]
-    ax.set_yticks([-d for d in decades[::-1]] + [0.0] + decades)
+    ax.axhline(0.0, color="0.6", lw=0.5)
+    ax.set_ylim(-1.1 * scale.limit / 1e3, 1.1 * scale.limit / 1e3)
     ax.set_xlim(loop.time[0], loop.time[-1])
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("dT/dx [N/m]")
-    ax.set_title(f"(b) global tangential stiffness (gaps: |v| < {guard * 1e6:.2g} µm/s; "
-                 f"grey: stick)", fontsize=9)
+    ax.set_ylabel("dT/dx [kN/m]")
+    med = scale.stick_median
+    stick = (f"; grey: stick, median {med / 1e6:.3g} MN/m, off the scale" if abs(med) >= 1e6
+             else f"; grey: stick, median {med / 1e3:.3g} kN/m, off the scale"
+             if math.isfinite(med) else "")
+    ax.set_title(f"(b) global tangential stiffness (gaps: |v| < {guard * 1e6:.2g} µm/s"
+                 f"{stick})", fontsize=9)
     return ax
 
 
