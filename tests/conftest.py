@@ -12,6 +12,10 @@
   the session's start and end: the writer may be another process (a ``roughvib`` command run in
   that directory in a second terminal during the session), which the check cannot tell from a
   test.
+- The marker ``short_run``: a test that runs scenes shorter than the run-in plus one excitation
+  period on purpose (to be fast, or to look at the start of a run) expects the two
+  ``ModelValidityWarning``s that say so, and they are not shown for it. Every other warning
+  still shows, and these two do for any test without the marker.
 """
 
 import os
@@ -23,6 +27,15 @@ from pathlib import Path
 import pytest
 
 _saved = {}
+
+#: the warnings a run shorter than the paper's analysis issues (``filterwarnings`` syntax: the
+#: message is a regular expression matched at its start)
+SHORT_RUN_WARNINGS = (
+    r"ignore:the analysis window \(.*\) is shorter than one excitation period"
+    r":roughvib.scene.ModelValidityWarning",
+    r"ignore:output\.transient \(.*\) is not shorter than output\.duration"
+    r":roughvib.scene.ModelValidityWarning",
+)
 
 #: folders below the start directory that tests may legitimately change: interpreter and
 #: numba caches next to the sources, pytest's own cache, build output of the docs
@@ -46,6 +59,9 @@ def _snapshot(root: Path) -> dict[str, tuple[int, int]]:
 
 
 def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "short_run: the test runs scenes shorter than the run-in plus one excitation "
+        "period on purpose; the two ModelValidityWarnings that say so are expected (not shown)")
     _saved["dir"] = os.environ.get("ROUGHVIB_CACHE_DIR")
     _saved["tmp"] = tempfile.mkdtemp(prefix="roughvib-test-cache-")
     os.environ["ROUGHVIB_CACHE_DIR"] = _saved["tmp"]
@@ -109,6 +125,13 @@ def pytest_sessionfinish(session, exitstatus):
                 "this directory during the session, that was the writer; run the tests again "
                 "without it to tell.")
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.get_closest_marker("short_run") is not None:
+            for spec in SHORT_RUN_WARNINGS:
+                item.add_marker(pytest.mark.filterwarnings(spec))
 
 
 def pytest_unconfigure(config):
