@@ -21,6 +21,10 @@ from roughvib.analysis.compare import relative_rms_error
 from roughvib.api import simulate
 from roughvib.model.system import assemble
 
+#: the scenes here are shorter than the run-in plus one excitation period on purpose
+#: (the marker is in tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 TIGHT_IDA = {"solver.rtol": 1e-11, "solver.atol": 1e-18, "solver.atol_acceleration": 1e-12}
 
 

@@ -8,6 +8,10 @@ import roughvib
 from roughvib.api import simulate
 from roughvib.solvers.fixed_step import modal_propagators
 
+#: the scenes here are shorter than the run-in plus one excitation period on purpose
+#: (the marker is in tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 
 @pytest.fixture(scope="module", params=[True, False], ids=["cres", "no-cres"])
 def reference(request):

@@ -8,6 +8,10 @@ import pytest
 import roughvib
 from roughvib.analysis.compare import relative_rms_error
 
+#: the scenes here are shorter than the run-in plus one excitation period on purpose
+#: (the marker is in tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 SIGNALS = ("plate_vertical_acceleration", "block_tangential_velocity", "normal_force")
 
 

@@ -21,6 +21,7 @@ def _scene(name="paper", **over):
     return roughvib.load_scene(name, base)
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", ["ida", "adaptive-modal"])
 def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffness(method,
                                                                                  tmp_path):
@@ -69,6 +70,7 @@ def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffnes
     assert "roughvib run RUN_DIR/scene.toml --seeds 10" in html
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("model", ["gw", "gt"])
 def test_auto_stiffness_sets_the_rigid_plate_response(model):
     """Rigid plate, one contact on a sinusoid tracked at constant speed: the block is a
@@ -99,6 +101,7 @@ def test_auto_stiffness_sets_the_rigid_plate_response(model):
     assert abs(abs(z_hand) / abs(z_amp) - 1) > 10 * 3e-4
 
 
+@pytest.mark.short_run
 def test_measured_profile_brings_its_own_moments(tmp_path):
     """kind = "file": the summit statistics come from the measured heights, not the model PSD."""
     rng = np.random.default_rng(7)

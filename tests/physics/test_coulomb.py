@@ -194,6 +194,7 @@ def test_opt_in_guards_hold_the_stick_and_are_counted():
     assert len(r.events) < 2000
 
 
+@pytest.mark.short_run
 def test_chatter_guard_engages_only_on_chatter_and_is_logged():
     """A bouncing block (one contact, r1 = 0, 20 um roughness waves) sticks and slips every
     0.2-3 ms. At the default threshold (20 switches within 1 ms) that is not chatter and the

@@ -60,6 +60,7 @@ def _mean_force_over_periods(r, mass, periods):
 
 # ---- stiffness, damping, modes --------------------------------------------------------------
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("stiffness", [1e8, 1e10])
 def test_very_stiff_contact(stiffness, method):
@@ -70,6 +71,7 @@ def test_very_stiff_contact(stiffness, method):
     assert ds["contact_force"].values[0].sum() == pytest.approx(0.221 * GRAVITY, rel=1e-9)
 
 
+@pytest.mark.short_run
 def test_tiny_damping_keeps_the_energy_balance():
     """Loss factor 1e-5 and no dampers: almost nothing dissipates vertically, so the energy
     stored in the plate and block must match the work of the roughness input. Band levels
@@ -144,6 +146,7 @@ def tight_sliding():
     return get
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("velocity", [0.3, 1.0])
 def test_high_sliding_velocity(velocity, method, tight_sliding):
@@ -173,6 +176,7 @@ def _bounce(amplitude, **extra):
     return _run(**over)
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_lift_off_chatter_is_resolved_event_by_event(method):
     """A sinusoid whose kinematic acceleration A w^2 is 80 g: the block flies over the crests;
@@ -189,6 +193,7 @@ def test_lift_off_chatter_is_resolved_event_by_event(method):
     assert abs(n_lift - int((r.events["kind"] == "touch_down").sum())) <= 1
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_grazing_contact_either_holds_or_names_the_storm(method):
     """Roughness acceleration A w^2 = g exactly: the contact force grazes zero at every crest.
@@ -203,6 +208,7 @@ def test_grazing_contact_either_holds_or_names_the_storm(method):
         assert r.status == "event_storm" and "Hint" in r.summary["message"]
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_event_storm_stops_with_time_regime_and_hint(method):
     r = _bounce(10e-6, **{"solver.method": method, "solver.max_events": 2,
@@ -213,6 +219,7 @@ def test_event_storm_stops_with_time_regime_and_hint(method):
     assert "contact 0" in msg and "regime closed=" in msg and "Hint:" in msg
 
 
+@pytest.mark.short_run
 def test_zero_roughness_leaves_the_vertical_static():
     """No roughness: friction acts tangentially only, so the normal force stays m g exactly
     while the block slides back and forth."""
@@ -251,6 +258,7 @@ def test_very_light_load_over_a_whole_period():
     assert mean == pytest.approx(mg, rel=1e-2)
 
 
+@pytest.mark.short_run
 def test_heavy_load_tiny_roughness_is_linear():
     """Heavy block on tiny roughness never lifts off: the response is linear in the roughness,
     so doubling the rms raises every level by 20 log10(2) = 6.02 dB."""
@@ -267,6 +275,7 @@ def test_heavy_load_tiny_roughness_is_linear():
         assert lev[1][v] - lev[0][v] == pytest.approx(20 * math.log10(2), abs=0.02), v
 
 
+@pytest.mark.short_run
 def test_stick_only_excitation_never_slips():
     """Coulomb friction with a drive below mu_stick m g: the block sticks for ever, its
     tangential velocity is exactly zero and friction balances the drive."""
@@ -278,6 +287,7 @@ def test_stick_only_excitation_never_slips():
     assert not (r.events["kind"] == "slip").any()
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("points", [1, 10])
 def test_one_contact_versus_ten(points):
     """The same total stiffness on 1 or 10 contacts: statics carry m g either way."""
@@ -287,6 +297,7 @@ def test_one_contact_versus_ten(points):
     assert ds["contact_force"].values[0].sum() == pytest.approx(0.221 * GRAVITY, rel=1e-9)
 
 
+@pytest.mark.short_run
 def test_cubic_and_quintic_interpolation_agree_to_20_khz():
     """On a profile grid of 2.5 um (20 points per shortest wavelength) the interpolant no
     longer matters where the spectrum lives: solved tightly (rtol 1e-8, the solver error then
@@ -359,6 +370,7 @@ def _events_agree(a, b, dt):
     assert np.max(np.abs(a.events["time"].to_numpy() - b.events["time"].to_numpy())) < dt
 
 
+@pytest.mark.short_run
 def test_tight_tolerances_through_lift_off_and_touch_down():
     """rtol 1e-10, atol 1e-16 m, atol_acceleration 1e-12 m/s^2 on the one-contact lift-off
     scene (lift-off, touch-down, lift-off in 4 ms). Both used to fail: adaptive-modal's Newton
@@ -374,6 +386,7 @@ def test_tight_tolerances_through_lift_off_and_touch_down():
     _events_agree(*runs, 1e-9)
 
 
+@pytest.mark.short_run
 def test_tight_tolerances_on_an_elastic_plate():
     """The same tolerances with plate modes to 2 kHz up to the first lift-off (adaptive-modal
     stopped there with newton_failure)."""
@@ -386,6 +399,7 @@ def test_tight_tolerances_on_an_elastic_plate():
     _events_agree(*runs, 1e-9)
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_tolerances_below_their_round_off_floor_are_refused_in_one_line(method):
     """Below the floors of docs/robustness.md a run cannot meet its tolerance (IDA stalled at
@@ -438,6 +452,7 @@ def test_huge_masses_are_refused_in_one_line(method, mass, tmp_path, capsys):
     assert "cannot carry block.mass" in err and "pressed flat" in err
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_huge_mass_runs_at_tolerances_above_the_floors(method):
     """1e9 kg with both tolerances above their floors: an ordinary run (20 steps per output
@@ -451,6 +466,7 @@ def test_huge_mass_runs_at_tolerances_above_the_floors(method):
     assert r.summary["solver"]["steps"] < 20 * 200
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
     """The stall guard, the backstop for whatever the floors miss: with the floor check
@@ -477,6 +493,7 @@ def test_a_stalled_run_ends_with_a_named_failure(method, monkeypatch):
     assert r.summary["solver"]["steps"] <= step_budget(1e-5)
 
 
+@pytest.mark.short_run
 def test_the_hermite_loops_stall_guard(monkeypatch):
     """adaptive-modal's Hermite loop stops as `stalled` when its step attempts within one
     output interval exceed the budget (here forced to 8: its first steps, 1/256 of the output
@@ -495,6 +512,7 @@ def test_the_hermite_loops_stall_guard(monkeypatch):
     assert r.summary["solver"]["steps"] == 2 * r.summary["solver"]["blocks"]
 
 
+@pytest.mark.short_run
 def test_ida_stopped_by_its_jacobian_guard_in_the_first_call_reports_its_counts(monkeypatch):
     """The Jacobian guard firing inside the very first IDA call (here forced: one Jacobian
     per output interval, 20 000 // 20 000) stops the run as `stalled` and still reports IDA's

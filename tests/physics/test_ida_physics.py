@@ -31,6 +31,7 @@ def _fit_harmonic(t, x, omega):
     return c[0] - 1j * c[1]
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN + ["exact-modal", "newmark", "paper"])
 @pytest.mark.parametrize("max_frequency,modes", [(100.0, 0), (300.0, 1), (50e3, 393)])
 def test_zero_roughness_zero_drive_stays_static_to_round_off(method, max_frequency, modes):
@@ -84,6 +85,7 @@ def _open_intervals(events, t_end):
     return out
 
 
+@pytest.mark.short_run
 def test_free_flight_during_lift_off(bouncing):
     r = bouncing
     assert r.ok, r.summary["message"]
@@ -107,6 +109,7 @@ def test_free_flight_during_lift_off(bouncing):
     assert checked >= 3
 
 
+@pytest.mark.short_run
 def test_event_log_agrees_with_resampled_contact_forces(bouncing):
     r = bouncing
     t = r.dataset["time"].values
@@ -125,6 +128,7 @@ def test_event_log_agrees_with_resampled_contact_forces(bouncing):
     assert (r.events["contact"].dropna() == 0).all()
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_linear_rigid_plate_matches_closed_form(method):
     """One contact, no lift-off: m z'' + r1 z' + s (z + h(x0 + V t)) = m g (closed form)."""
@@ -177,6 +181,7 @@ def _kirchhoff_plate(plate, f_max, n_max=3000):
     return omega[kept], M, lambda x, y: shapes(x, y, kept), residual
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 def test_linear_modal_plate_matches_frequency_domain_solution(method):
     """One contact on a modal plate: the steady state equals F = s H / (1 + s G(w) - s Y_m(w))
@@ -223,6 +228,7 @@ def test_linear_modal_plate_matches_frequency_domain_solution(method):
     assert abs(got_p - (-(w**2) * Wo)) < 2e-3 * abs(w**2 * Wo)
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("method", EVENT_DRIVEN)
 @pytest.mark.parametrize("name", ["paper", "paper-100mms", "paper-heavy",
                                   "paper-heavy-100mms"])
@@ -235,6 +241,7 @@ def test_energy_audit_closes_on_each_builtin_scene(name, method):
     assert abs(audit["relative_residual"]) < 50 * rtol
 
 
+@pytest.mark.short_run
 def test_energy_audit_residual_shrinks_with_tolerance():
     res = []
     for rtol in (1e-5, 1e-8):

@@ -13,6 +13,10 @@ import pytest
 
 import roughvib
 
+#: the scenes here are shorter than the run-in plus one excitation period on purpose
+#: (the marker is in tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 IN_PHASE = {"plate.kind": "rigid", "roughness.kind": "sinusoid", "roughness.amplitude": 10e-6,
             "roughness.wavelength": 0.73e-3, "excitation.kind": "prescribed",
             "excitation.velocity": 0.1, "excitation.amplitude": 0.0,

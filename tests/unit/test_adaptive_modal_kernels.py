@@ -92,6 +92,7 @@ def test_newton_solve_on_a_leading_block_matches_numpy():
         assert np.array_equal(b[n:], tail)
 
 
+@pytest.mark.short_run
 def test_kernels_without_jit_match_compiled(run_without_jit):
     """The whole solver in plain Python (NUMBA_DISABLE_JIT=1) gives the compiled result."""
     over = {**SMALL_SCENE, "output.duration": 3e-4, "output.progress": False,
@@ -113,6 +114,7 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
                                    atol=1e-9 * np.max(np.abs(ref)))
 
 
+@pytest.mark.short_run
 def test_a_law_that_does_not_name_the_solver_is_refused_in_one_line(monkeypatch):
     """Every built-in law runs with adaptive-modal; a law whose registry entry does not name it
     (here the Coulomb law with adaptive-modal struck out) is refused before anything runs."""
@@ -132,6 +134,7 @@ def test_a_law_that_does_not_name_the_solver_is_refused_in_one_line(monkeypatch)
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("law,branch", [("feldmann", 1), ("feldmann", -1), ("coulomb", 0),
                                         ("coulomb", 1), ("coulomb", -1), ("table", 0),
                                         ("table", 1), ("table", -1)])
@@ -238,6 +241,7 @@ def test_error_norm_over_many_modes_weighs_each_by_the_larger_magnitude():
     assert _err_norm(big, yb, y0, atol, rtol, n_modal, 3.0) >= 1e300
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("law", ["feldmann", "coulomb"])
 def test_extrapolation_is_richardsons_and_keeps_the_energy_integrals(law):
     """The kept state is ``yb + (yb - ya) / 3`` (the two half steps' estimate removed) in every
@@ -273,6 +277,7 @@ def test_extrapolation_is_richardsons_and_keeps_the_energy_integrals(law):
     np.testing.assert_array_equal(ge, g)
 
 
+@pytest.mark.short_run
 def test_extrapolation_that_would_cross_an_armed_margin_is_not_made():
     """Sliding forward (Feldmann branch +1, margin v - v_h): half steps that end at a positive
     margin m, and a full step at v + 4 m, extrapolate to a margin of -m / 3. With that root

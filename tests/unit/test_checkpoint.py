@@ -42,6 +42,7 @@ def _assert_identical(a, b):
         assert a.summary["solver"][key] == b.summary["solver"][key], key
 
 
+@pytest.mark.short_run
 def test_resume_from_the_last_checkpoint_gives_identical_results(tmp_path):
     scene = roughvib.load_scene("paper", {**FAST, "output.duration": 0.03,
                                           "output.checkpoint_interval": 0.01})
@@ -89,6 +90,7 @@ def test_checkpoint_errors_are_one_line(tmp_path, capsys):
         roughvib.load_scene("paper", {"output.checkpoint_interval": 1e-6})
 
 
+@pytest.mark.short_run
 def test_resume_refuses_when_the_profile_file_changed(tmp_path, capsys):
     # the run reads a profile file; editing it afterwards must not pass unnoticed on resume
     from roughvib.physics.surface.roughness import build_profile
@@ -146,6 +148,7 @@ def test_source_digest_sees_every_change_of_the_sources(tmp_path):
     assert source_digest(tmp_path / "pkg") not in (d0, d1, d2)
 
 
+@pytest.mark.short_run
 def test_resume_refuses_a_checkpoint_of_other_code(tmp_path, capsys):
     from roughvib.solvers.checkpoint import code_identity
 
@@ -263,6 +266,7 @@ def _assert_same_files(straight, resumed):
     assert (straight / "scene.toml").read_text() == (resumed / "scene.toml").read_text()
 
 
+@pytest.mark.short_run
 def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_path):
     """adaptive-modal's checkpoints store all the state its step loop carries, so the run
     that writes them, the run resumed from the last one and a run without checkpoints are
@@ -280,6 +284,7 @@ def test_adaptive_modal_checkpoints_change_nothing_and_resume_identically(tmp_pa
     assert a.summary["solver"]["steps"] == c.summary["solver"]["steps"]
 
 
+@pytest.mark.short_run
 def test_hermite_loop_checkpoints_end_a_pair(tmp_path):
     """The Hermite step's loop estimates its error over blocks of PAIR_ROWS (8) output
     intervals that start on rows divisible by 8: an interval of 1001 rows is rounded up to
@@ -298,6 +303,7 @@ def test_hermite_loop_checkpoints_end_a_pair(tmp_path):
     _assert_as_without_checkpoints(a, scene)
 
 
+@pytest.mark.short_run
 def test_adaptive_modal_resumes_a_coulomb_stick_phase_identically(tmp_path):
     """The set-valued law's regime (stick, the friction force that holds the block) is part of
     the checkpoint: resumed in the middle of a stick phase, the run is bit-identical to one

@@ -154,6 +154,7 @@ def test_a_filter_that_removes_the_whole_profile_is_refused(in_tmp):
     assert np.std(prof.z) > 0
 
 
+@pytest.mark.short_run
 def test_values_derived_for_the_run_are_checked_before_the_solve(monkeypatch, in_tmp):
     """The calibrated force, the contact module's count, stiffness and r1 and the pilot's
     tolerance are written into the saved scene; they are validated before the solve, so a bad

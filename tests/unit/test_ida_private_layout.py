@@ -80,6 +80,7 @@ def test_an_untested_version_is_refused(monkeypatch):
     assert problem == "scikit-sundae 1.3.0 is not a tested version (1.2.x)"
 
 
+@pytest.mark.short_run
 def test_a_run_on_a_changed_layout_warns_and_reports_no_steps(monkeypatch, tmp_path):
     import roughvib
     import roughvib.solvers.ida as ida_mod

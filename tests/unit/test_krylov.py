@@ -12,6 +12,10 @@ from roughvib.model import krylov
 from roughvib.model.system import assemble
 from roughvib.solvers.ida import _atol_vector, _sparsity
 
+#: the scenes here are shorter than the run-in plus one excitation period on purpose
+#: (the marker is in tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 CASES = [
     {},
     {"plate.kind": "rigid"},

@@ -57,6 +57,7 @@ def _fd_jacobian(system, t, y, yp, cj, reg, rf):
     {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3,
      "contact.friction_moment": True},
 ])
+@pytest.mark.short_run
 def test_analytic_jacobian_matches_finite_differences(overrides):
     system = assemble(_small_scene(**overrides))
     rng = np.random.default_rng(3)
@@ -103,6 +104,7 @@ def test_layout_names_and_sizes():
         lay.slice("plate.w")
 
 
+@pytest.mark.short_run
 def test_static_equilibrium_carries_the_weight():
     system = assemble(_small_scene())
     y, closed = system.static_equilibrium()
@@ -118,6 +120,7 @@ def test_static_equilibrium_carries_the_weight():
     assert abs(yp[system.layout.index("block.vz")]) < 1e-12
 
 
+@pytest.mark.short_run
 def test_consistent_force_rates_follow_the_contact_law():
     """yp of the contact forces is dF/dt along the motion: the forces that keep the contact
     law at t + d, for the differential states advanced by d yp, differ from those at t by
@@ -143,6 +146,7 @@ def test_consistent_force_rates_follow_the_contact_law():
     np.testing.assert_allclose(yp[iF], fd, rtol=1e-6, atol=1e-6 * np.max(np.abs(fd)))
 
 
+@pytest.mark.short_run
 def test_kernels_without_jit_match_compiled(run_without_jit):
     """The residual computed with NUMBA_DISABLE_JIT=1 equals the compiled one."""
     system = assemble(_small_scene())

@@ -33,6 +33,10 @@ from roughvib.views import figures as plots
 from roughvib.views.figures import FIGURES, save_figure
 from roughvib.views.report import build_report, write_report
 
+#: the module's run (the fixture ``run``) lasts 0.05 s on purpose (the marker is in
+#: tests/conftest.py)
+pytestmark = pytest.mark.short_run
+
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 REQUIRED_FIGURES = {"velocity", "friction-velocity", "friction-displacement", "acceleration",
                     "spectra", "wavenumber", "events"}

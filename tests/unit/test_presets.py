@@ -102,6 +102,7 @@ def test_auto_runs_adaptive_modal_where_it_can_and_ida_elsewhere():
     assert v.solver.method == "adaptive-modal" and v.output.checkpoint_interval == 0
 
 
+@pytest.mark.short_run
 def test_a_run_records_its_tolerances_and_the_pilot_scales_atol_acceleration():
     scene = roughvib.load_scene("paper", {"output.duration": 0.01, "output.progress": False,
                                           "plate.max_frequency": 5e3})

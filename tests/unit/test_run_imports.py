@@ -96,6 +96,7 @@ def _h5_tree(path) -> dict:
     return out
 
 
+@pytest.mark.short_run
 def test_result_files_are_those_of_to_netcdf(tmp_path):
     # a run's Result holds RunData; its file is the one xarray writes from the Dataset
     scene = roughvib.load_scene("paper-handset", {"output.duration": 0.003,
@@ -179,6 +180,7 @@ def logs():
     return out
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("name", ["bouncing", "paper", "odd", "none"])
 def test_events_csv_is_the_one_pandas_writes(logs, name, tmp_path):
     from roughvib.results import _write_events_csv, events_frame
@@ -190,6 +192,7 @@ def test_events_csv_is_the_one_pandas_writes(logs, name, tmp_path):
     assert (tmp_path / "ours.csv").read_bytes() == (tmp_path / "pandas.csv").read_bytes()
 
 
+@pytest.mark.short_run
 @pytest.mark.parametrize("name", ["bouncing", "paper"])
 def test_event_counts_and_regime_series_from_records(logs, name):
     from roughvib.analysis.events import regime_series
@@ -207,6 +210,7 @@ def test_event_counts_and_regime_series_from_records(logs, name):
         assert a.dtype == b.dtype and np.array_equal(a, b)
 
 
+@pytest.mark.short_run
 def test_result_events_become_the_table_on_first_use(logs, tmp_path):
     from roughvib.results import Result, events_frame
 
@@ -217,6 +221,7 @@ def test_result_events_become_the_table_on_first_use(logs, tmp_path):
     assert table.equals(events_frame(records)) and result.events is table
 
 
+@pytest.mark.short_run
 def test_event_counts_keep_pandas_order_for_ties(logs):
     """value_counts: most frequent first, equal counts in order of first appearance."""
     from roughvib.results import events_frame

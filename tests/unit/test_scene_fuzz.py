@@ -3,6 +3,7 @@
 
 import dataclasses
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -24,6 +25,7 @@ values = st.one_of(
 CHEAP = {"plate.max_frequency": 2e3, "output.duration": 0.002}
 
 
+@pytest.mark.short_run
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.dictionaries(st.sampled_from(KEYS), values, min_size=1, max_size=3))
 def test_random_overrides_validate_or_fail_with_one_line(overrides):

@@ -349,6 +349,7 @@ def test_local_pool_has_single_threaded_workers_at_most_one_per_case(monkeypatch
 # --------------------------------------------------------------------------------------------
 
 
+@pytest.mark.short_run
 def test_small_sweep_completes_and_its_table_is_right(small_run, tmp_path):
     spec_path, run = small_run
     out = run.directory

@@ -4,6 +4,8 @@ summary.json, the CLI summary and the report."""
 
 import json
 
+import pytest
+
 import roughvib
 from roughvib.cli import main
 from roughvib.results import load_result
@@ -33,6 +35,7 @@ def test_verify_passes_on_a_default_run(tmp_path, capsys):
     assert "PASS against ida" in _accuracy_section(load_result(out).summary)
 
 
+@pytest.mark.short_run
 def test_verify_fails_a_deliberately_coarse_run():
     scene = roughvib.load_scene("paper", {"output.duration": 0.02, "output.progress": False,
                                           "solver.method": "ida", "solver.accuracy": "draft"})
@@ -44,6 +47,7 @@ def test_verify_fails_a_deliberately_coarse_run():
     assert abs(acc["bands"]["plate"]["deviation_db"]) > 1.0
 
 
+@pytest.mark.short_run
 def test_an_unverified_run_says_how_to_verify_in_its_report(tmp_path):
     scene = roughvib.load_scene("paper", {"output.duration": 0.005, "output.progress": False,
                                           "plate.max_frequency": 3e3})
