@@ -1,6 +1,7 @@
 """Checkpoints and resume: a stopped run continues to results identical to an uninterrupted one,
 and an interrupted run never leaves a half-written result."""
 
+import os
 import random
 import signal
 import subprocess
