@@ -196,6 +196,22 @@ def test_a_sweep_file_with_a_byte_order_mark_is_read(tmp_path):
     assert sw.load_sweep(path).grid == sw.load_sweep(_write(tmp_path / "s.toml", SMALL)).grid
 
 
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="named pipes are POSIX")
+def test_a_sweep_file_that_is_a_named_pipe_or_a_directory_says_so(tmp_path):
+    """A FIFO was called "neither a built-in sweep nor an existing file"; it exists and is no
+    regular file. In a subprocess with a timeout, so that a regression to reading the pipe
+    fails instead of hanging the suite."""
+    os.mkfifo(tmp_path / "fifo.toml")
+    (tmp_path / "dir.toml").mkdir()
+    for name, kind in (("fifo.toml", "a named pipe (FIFO)"), ("dir.toml", "a directory")):
+        done = subprocess.run([sys.executable, "-m", "roughvib", "sweep", name], cwd=tmp_path,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 2, done.stderr
+        assert done.stderr == (f"roughvib: error: sweep file {name} must be a regular file, "
+                               f"got {kind}\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dir.toml", "fifo.toml"]
+
+
 def test_builtin_paper_velocity_sweep():
     assert "paper-velocity" in sw.builtin_sweeps()
     spec = sw.load_sweep("paper-velocity")

@@ -423,7 +423,7 @@ def load_sweep(source: str | os.PathLike | Sweep | dict,
         data = tomllib.loads(_sweeps_dir().joinpath(f"{text}.toml").read_text())
         return _parse(data, base_dir=Path.cwd(), source=f"builtin:{text}", default_name=text,
                       overrides=overrides)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a directory: read_toml_file says what it is instead
         raise SceneError(f"sweep {text!r} is neither a built-in sweep "
                          f"({', '.join(builtins) or 'none installed'}) nor an existing file")
     data = read_toml_file(path, "sweep file")
