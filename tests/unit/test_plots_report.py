@@ -586,3 +586,21 @@ def test_report_solver_statistics_read_as_labels_with_units(run, report):
                 assert _significant_digits(v) <= 4, (section, q, v)
     energy = {q for q, _, _ in _kv_rows(text, "energy")}
     assert "dissipated by friction" in energy and all("_" not in q for q in energy)
+
+
+def test_energy_audit_that_was_not_computed_is_one_note_not_a_table_of_na():
+    """A `solver.method = "paper"` run keeps no energy integrals: its summary holds an audit of
+    None values and a note saying why; the report shows the note (escaped), not n/a rows."""
+    note = "not computed: solver.method = 'paper' keeps no energy integrals <no states>"
+    audit = {"excitation_work": None, "friction_dissipation": None, "residual": None,
+             "relative_residual": None, "t_end": 0.2}
+    summ = {"status": "success", "message": "ok", "scene": "paper",
+            "energy_audit": audit, "energy_audit_note": note}
+    text = build_report(Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summ, ""))
+    assert not _kv_rows(text, "energy")
+    assert f"<p class='note'>energy audit {html.escape(note)}</p>" in text
+    # an audit of None values without a note (a summary written before the note existed)
+    del summ["energy_audit_note"]
+    text = build_report(Result(xr.Dataset(), pd.DataFrame(columns=EVENT_COLUMNS), summ, ""))
+    assert not _kv_rows(text, "energy")
+    assert "<p class='note'>energy audit not computed</p>" in text

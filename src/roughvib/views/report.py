@@ -256,7 +256,9 @@ _ENERGY_LABELS = {
     "roughness_work": "work of the roughness input",
     "stored_energy_change": "change of stored energy",
     "residual": "residual",
-    "relative_residual": "residual relative to the sum of |terms|",
+    "energy_scale": "energy scale: sum of |terms| and |change|, at least its floor",
+    "energy_scale_floor": "floor of the energy scale: larger stored energy, start or end",
+    "relative_residual": "residual relative to the energy scale",
     "t_end": "end of the audit",
 }
 
@@ -265,6 +267,9 @@ def _energy_section(summary: dict) -> str:
     a = summary.get("energy_audit", {})
     if not a:
         return "<p class='note'>no energy audit in this result</p>"
+    note = summary.get("energy_audit_note")
+    if note or a.get("residual") is None:  # the paper's scheme; a state that is not finite
+        return f"<p class='note'>energy audit {esc(note or 'not computed')}</p>"
     rows = [(_ENERGY_LABELS.get(k, k.replace("_", " ")), v,
              "-" if k == "relative_residual" else ("s" if k == "t_end" else "J"))
             for k, v in a.items()]
