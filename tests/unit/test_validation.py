@@ -294,3 +294,13 @@ def test_the_overall_levels_name_their_method_and_the_summarys_level(run, tmp_pa
             f"the run summary's {broadband:.1f} dB is the broadband rms)") in line
     assert json.loads(json.dumps(v.to_summary()))["simulated_broadband_db"] == \
         pytest.approx(broadband, abs=1e-6)
+    # the figure's legend says the same: its level is the band sum, not a "total" of the signal
+    import matplotlib.pyplot as plt
+
+    from roughvib.views.validation import plot_validation
+
+    axes = plot_validation(v)
+    labels = [t.get_text() for t in axes[0].get_legend().get_texts()]
+    plt.close(axes[0].figure)
+    assert labels[0] == f"simulated {v.signal}, band sum {band_sum:.1f} dB"
+    assert labels[1] == f"measured ({csv.name}), band sum {v.overall_measured_db:.1f} dB"

@@ -70,9 +70,9 @@ def plot_validation(v: Validation, *, axes=None) -> list[Axes]:
     f = t["band_hz"].to_numpy(dtype=float)
     ax = axes[0]
     ax.step(f, t["simulated_db"], where="mid", color="C3", lw=1.6,
-            label=f"simulated {v.signal}, total {v.overall_simulated_db:.1f} dB")
+            label=f"simulated {v.signal}, band sum {v.overall_simulated_db:.1f} dB")
     ax.step(f, t["measured_db"], where="mid", color="k", lw=1.0, ls=(0, (4, 2)),
-            label=f"measured ({name}), total {v.overall_measured_db:.1f} dB")
+            label=f"measured ({name}), band sum {v.overall_measured_db:.1f} dB")
     if v.noise:
         ax.step(f, t["noise_db"], where="mid", color="0.6", lw=0.8, ls="--",
                 label="noise floor")
