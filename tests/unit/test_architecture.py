@@ -12,6 +12,7 @@ SRC = Path(roughvib.__file__).parent
 # ones above it (lower numbers)
 STAGES = {
     "scene": 0, "scenes": 0, "_version": 0, "_eventlog": 0, "_progress": 0,
+    "_errors": 0,  # WriteError, the one-line error of a failed write (a leaf)
     "_cache": 0,  # the on-disk cache of preprocessing results (a leaf)
     "physics": 1,  # plate, friction, surface/
     "model": 2,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -357,8 +358,8 @@ _FULL = textwrap.dedent("""
 
 def test_a_write_error_that_reaches_the_command_line_is_one_line(tmp_path, capsys,
                                                                   monkeypatch):
-    # e.g. a checkpoint written while the disk fills up: an OSError of the write itself, not
-    # turned into a WriteError, reaches the command line
+    # an OSError of a write that the code which wrote did not turn into a WriteError (a
+    # library's own write) reaches the command line
     import roughvib.api
 
     def failing(*error):
@@ -380,3 +381,48 @@ def test_a_write_error_that_reaches_the_command_line_is_one_line(tmp_path, capsy
     with pytest.raises(OSError, match="Bad file descriptor"):
         main(argv)
     assert not (tmp_path / "run").exists()
+
+
+def test_a_checkpoint_onto_a_full_disk_is_one_line_naming_it(tmp_path, capsys, monkeypatch):
+    """The second checkpoint of a run meets a full disk (its temporary file is a link to
+    /dev/full): the run ends with one line naming the checkpoint, its size and the space
+    free, and the first checkpoint stays intact for --resume."""
+    import tempfile as real_tempfile
+    from types import SimpleNamespace
+
+    from roughvib.solvers import checkpoint
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME, read_checkpoint
+
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    calls = []
+
+    def mkstemp(prefix, dir):
+        calls.append(prefix)
+        if len(calls) == 1:
+            return real_tempfile.mkstemp(prefix=prefix, dir=dir)
+        tmp = os.path.join(dir, f"{prefix}full")
+        os.symlink("/dev/full", tmp)
+        return os.open(tmp, os.O_WRONLY), tmp
+
+    monkeypatch.setattr(checkpoint, "tempfile", SimpleNamespace(mkstemp=mkstemp))
+    out = tmp_path / "run"
+    argv = ["run", *SHORT, "--set", "output.checkpoint_interval=0.001", "--out", str(out)]
+    assert main(argv) == 1
+    # the short run's warnings about its window aside, one line
+    err = [ln for ln in capsys.readouterr().err.splitlines()
+           if not ln.startswith("roughvib: warning: ")]
+    assert len(err) == 1 and re.fullmatch(
+        rf"roughvib: error: cannot write {re.escape(str(out / CHECKPOINT_NAME))}: No space "
+        rf"left on device \([\d.]+ (?:[kMG]B|bytes) needed, [\d.]+ (?:[kMG]B|bytes) free\); "
+        rf"free some space or write elsewhere", err[0]), err
+    assert len(calls) == 2
+    assert sorted(p.name for p in out.iterdir()) == [CHECKPOINT_NAME]  # no temporary file
+    first = read_checkpoint(out)  # intact: its digest is checked
+    assert 0 < first.t < 0.004
+    # the same through the function itself: a WriteError (an OSError) with the write's errno
+    with pytest.raises(WriteError) as info:
+        checkpoint.write_checkpoint(tmp_path / "again", first)
+    assert info.value.errno == errno.ENOSPC and "\n" not in str(info.value)
+    assert str(info.value).startswith(f"cannot write {tmp_path / 'again' / CHECKPOINT_NAME}: ")
+    assert os.listdir(tmp_path / "again") == []

@@ -210,7 +210,8 @@ _WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
 
 def _write_failure(exc: OSError) -> str | None:
     """The one line for an :class:`OSError` of a write that reached the command line as it is
-    (not as a ``WriteError``; e.g. a checkpoint on a full disk); None for any other error.
+    (not as a ``WriteError``: a write the code that wrote did not turn into one); None for
+    any other error.
 
     The file is named where the error names it (an ``open``); a failed ``write`` does not.
     """

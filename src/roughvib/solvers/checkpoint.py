@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from roughvib._errors import write_failed
 from roughvib.scene import Scene, SceneError, scene_to_toml
 
 if TYPE_CHECKING:  # the model (numba kernels) is needed only to start a run, not to name
@@ -345,16 +346,29 @@ def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:
 
     The file is the header line, ``<version> <sha256> <bytes>`` of the pickle, and the pickle
     of ``cp`` (see the module docstring).
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        The file could not be written (a full disk, a read-only file system): one line naming
+        the checkpoint's path and why, for a full disk also its size and the space free. The
+        checkpoint written before it stays, and no temporary file is left.
     """
     out = Path(directory)
-    out.mkdir(parents=True, exist_ok=True)
     path = out / CHECKPOINT_NAME
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     # what the directory's scene.toml was when the checkpoint was written (an earlier run's,
     # or none): a resume refuses if it was edited, since --resume runs the checkpoint's scene
     cp = replace(cp, inputs={**cp.inputs, DIRECTORY_SCENE: _scene_file_digest(out)})
     payload = pickle.dumps(cp, protocol=pickle.HIGHEST_PROTOCOL)
     head = _HEADER + f"{CHECKPOINT_VERSION} {_sha256(payload)} {len(payload)}\n".encode()
-    fd, tmp = tempfile.mkstemp(prefix=f".{CHECKPOINT_NAME}.", dir=out)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{CHECKPOINT_NAME}.", dir=out)
+    except OSError as exc:
+        raise write_failed(path, exc, len(head) + len(payload)) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(head)
@@ -362,8 +376,10 @@ def write_checkpoint(directory: str | os.PathLike, cp: Checkpoint) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise write_failed(path, exc, len(head) + len(payload)) from None
         raise
     return path
 
