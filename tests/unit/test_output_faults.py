@@ -426,3 +426,38 @@ def test_a_checkpoint_onto_a_full_disk_is_one_line_naming_it(tmp_path, capsys, m
     assert info.value.errno == errno.ENOSPC and "\n" not in str(info.value)
     assert str(info.value).startswith(f"cannot write {tmp_path / 'again' / CHECKPOINT_NAME}: ")
     assert os.listdir(tmp_path / "again") == []
+
+
+def test_a_resume_that_cannot_fit_is_refused_before_it_starts(tmp_path, capsys, monkeypatch):
+    """--resume checks the free space for the checkpoint's scene as a new run does; the
+    checkpoint stays, and the same resume runs once there is room."""
+    import roughvib.api
+    from roughvib.solvers import adaptive_modal
+    from roughvib.solvers.checkpoint import CHECKPOINT_NAME
+
+    real = adaptive_modal.write_checkpoint
+
+    def write_then_interrupt(directory, cp):  # a run stopped after its first checkpoint
+        real(directory, cp)
+        raise KeyboardInterrupt
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as m:
+        m.setattr(adaptive_modal, "write_checkpoint", write_then_interrupt)
+        assert main(["run", *SHORT, "--set", "output.checkpoint_interval=0.001", "--out",
+                     str(out), "--quiet"]) == 130
+    capsys.readouterr()
+    saved = (out / CHECKPOINT_NAME).read_bytes()
+    scene = roughvib.load_scene("paper", parse_sets([*SHORT[1::2],
+                                                     "output.checkpoint_interval=0.001"]))
+    need = expected_result_bytes(scene)
+    with monkeypatch.context() as m:
+        m.setattr(rundir, "free_space", lambda path: 1000)
+        m.setattr(roughvib.api, "resume", lambda *a, **k: pytest.fail("the resume started"))
+        _one_line(capsys, main(["run", "--resume", str(out)]), 1,
+                  f"{out}: no room for the run's time series alone "
+                  f"({rundir.format_bytes(need)} needed, 1 kB free)")
+    assert os.listdir(out) == [CHECKPOINT_NAME]
+    assert (out / CHECKPOINT_NAME).read_bytes() == saved
+    assert main(["run", "--resume", str(out), "--quiet"]) == 0
+    assert load_result(out).ok and not (out / CHECKPOINT_NAME).exists()

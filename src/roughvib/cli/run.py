@@ -253,10 +253,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     # the output directory is checked and locked before anything expensive (imports included)
     rundir = RunDirectory(out_dir, overwrite=args.overwrite, resume=bool(args.resume)).open()
     try:
-        if not args.resume:  # a run whose time series cannot fit is refused before it starts
-            from roughvib.results import expected_result_bytes
+        # a run whose time series cannot fit is refused before it starts (a resumed run's
+        # scene is the checkpoint's: read, and its inputs checked, under the lock)
+        from roughvib.results import expected_result_bytes
 
-            rundir.require(expected_result_bytes(scene), "the run's time series alone")
+        if args.resume:
+            from roughvib.simulation import checkpoint_scene
+
+            scene = checkpoint_scene(out_dir)
+        rundir.require(expected_result_bytes(scene), "the run's time series alone")
         if rundir.replaces and not args.resume:
             print(f"roughvib: note: {out_dir} holds an earlier run; this run replaces it when it "
                   f"ends", file=sys.stderr)
@@ -264,10 +269,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             from roughvib.api import resume, simulate
 
             if args.resume:
-                if args.verify:  # read before the run: a finished run removes its checkpoint
-                    from roughvib.simulation import check_verifiable, checkpoint_scene
+                if args.verify:  # before the run: a verdict that cannot pass is refused
+                    from roughvib.simulation import check_verifiable
 
-                    scene = checkpoint_scene(out_dir)
                     check_verifiable(scene)
                 result = resume(out_dir, progress=False if args.no_progress else None)
             else:
