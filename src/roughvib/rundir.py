@@ -28,13 +28,13 @@ The rules (docs/robustness.md, "What a run may touch"):
   output directory, released when the process ends however it ends.
 
 The files the other commands write (``report``, ``plot``, ``export``, ``modes export``,
-``surface``, ``compare``) follow the same rules, through :func:`output_folder`,
-:func:`claim_files` and :func:`write_file`: a folder that cannot be made is one line
-(:class:`OutputError`); a file the user named that exists is not replaced without
-``--overwrite``; a file appears complete or not at all (written under a temporary name next to
-it and renamed); a write that fails (a full disk, a read-only file system) is one line naming
-the path and, for a full disk, the space needed and free (:class:`WriteError`), and leaves no
-temporary file behind.
+``surface``, ``compare``, ``sweep-report``, a sweep's tables) follow the same rules, through
+:func:`output_folder`, :func:`claim_files` and :func:`write_file`: a folder that cannot be
+made is one line (:class:`OutputError`); a file the user named that exists is not replaced
+without ``--overwrite``; a file appears complete or not at all (written under a temporary name
+next to it and renamed); a write that fails (a full disk, a read-only file system) is one line
+naming the path and, for a full disk, the space needed and free (:class:`WriteError`), and
+leaves no temporary file behind.
 """
 
 from __future__ import annotations

@@ -19,6 +19,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import xarray as xr
 
@@ -461,3 +462,120 @@ def test_a_resume_that_cannot_fit_is_refused_before_it_starts(tmp_path, capsys, 
     assert (out / CHECKPOINT_NAME).read_bytes() == saved
     assert main(["run", "--resume", str(out), "--quiet"]) == 0
     assert load_result(out).ok and not (out / CHECKPOINT_NAME).exists()
+
+
+# --------------------------------------------------------------------------------------------
+# the studies' files: compare's tables, the sweep report, the ensemble tables
+# --------------------------------------------------------------------------------------------
+
+class _QuickWorker:
+    """compare's worker process stood in for: every job succeeds at once, nothing is drawn."""
+
+    def run(self, job, timeout):
+        return {"status": "success", "wall_time": 0.01}
+
+    def close(self):
+        pass
+
+
+def test_compare_refuses_a_file_in_the_way_and_writes_complete_tables_or_none(
+        tmp_path, monkeypatch, dev_full):
+    import roughvib.studies.compare as cmp
+
+    scene = roughvib.load_scene("paper", parse_sets(SHORT[1::2]))
+    study = dict(budget=60.0, methods=("exact-modal",), steps=(1e-5,), presets=False,
+                 progress=False)
+    (tmp_path / "wp").write_text("mine")
+
+    class NoWorker(_QuickWorker):
+        def run(self, job, timeout):
+            raise AssertionError("the study started although its folder is a file")
+
+    monkeypatch.setattr(cmp, "_Worker", NoWorker)
+    with pytest.raises(OutputError, match=rf"^{re.escape(str(tmp_path / 'wp'))} exists and "
+                                          rf"is not a directory"):
+        cmp.run_study(scene, tmp_path / "wp", **study)
+    assert (tmp_path / "wp").read_text() == "mine"
+    # every file written is a link to /dev/full: the first table fails in one line
+    monkeypatch.setattr(cmp, "_Worker", _QuickWorker)
+    with pytest.raises(WriteError) as info:
+        cmp.run_study(scene, tmp_path / "wp2", **study)
+    msg = str(info.value)
+    assert msg.startswith(f"cannot write {tmp_path / 'wp2' / 'work_precision.csv'}: No space "
+                          f"left on device (") and "\n" not in msg
+    assert list((tmp_path / "wp2").iterdir()) == [] and _leftovers(tmp_path) == []
+    # the figure (drawn in the worker) the same way
+    from test_work_precision_view import _table
+
+    from roughvib.views.work_precision import plot_work_precision
+
+    with pytest.raises(WriteError, match=rf"^cannot write {re.escape(str(tmp_path / 'f.png'))}"
+                                         rf": No space left on device"):
+        plot_work_precision(_table(), tmp_path / "f.png", "test")
+    assert _leftovers(tmp_path) == [] and not (tmp_path / "f.png").exists()
+
+
+def _sweep_directory(d: Path) -> Path:
+    """The two files the sweep report reads, of a velocity sweep over two seeds (made by
+    hand: the report needs no case directories without an ensemble)."""
+    import json
+
+    d.mkdir()
+    v = np.array([0.01, 0.02, 0.01, 0.02])
+    seeds = [1, 1, 2, 2]
+    pd.DataFrame({
+        "case": [f"v{x}_s{s}" for x, s in zip(v, seeds, strict=True)], "status": "success",
+        "message": "", "excitation.target_rms_velocity": v, "roughness.seed": seeds,
+        "block_vertical_acceleration_level_db_re_1e-6": 80 + 30 * np.log10(v / 0.01),
+        "plate_vertical_acceleration_level_db_re_1e-6": 70 + 30 * np.log10(v / 0.01),
+        "block_tangential_velocity_rms": v, "stick_fraction": 0.0, "wall_time": 1.0,
+    }).to_csv(d / "sweep.csv", index=False)
+    (d / "sweep.json").write_text(json.dumps({
+        "name": "v", "base": "paper", "varied_keys": ["excitation.target_rms_velocity",
+                                                      "roughness.seed"],
+        "seed_keys": ["roughness.seed"]}))
+    return d
+
+
+def test_sweep_report_refuses_a_file_in_the_way_and_a_full_disk_in_one_line(
+        tmp_path, capsys, monkeypatch, request):
+    from roughvib.studies.sweep import report as sweep_report_module
+    from roughvib.studies.sweep.ensemble import EnsembleTables
+
+    d = _sweep_directory(tmp_path / "sweep")
+    # no ensemble section (it would read the case directories)
+    monkeypatch.setattr(sweep_report_module, "ensemble_tables", lambda directory: None)
+    assert main(["sweep-report", str(d)]) == 0  # the files of the sweep are a report
+    capsys.readouterr()
+    made = sorted(p.name for p in (d / "report").iterdir())
+    assert {"report.md", "report.html", "fits.csv", "velocity.png"} <= set(made)
+    shutil.rmtree(d / "report")
+    (d / "report").write_text("mine")
+    _one_line(capsys, main(["sweep-report", str(d)]), 2,
+              f"{d / 'report'} exists and is not a directory")
+    assert (d / "report").read_text() == "mine"
+    (d / "report").unlink()
+    # a full disk: one line naming the file, nothing half-written
+    request.getfixturevalue("dev_full")
+    _one_line(capsys, main(["sweep-report", str(d)]), 1,
+              f"cannot write {d / 'report' / 'velocity.png'}: No space left on device")
+    assert list((d / "report").iterdir()) == [] and _leftovers(tmp_path) == []
+    # the ensemble's tables and figure
+    spread = {"n": 2, "mean": 80.0, "std": 1.0, "min": 79.0, "max": 81.0}
+    ens = EnsembleTables(
+        runs=pd.DataFrame([{"case": "a", "group": "all", "roughness.seed": 1}]),
+        levels=pd.DataFrame([{"group": "all", "level": "block", **spread, "range": 2.0}]),
+        bands=pd.DataFrame([{"group": "all", "level": w, "centre": 1000.0, **spread}
+                            for w in ("block", "plate")]),
+        seed_key="roughness.seed", group_keys=[])
+    from roughvib.studies.sweep.ensemble import ensemble_blocks
+    from roughvib.views.ensemble import ensemble_figure
+
+    with pytest.raises(WriteError, match=rf"^cannot write "
+                                         rf"{re.escape(str(d / 'report' / 'ensemble_levels.csv'))}"
+                                         rf": No space left on device"):
+        ensemble_blocks(ens, d / "report")
+    with pytest.raises(WriteError, match=rf"^cannot write "
+                                         rf"{re.escape(str(d / 'report' / 'ensemble.png'))}"):
+        ensemble_figure(ens.bands, d / "report" / "ensemble.png")
+    assert list((d / "report").iterdir()) == [] and _leftovers(tmp_path) == []

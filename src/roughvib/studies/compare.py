@@ -34,6 +34,7 @@ import pandas as pd
 
 from roughvib.analysis.accuracy import CONTRACT, contract_ratio, measure_accuracy
 from roughvib.results import Result, load_result
+from roughvib.rundir import output_folder, writing
 from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene, user_stacklevel
 from roughvib.simulation import simulate
 
@@ -330,10 +331,15 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
         If the reference does not finish within the budget.
     RuntimeError
         If the reference run fails.
+    roughvib.rundir.OutputError
+        ``out_dir`` cannot be made or written to (a file in its way): one line, before any
+        run.
+    roughvib.rundir.WriteError
+        A table cannot be written (a full disk): one line naming it; each file appears
+        complete or not at all.
     """
     t_start = time.perf_counter() if started is None else float(started)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out_dir)
     base = scene.with_overrides({"output.progress": False, "output.checkpoint_interval": 0.0})
     clock = _Deadlines(t_start, budget)
     worker = _Worker()
@@ -442,7 +448,8 @@ def _study(scene, base, out, worker, budget, clock, reference, methods, rtols, s
                           "block_band_hz", "plate_band_hz", "verdict", "message"):
         if col not in table:
             table[col] = np.nan
-    table.to_csv(out / "work_precision.csv", index=False, float_format="%.6g")
+    with writing(out / "work_precision.csv") as fh:
+        table.to_csv(fh, index=False, float_format="%.6g")
     drawn = worker.run(("plot", table, str(out / "work_precision.png"),
                         f"work-precision, scene {scene.name}", asdict(CONTRACT)), clock.left())
     issued.issue(drawn)
@@ -525,13 +532,15 @@ def _write_markdown(table: pd.DataFrame, path: Path, name: str, ref_label: str, 
     if figure is not None and figure.get("status") != "success":
         fig = (" The figure was not drawn: " + ("the budget was spent"
                if figure.get("status") == "over_budget" else str(figure.get("message"))) + ".")
-    path.write_text(
+    text = (
         f"# Work-precision: scene {name}\n\nReference: {ref_label}. Whole study: {spent:.0f} s "
         f"of a {budget:g} s budget; {outcome_line(table)}.{fig}\n\n" + "\n".join(md)
         + "\n\n## Crossings with IDA\n\n"
         + ("\n".join(f"- {c['method']} ({c['metric']}): {c['wall_time']:.3g} s at error "
                      f"{c['error']:.3g}" for c in cross) or "none in the measured range")
         + "\n")
+    with writing(path) as fh:
+        fh.write(text)
 
 
 def _fmt(v) -> str:

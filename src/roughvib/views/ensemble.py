@@ -27,10 +27,17 @@ def ensemble_figure(bands, path: Path) -> Path:
     -------
     Path
         ``path``.
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        The file cannot be written (a full disk): one line naming it; nothing is left.
     """
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from roughvib.rundir import write_file
 
     fig = Figure(figsize=(10, 4), layout="constrained")
     FigureCanvasAgg(fig)
@@ -56,5 +63,5 @@ def ensemble_figure(bands, path: Path) -> Path:
         ax.legend(fontsize=7)
     axes[0].set_ylabel("band level [dB re 1e-6 m/s²]")
     fig.suptitle("roughness ensemble: band spectra over the seeds")
-    fig.savefig(path, dpi=110)
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=110))  # complete or not at all
     return path

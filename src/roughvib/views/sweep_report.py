@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from roughvib.rundir import write_file
 from roughvib.views.html import esc, figure, page, png_data_uri, slug, table
 
 __all__ = ["render_html", "render_markdown", "study_figure"]
@@ -45,6 +46,11 @@ def study_figure(study: str, xlabel: str, groups: list[tuple[str, Any]], xcol: s
         PNG file.
     levels : sequence of (str, str)
         One panel each: name (``"block"``) and column of the level [dB re 1e-6 m/s^2].
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        The file cannot be written (a full disk): one line naming it; nothing is left.
     """
     import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -85,7 +91,7 @@ def study_figure(study: str, xlabel: str, groups: list[tuple[str, Any]], xcol: s
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"{study} study")
-    fig.savefig(path, dpi=110)
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=110))  # complete or not at all
 
 
 def _md_table(header: list[str], rows: list[list[str]]) -> str:

@@ -160,9 +160,16 @@ def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
     -------
     matplotlib.figure.Figure
         The figure as written.
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        The file cannot be written (a full disk): one line naming it; nothing is left.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from roughvib.rundir import write_file
 
     contract = contract or {}
     fig = Figure(figsize=(15, 9), dpi=dpi, layout="constrained")
@@ -208,5 +215,5 @@ def plot_work_precision(table: pd.DataFrame, path: str | Path, title: str,
     fig.suptitle(f"{title}  (points: rtol or step; stars: accuracy presets; dashed: contract "
                  f"limit)", fontsize=10)
     _spread_labels(fig, axes.ravel())
-    fig.savefig(path, dpi=dpi)
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=dpi))  # complete or not at all
     return fig

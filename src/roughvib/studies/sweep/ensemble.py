@@ -261,13 +261,19 @@ def ensemble_blocks(ens: EnsembleTables, rep: Path) -> list[tuple[str, Any]]:
     -------
     list of (kind, payload)
         Blocks for :mod:`roughvib.views.sweep_report`.
+
+    Raises
+    ------
+    roughvib.rundir.WriteError
+        A file cannot be written (a full disk): one line naming it.
     """
     from roughvib.analysis.spectra import nominal_centre
+    from roughvib.rundir import writing
     from roughvib.views.ensemble import ensemble_figure
 
-    ens.levels.to_csv(rep / "ensemble_levels.csv", index=False, float_format="%.6g")
-    ens.runs.to_csv(rep / "ensemble_runs.csv", index=False, float_format="%.6g")
-    ens.bands.to_csv(rep / "ensemble_bands.csv", index=False, float_format="%.6g")
+    for name, frame in (("levels", ens.levels), ("runs", ens.runs), ("bands", ens.bands)):
+        with writing(rep / f"ensemble_{name}.csv") as fh:  # complete or not at all
+            frame.to_csv(fh, index=False, float_format="%.6g")
     blocks: list[tuple[str, Any]] = [
         ("h2", "Ensemble over roughness seeds: mean and spread"),
         ("p", f"Each case is one draw of the random surface (`{ens.seed_key}`); the spread "

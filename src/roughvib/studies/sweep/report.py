@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from roughvib.rundir import output_folder, writing
 from roughvib.studies.sweep.ensemble import EnsembleTables, ensemble_blocks, ensemble_tables
 from roughvib.studies.sweep.spec import SUCCESS, _replace_file
 from roughvib.studies.sweep.tables import _fit, _joint_fit
@@ -65,7 +66,8 @@ def _joint_blocks(ok, varied: list[str], rep: Path) -> list[tuple[str, Any]]:
                       _g(f["rms_residual"], ".2f"), str(f["n_points"])])
     if not rows:
         return []
-    pd.DataFrame(rows).to_csv(rep / "joint_fit.csv", index=False, float_format="%.6g")
+    with writing(rep / "joint_fit.csv") as fh:
+        pd.DataFrame(rows).to_csv(fh, index=False, float_format="%.6g")
     return [("h2", "Roughness and velocity: joint fit L = 20 log10(Ra^a V^b) + c"),
             ("p", f"Ra = `roughness.rms` [m], V = `{vcol}` (measured) [m/s]; least squares "
                   f"over all successful cases (seeds pooled), 95 % t intervals from the "
@@ -115,6 +117,11 @@ def sweep_report(directory: str | os.PathLike, *,
     ------
     FileNotFoundError
         ``directory`` holds no sweep.csv / sweep.json.
+    roughvib.rundir.OutputError
+        ``DIR/report`` cannot be made (a file of that name is in its way): one line.
+    roughvib.rundir.WriteError
+        A file cannot be written (a full disk): one line naming it; each file of the report
+        appears complete or not at all.
     """
     import pandas as pd
 
@@ -127,8 +134,7 @@ def sweep_report(directory: str | os.PathLike, *,
     varied = [k for k in meta.get("varied_keys", []) if k in table.columns]
     seed_keys = [k for k in meta.get("seed_keys", []) if k in table.columns]
     ok = table[table["status"] == SUCCESS]
-    rep = d / "report"
-    rep.mkdir(exist_ok=True)
+    rep = output_folder(d / "report")  # a file in its way: one line
 
     blocks: list[tuple[str, Any]] = []  # (kind, payload): h2, p, table, img
     fit_rows = []
@@ -189,8 +195,8 @@ def sweep_report(directory: str | os.PathLike, *,
         blocks.append(("p", "No velocity, load or roughness key varies over two or more "
                             "successful cases; nothing to fit."))
     # the header also when nothing was fitted (an ensemble of one setting): an empty table
-    pd.DataFrame(fit_rows, columns=FIT_COLUMNS).to_csv(rep / "fits.csv", index=False,
-                                                       float_format="%.6g")
+    with writing(rep / "fits.csv") as fh:
+        pd.DataFrame(fit_rows, columns=FIT_COLUMNS).to_csv(fh, index=False, float_format="%.6g")
 
     if (ens := ensemble if ensemble is not None else ensemble_tables(d)) is not None:
         blocks += ensemble_blocks(ens, rep)

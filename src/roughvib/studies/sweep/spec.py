@@ -12,13 +12,13 @@ import itertools
 import json
 import os
 import re
-import secrets
 import tomllib
 from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from roughvib.rundir import write_file
 from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
 
 __all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "adopt_old_case_names", "builtin_sweeps",
@@ -438,8 +438,9 @@ def load_sweep(source: str | os.PathLike | Sweep | dict,
 
 
 def _replace_file(path: Path, text: str) -> None:
-    """Write a file under a temporary name and rename it into place."""
-    tmp = path.with_name(f".{path.name}.tmp-{secrets.token_hex(4)}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    """Write a UTF-8 text file complete or not at all (under a temporary name, renamed into
+    place); a failed write (a full disk) is one :class:`~roughvib.rundir.WriteError` naming
+    ``path``, and leaves no temporary file."""
+    data = text.encode("utf-8")
+    write_file(path, lambda tmp: tmp.write_bytes(data), need=len(data))
 

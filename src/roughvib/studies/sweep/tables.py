@@ -8,13 +8,13 @@ import json
 import math
 import os
 import re
-import secrets
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from roughvib.results import read_summary
+from roughvib.rundir import write_file
 from roughvib.scene import Scene
 from roughvib.studies.sweep.spec import CASES_DIR, SUCCESS, Sweep, _canonical, _replace_file
 
@@ -252,7 +252,13 @@ def _write_sweep_nc(path: Path, coords: dict, data: dict, attrs: dict) -> None:
     in order; floats with a NaN ``_FillValue``, integers and texts (variable-length UTF-8)
     without; a data variable lists the non-dimension coordinates on its dimensions in its
     ``coordinates`` attribute.
+
+    The file is built in memory and written complete or not at all
+    (:func:`roughvib.rundir.write_file`): HDF5 never meets a full disk itself, and a failed
+    write is one :class:`~roughvib.rundir.WriteError` naming ``path``.
     """
+    import io
+
     import h5netcdf
     import h5py
     import numpy as np
@@ -264,7 +270,8 @@ def _write_sweep_nc(path: Path, coords: dict, data: dict, attrs: dict) -> None:
     for dims, values, _ in (*coords.values(), *data.values()):
         sizes.update(zip(dims_of(dims), np.shape(values), strict=True))
     extra = [k for k, (dims, _, _) in coords.items() if dims_of(dims) != (k,)]
-    with h5netcdf.File(str(path), "w") as f:
+    buf = io.BytesIO()
+    with h5netcdf.File(buf, "w") as f:
         for k, v in attrs.items():
             f.attrs[k] = v
         for dim, size in sizes.items():
@@ -287,6 +294,8 @@ def _write_sweep_nc(path: Path, coords: dict, data: dict, attrs: dict) -> None:
                           if name in data and set(dims_of(coords[c][0])) <= set(dims))
             if mine:
                 var.attrs["coordinates"] = " ".join(mine)
+    with buf.getbuffer() as view:
+        write_file(path, lambda tmp: tmp.write_bytes(view), need=view.nbytes)
 
 
 
@@ -294,12 +303,7 @@ def _write_tables(sweep: Sweep, out: Path,
                   errors: dict[str, tuple[str, str]] | None = None) -> pd.DataFrame:
     table = collect_table(sweep, out, errors)
     _replace_file(out / "sweep.csv", table.to_csv(index=False, float_format="%.12g"))
-    tmp = out / f".sweep.nc.tmp-{secrets.token_hex(4)}"
-    try:
-        _write_sweep_nc(tmp, *_dataset_parts(sweep, table))
-        os.replace(tmp, out / "sweep.nc")
-    finally:
-        tmp.unlink(missing_ok=True)
+    _write_sweep_nc(out / "sweep.nc", *_dataset_parts(sweep, table))
     return table
 
 
