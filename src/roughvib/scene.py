@@ -238,7 +238,7 @@ SANE_BOUNDS: dict[str, tuple[float, float, str]] = {
     "roughness.rolloff_wavelength": (1e-9, 10.0, "m"),
     "roughness.shortest_wavelength": (1e-9, 10.0, "m"),
     "roughness.longest_wavelength": (1e-9, 10.0, "m"),
-    "roughness.spacing": (1e-9, 1e-2, "m"),
+    "roughness.spacing": (1e-9, 1e-3, "m"),
     "roughness.trace_length": (0.0, 100.0, "m"),
     "friction.mu_slip": (0.0, 10.0, ""),
     "friction.mu_stick": (0.0, 10.0, ""),

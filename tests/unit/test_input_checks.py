@@ -175,3 +175,22 @@ def test_overflowing_numbers_on_the_command_line_are_one_line(capsys):
     assert main(["run", "--set", "block.mass=1" + "0" * 400, *TINY]) == 2
     assert capsys.readouterr().err == ("roughvib: error: block.mass must be a finite number kg, "
                                        "got 1.000e+400\n")
+
+
+def test_a_scene_spacing_has_the_upper_bound_of_a_profile_files_step(tmp_path):
+    """roughness.spacing (the step of a profile file without an x column, or of a synthetic
+    profile) is refused above 1 mm, as the step a profile file's own x column gives; it
+    allowed 10 mm."""
+    from roughvib.physics.surface.roughness import FILE_SPACING
+    from roughvib.scene import SANE_BOUNDS
+
+    assert SANE_BOUNDS["roughness.spacing"][:2] == FILE_SPACING
+    path = tmp_path / "profile.txt"
+    path.write_text("\n".join(f"{1e-6 * math.sin(k):.6g}" for k in range(400)) + "\n")
+    file = {"roughness.kind": "file", "roughness.path": str(path), "roughness.units": "m",
+            "roughness.filter": "none"}
+    with pytest.raises(SceneError, match=r"^roughness.spacing must be in \[1e-09, 0.001\] m "
+                                         r"\(the physically sane range, docs/scenes.md\), "
+                                         r"got 0.002$"):
+        load_scene("paper", {**file, "roughness.spacing": 2e-3})
+    assert load_scene("paper", {**file, "roughness.spacing": 1e-3}).roughness.spacing == 1e-3
