@@ -22,8 +22,8 @@ nested in it): imports by top-level package, scene load, profile synthesis, cont
 plate modes, residual compliance, force calibration, numba dispatch and cache loading per
 kernel module, integration, dataset, summary, energy audit, saving. "interpreter start +
 exit" is the subprocess's wall time minus everything timed inside it (interpreter start-up and
-shut-down, argument parsing). The stages are summed into the groups of docs/performance.md's
-table.
+shut-down, argument parsing). The stages are summed into the groups of :data:`GROUPS`, one
+printed table.
 
 The headline: fixed cost = subprocess wall time - the integration stage (the solver's own
 time without the numba kernels it loads or compiles on its first call; summary.json's solver
@@ -246,7 +246,7 @@ def _import_top(argv: list[str], env: dict, n: int = 12) -> list[tuple[str, floa
     return rows[:n], pk, total
 
 
-# the stages of docs/performance.md's table: each label of the instrumented run goes to one
+# the groups of the printed table: each label of the instrumented run goes to one
 GROUPS = [
     ("interpreter start + exit", lambda k: k.startswith("unattributed")),
     ("imports", lambda k: k.startswith("import ")),

@@ -1,4 +1,4 @@
-"""Benchmark: the default solver's time as a multiple of the fixed-step floor (issue 28).
+"""Benchmark: the default solver's time as a multiple of the fixed-step floor.
 
 Run on demand, not by the tests:
 
@@ -12,7 +12,7 @@ as in ``roughvib run``) and the exact-modal fixed-step scheme at the 1e-5 s outp
 cheapest scheme that produces the same output grid: the floor) are timed warm, the best CPU
 time of ``--repeat`` solves each (numba compilation and loading excluded by a first call),
 the two solvers' solves alternating (so that a drift of the machine's speed within the
-process reaches both alike; before 2026-11-26 all of one solver's solves came first).
+process reaches both alike).
 Printed: solver CPU times, step counts and their ratio. ``--processes N`` measures each
 scene in N fresh processes, one after the other, and prints each process's row and the
 median, range and count at or below the target of the ratios: a process keeps its speed
@@ -51,7 +51,7 @@ from roughvib.scene import load_scene  # noqa: E402
 
 #: the floor: the exact-modal fixed-step scheme at the output step [s]
 FLOOR_STEP = 1e-5
-#: issue 28's target: the default solve at most this multiple of the floor's
+#: the target: the default solve at most this multiple of the floor's
 TARGET_RATIO = 1.5
 
 

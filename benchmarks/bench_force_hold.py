@@ -1,16 +1,16 @@
 """Benchmark: what limits one exact-modal step per output interval -- the coupling or the hold?
 
-Run on demand, not by the tests (issue 28):
+Run on demand, not by the tests:
 
     python benchmarks/bench_force_hold.py                         # paper, reference made here
     python benchmarks/bench_force_hold.py paper --reference RUN   # reuse a converged run
 
-The default solver keeps steps of half the output interval because, at the interval, the
-``paper`` plate's 10 kHz band is 0.28 dB low. Issue 28 proposed to propagate the coupled modes
-of block, contact springs and plate exactly. This benchmark separates the two errors a step
-of exact modal propagation can make -- the coupling of the modes through the contact, and the
-hold (the polynomial in time) of what drives them over the step -- on the vertical problem
-alone:
+At one step per output interval with the contact force held linear over the step, the ``paper``
+plate's 10 kHz band is about 0.27 dB low (docs/performance.md, "What limits a step of one output
+interval"); propagating the coupled modes of block, contact springs and plate exactly is one
+conceivable cure. This benchmark separates the two errors a step of exact modal propagation can
+make -- the coupling of the modes through the contact, and the hold (the polynomial in time) of
+what drives them over the step -- on the vertical problem alone:
 
 * the tangential motion is prescribed, taken from a converged run (the ``reference``: the
   adaptive-modal solver at rtol 1e-9, atol 1e-14 m, atol_acceleration 1e-11 m/s^2, as in
@@ -34,11 +34,12 @@ alone:
 A second table then couples the tangential motion back in (the Feldmann law's friction on the
 normal force, the roughness input at the block's own position), so that the whole step is
 tested, still with one step per output interval: the vertical part as above (``modes``), the
-tangential motion by the trapezoidal rule (today's) or by its fourth-order Hermite counterpart
-(the Obreschkoff (2,2) formula, which takes the acceleration *and its rate* at both ends:
-``x1 = x0 + h (v0 + v1) / 2 + h^2 (a0 - a1) / 12``, ``v1 = v0 + h (a0 + a1) / 2 + h^2 (a0' -
-a1') / 12``). The friction law's regime (branch, latch) is switched at the converged run's
-event times, which the steps meet exactly: the events' location is not what is measured here.
+tangential motion by the trapezoidal rule (adaptive-modal's trapezoidal step) or by its
+fourth-order Hermite counterpart (the Obreschkoff (2,2) formula, which takes the acceleration
+*and its rate* at both ends: ``x1 = x0 + h (v0 + v1) / 2 + h^2 (a0 - a1) / 12``, ``v1 = v0 + h
+(a0 + a1) / 2 + h^2 (a0' - a1') / 12``). The friction law's regime (branch, latch) is switched
+at the converged run's event times, which the steps meet exactly: the events' location is not
+what is measured here.
 
 Last, how step doubling would judge the fourth-order step (:func:`doubling_estimates`): along
 the Hermite run, at every pair of output intervals without an event, one step over the pair

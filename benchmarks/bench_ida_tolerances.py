@@ -4,11 +4,12 @@ Run on demand, not by the tests:
 
     python benchmarks/bench_ida_tolerances.py [--duration 0.02]
 
-The first ``--duration`` seconds of the ``paper`` scene from rest (the window of
-bench_peers_events.py) at every pair rtol x atol_acceleration of a grid; prints wall time
-(roughvib's ``wall_time``), IDA steps and the relative rms error of the plate acceleration
-against IDA at rtol 1e-10, ``atol_acceleration`` 1e-12. Result in docs/performance.md
-("Peers at matched error"): the error and the steps follow ``atol_acceleration`` alone.
+The first ``--duration`` seconds of the ``paper-handset`` scene (ten contact points) from rest
+(the window of bench_peers_events.py) at every pair rtol x atol_acceleration of a grid; prints
+wall time (roughvib's ``wall_time``), IDA steps and the relative rms error of the plate
+acceleration against IDA at rtol 1e-10, ``atol_acceleration`` 1e-12. Result in
+docs/performance.md ("IDA", "Tolerances"): the error and the steps follow ``atol_acceleration``
+alone.
 """
 
 from __future__ import annotations

@@ -7,11 +7,11 @@ Run on demand, not by the tests:
 ``sparse``: SuperLU_MT on the analytic arrow-shaped CSC Jacobian (one residual call per Newton
 iteration, a Jacobian evaluation and factorisation every few dozen steps). ``gmres``: GMRES with
 Krylov dimension 1, the exact block-elimination preconditioner and the analytic J v of
-roughvib.model.krylov (per Newton iteration one residual, two preconditioner solves and one
-J v call). Cases: the ``paper`` scene (10 contacts, about 400 modes), the same with 40 contacts,
-and fast prescribed sliding with lift-off events. Prints wall time (minimum over repeats),
-steps, residual / Jacobian / Krylov counts, restarts and the energy-audit residual per case and
-solver, then one JSON record.
+roughvib.model.krylov (per Newton iteration one residual, two preconditioner solves and one J v
+call). Cases: the ``paper-handset`` scene (10 contact points, about 400 modes), the same with 40
+contacts, and fast prescribed sliding with lift-off events. Prints wall time (minimum over
+repeats), steps, residual / Jacobian / Krylov counts, restarts and the energy-audit residual per
+case and solver, then one JSON record.
 """
 
 from __future__ import annotations

@@ -7,8 +7,9 @@ Run on demand, not by the tests:
     python benchmarks/bench_peers_events.py [--scene paper|reduced] [--duration 0.02]
         [--budget 120] [--error 1e-3,1e-4] [--methods ida,exact-modal,...] [--check-rtol 1e-9]
 
-Scenes: ``paper`` is the built-in paper scene (10 contacts, about 400 plate modes, force-driven
-block, Feldmann friction law) from rest, so the window holds the initial friction-branch switch,
+Scenes: ``paper`` is the built-in ``paper-handset`` scene (the paper scene with a hand-set
+contact: 10 contact points, about 400 plate modes, force-driven block, Feldmann friction law)
+from rest, so the window holds the initial friction-branch switch,
 the stick -> slip break-away and (at 0.02 s) the first latch flip. ``reduced`` is the same with
 ``contact.points = 1``, for the slow peers.
 

@@ -1,4 +1,4 @@
-"""Benchmark: where the default solver's time per accepted step goes (issue 28).
+"""Benchmark: where the default solver's time per accepted step goes.
 
 Run on demand, not by the tests:
 

@@ -8,18 +8,19 @@ Run on demand, not by the tests (one at a time on a shared machine):
 
 The study runs in this process as ``roughvib sweep`` / ``roughvib run --seeds`` run it
 (``run_sweep``, then for an ensemble ``ensemble_tables`` and ``sweep_report``), with timers
-around the client's stages. ``--pool dask`` starts a Dask ``LocalCluster`` (the sweep's local
-pool before issue 28) and hands its client to ``run_sweep``; ``--pool local`` (default) lets
-``run_sweep`` start its own local pool, as the commands do. The workers' side is read back from
-the case directories: each case's wall time in its task (``case.json``), the solve's CPU time,
-the pilot and the preprocessing (``summary.json``), the worker process (``pid``).
+around the client's stages. ``--pool dask`` starts a Dask ``LocalCluster`` (a cluster as
+``roughvib sweep --scheduler`` is given one) and hands its client to ``run_sweep``; ``--pool
+local`` (default) lets ``run_sweep`` start its own local pool, as the commands do. The workers'
+side is read back from the case directories: each case's wall time in its task (``case.json``),
+the solve's CPU time, the pilot and the preprocessing (``summary.json``), the worker process
+(``pid``).
 
 Printed: the client's stages (imports, pool start, the cases, pool shutdown, tables, report),
 the sum of the cases' solver CPU and its share per worker (the floor the solver puts under the
-wall time at today's solver speed), the cases' time around the solve (per case and the first
-case of each worker, which loads the solver's imports and numba kernels) and the workers' idle
-time (workers x span of the cases - the cases' own wall time: start-up, scheduling and the
-last cases running alone).
+wall time at the solver's speed on this machine), the cases' time around the solve (per case and
+the first case of each worker, which loads the solver's imports and numba kernels) and the
+workers' idle time (workers x span of the cases - the cases' own wall time: start-up, scheduling
+and the last cases running alone).
 """
 
 from __future__ import annotations
@@ -79,7 +80,7 @@ def main() -> None:
         from roughvib.studies.sweep.run import THREAD_ENV
 
         mark("client: import dask.distributed")
-        # as run_sweep started its own cluster before issue 28
+        # a cluster of the local cores, as a sweep given --scheduler would use
         cluster = dask.distributed.LocalCluster(n_workers=a.workers, threads_per_worker=1,
                                                 processes=True, env=dict(THREAD_ENV))
         client = dask.distributed.Client(cluster)

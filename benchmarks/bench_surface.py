@@ -1,4 +1,4 @@
-"""Benchmark: generating and reducing the default 2-D surface (issue 3 goal: < 10 s).
+"""Benchmark: generating and reducing the default 2-D surface.
 
 Run on demand, not by the tests:
 

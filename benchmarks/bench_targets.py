@@ -1,13 +1,13 @@
-"""Benchmark: issue 28's three wall-time targets, each as the user runs it.
+"""Benchmark: the wall time of a default run, a sweep and an ensemble, each as a user runs it.
 
 Run on demand, not by the tests (``nice`` on a shared machine; one at a time):
 
-    python benchmarks/bench_targets.py                 # all three, ~5 min with today's solver
+    python benchmarks/bench_targets.py                 # all three
     python benchmarks/bench_targets.py --quick         # 10-seed ensemble instead of 100
     python benchmarks/bench_targets.py --only run --repeat 5
     python benchmarks/bench_targets.py --only sweep --only ensemble --json out.json
 
-The three targets (docs/performance.md, "Issue 28: the default run, a sweep and an ensemble"):
+The three targets (docs/performance.md, "The warm default run" and "Sweeps and ensembles"):
 
 1. **default run, warm**: ``roughvib run`` (the ``paper`` scene, every default) with numba's
    and roughvib's caches filled by one unmeasured run first: at most 2 s wall for the whole
@@ -51,7 +51,7 @@ from machine import describe, timed_python
 
 HERE = Path(__file__).resolve().parent
 
-TARGETS = {"run": 2.0, "sweep": 10.0, "ensemble": 60.0}  # [s] wall, issue 28
+TARGETS = {"run": 2.0, "sweep": 10.0, "ensemble": 60.0}  # [s] wall, the targets above
 
 
 #: a process that does what every roughvib run must before its own work: start Python, import

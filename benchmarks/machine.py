@@ -1,10 +1,9 @@
-"""The machine a benchmark runs on, in one line, printed at the head of each issue-28 benchmark.
+"""The machine a benchmark runs on, in one line, printed at the head of the benchmarks.
 
-The same code measures differently on different processors of the same size: on 2026-11-27
-(an Intel Xeon of family 6, model 207, 2.1 GHz, under KVM) the default solve took 1.6 times
-the fixed-step floor where the day before it had taken 1.3 times, with the same source tree
-and the same results. A figure in docs/performance.md is therefore quoted with this line, so
-that measurements are compared on like machines:
+The same code measures differently on different processors of the same size, with the same
+source tree and the same results (the default solve's ratio to the fixed-step floor too). A
+figure in docs/performance.md is therefore quoted with this line, so that measurements are
+compared on like machines:
 
     python benchmarks/machine.py
 
