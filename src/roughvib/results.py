@@ -97,8 +97,8 @@ class RunData:
 
     ``simulate`` builds a run's :class:`Result` from this instead of an xarray.Dataset:
     building a Dataset and writing it with xarray import dask (``dask.array`` with
-    scipy.sparse, scipy.special and scipy.fft, for xarray's duck-array checks), about half a
-    second of a short run on the 2-core machine (docs/performance.md, "Fixed cost of a run").
+    scipy.sparse, scipy.special and scipy.fft, for xarray's duck-array checks), which a run
+    does without (docs/performance.md, "Fixed cost of a run").
     :meth:`to_dataset` gives the xarray.Dataset (``Result.dataset`` calls it on first use) and
     :meth:`write_netcdf` writes it with h5netcdf's public API as a netCDF-4 file of the CF
     conventions that ``xarray.open_dataset`` and :func:`load_result` read back to the same

@@ -78,9 +78,9 @@ def _no_collection_at_exit() -> None:
     """Let the interpreter skip its last garbage collection when the process exits.
 
     At exit Python collects every object that is still alive; after a run (numba, scipy,
-    xarray, pandas loaded) that takes about half a second on the 2-core machine
-    (docs/performance.md, "Fixed cost of a run"), for memory the operating system frees at once
-    anyway. ``gc.freeze()`` as the last exit handler moves those objects out of the collector's
+    xarray, pandas loaded) those are hundreds of thousands, for memory the operating system
+    frees at once anyway (docs/performance.md, "Fixed cost of a run": the last sweep at exit is
+    skipped). ``gc.freeze()`` as the last exit handler moves those objects out of the collector's
     sight. The exit handlers registered after it (those of the libraries imported during the
     run) run before it, and reference counting still frees and finalises every object that is
     not part of a reference cycle while the modules are torn down; Python does not promise to
@@ -108,10 +108,9 @@ def _fewer_collections():
     A command imports numpy, numba, scipy and h5py and sets up numba's typing and target
     contexts: hundreds of thousands of objects that live as long as the process. With
     Python's default thresholds the collector runs about 275 times in a warm ``roughvib
-    run``, twice over every object alive, 0.16-0.19 s of its 3 s of CPU; with a first
-    threshold of :data:`GC_YOUNG_THRESHOLD` about 40 times, never over all objects,
-    0.08-0.09 s (docs/performance.md, "Where a warm default run spends its time besides the
-    solver").
+    run``, twice over every object alive, 0.16-0.19 s of CPU; with a first threshold of
+    :data:`GC_YOUNG_THRESHOLD` about 40 times, never over all objects, 0.08-0.09 s
+    (docs/performance.md, "Fixed cost of a run").
     Cycles are still collected, after 50 000 new container objects instead of 700. The
     previous thresholds are restored when the command ends; a collector switched off by a
     threshold of 0 stays off.

@@ -1,9 +1,10 @@
-"""Exact modal propagation under a Hermite-cubic hold of the modal force (issue 28, in work).
+"""Exact modal propagation under a Hermite-cubic hold of the modal force (adaptive-modal's
+Hermite step).
 
 A plate mode ``q'' + c q' + w^2 q = u(t)`` is propagated exactly over a step of length h when
-u is a polynomial in t. The ``adaptive-modal`` step holds u linear (its values at both ends);
-docs/performance.md ("What limits a step of one output interval") measured that this hold, not
-the coupling of the modes through the contact, is what keeps that step at half the output
+u is a polynomial in t. ``adaptive-modal``'s trapezoidal step holds u linear (its values at both
+ends); docs/performance.md ("What limits a step of one output interval") measured that this
+hold, not the coupling of the modes through the contact, is what limits a step of one output
 interval, and that the cubic through the values *and rates* of u at both ends (Hermite) is
 accurate at the whole interval. This module gives the step maps of that hold:
 

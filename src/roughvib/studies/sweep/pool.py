@@ -3,8 +3,9 @@
 A sweep without a scheduler address runs its cases here instead of on a Dask
 ``LocalCluster``: the workers are plain ``spawn`` processes that import roughvib's solver stack
 once and take one case after the other over a pipe. Neither the client nor the workers import
-dask.distributed, and no scheduler runs (measured in docs/performance.md: the cluster's start,
-its imports in every worker and its shutdown were about 3 s of a 12-case sweep's wall time).
+dask.distributed, and no scheduler runs (docs/performance.md, "Sweeps and ensembles": with a
+Dask ``LocalCluster`` in its place, the 12-case ``paper-velocity`` sweep took about 8
+CPU-seconds more).
 
 What a Dask cluster gave a sweep, the pool keeps:
 

@@ -245,8 +245,9 @@ def _write_sweep_nc(path: Path, coords: dict, data: dict, attrs: dict) -> None:
     """Write :func:`_dataset_parts` as netCDF-4 with h5netcdf's public API, the file
     ``xarray.Dataset(data, coords=coords, attrs=attrs).to_netcdf(path, engine="h5netcdf")``
     writes (tested: the two decode identically), without xarray: building a Dataset and
-    ``to_netcdf`` import ``dask.array`` and ``dask.distributed`` when dask is installed (1.05 s
-    of CPU of the 2.1 s the tables cost a new process; docs/performance.md).
+    ``to_netcdf`` import ``dask.array`` and ``dask.distributed`` when dask is installed; written
+    this way, ``sweep.csv`` and ``sweep.nc`` cost 0.5-0.6 s of CPU (docs/performance.md,
+    "Sweeps and ensembles").
 
     CF's layout as xarray writes it: dimensions, then the coordinates and the data variables
     in order; floats with a NaN ``_FillValue``, integers and texts (variable-length UTF-8)
