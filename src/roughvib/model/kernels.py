@@ -205,7 +205,7 @@ def unowned(a):
     numba keeps a reference count in each array's memory record: every compiled function
     that is not inlined increments and decrements it for each array it is passed (and for
     each view it takes) with an atomic instruction. On the ``paper`` scene those counts were
-    59 % of the default solve's compiled time on the machine of 2026-11-27 (``perf``; 23 %
+    59 % of the default solve's compiled time on an Intel Xeon (``perf``; 23 %
     on an earlier one). A view made by ``numba.carray`` over ``a``'s buffer (cffi's
     ``from_buffer``, as numba supports it) has no record: the counting calls on it return at
     once. The solver loops (adaptive-modal's two, the fixed-step schemes') take such views of

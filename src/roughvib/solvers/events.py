@@ -27,7 +27,7 @@ __all__ = ["EventBook", "EventRecord", "SolverFailure", "initial_phase_events", 
 #: Stall guard: a run whose mean internal step within one output interval falls below
 #: STALL_MEAN_STEP (and that takes more than STALL_MIN_STEPS steps there) stops as "stalled".
 #: Legitimate runs stay far below it: IDA at rtol 1e-14 took ~6,500 steps per 1e-5 s output
-#: interval on a lift-off scene, adaptive-modal ~1,000; the stalls of issue 17 took 20,000
+#: interval on a lift-off scene, adaptive-modal ~1,000; the stalled runs took 20,000
 #: steps (and as many Jacobians) without leaving the interval.
 STALL_MEAN_STEP = 5e-10  # s
 STALL_MIN_STEPS = 20_000

@@ -80,7 +80,7 @@ FIRST_ROW = 0  # the output row of t = 0
 # BDF's last step is huge, and restarting a touch-down with it failed the error test 10 times.
 RESTART_STEP_FRACTION = 0.01
 # Stall guard on the Jacobians of one step() call: at most step_budget / this many. A healthy
-# interval needs a few (restarts add ~10 each); the stalls of issue 17 refactorised at every
+# interval needs a few (restarts add ~10 each); the stalled runs (a huge block mass) refactorised at every
 # step, at ~5 ms per factorisation.
 JACOBIANS_PER_STEP_BUDGET = 40
 
@@ -305,7 +305,7 @@ def _atol_vector(system: System) -> np.ndarray:
 
 #: solver.atol must be at least this many unit round-offs of the contact compression's terms
 #: (docs/robustness.md): near a lift-off or touch-down a contact force is known only to
-#: s_k eps L. Measured on the one-contact lift-off scene of issue 17 (rtol 1e-10, 0.02 s, 8
+#: s_k eps L. Measured on a one-contact lift-off scene (rtol 1e-10, 0.02 s, 8
 #: events): IDA stalled in its error test at a touch-down with atol = 10 eps L and at the
 #: first lift-off with 2.3 eps L, and ran through at 100 eps L (adaptive-modal ran at 1e-5 eps L).
 ATOL_FLOOR_ULPS = 100.0
