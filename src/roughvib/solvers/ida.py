@@ -80,8 +80,8 @@ FIRST_ROW = 0  # the output row of t = 0
 # BDF's last step is huge, and restarting a touch-down with it failed the error test 10 times.
 RESTART_STEP_FRACTION = 0.01
 # Stall guard on the Jacobians of one step() call: at most step_budget / this many. A healthy
-# interval needs a few (restarts add ~10 each); the stalled runs (a huge block mass) refactorised at every
-# step, at ~5 ms per factorisation.
+# interval needs a few (restarts add ~10 each); the stalled runs (a huge block mass)
+# refactorised at every step, at ~5 ms per factorisation.
 JACOBIANS_PER_STEP_BUDGET = 40
 
 
