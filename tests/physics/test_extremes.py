@@ -100,6 +100,8 @@ def test_tiny_damping_keeps_the_energy_balance():
 
 
 @pytest.mark.slow
+@pytest.mark.short_run
+@pytest.mark.filterwarnings("ignore:plate modes above:roughvib.scene.ModelValidityWarning")
 def test_many_modes_to_100_khz():
     """All modes to 100 kHz. Their number follows the lattice-point count of a simply
     supported a x b plate: N = a b k^2 / (4 pi) - (a + b) k / (2 pi), k^4 = omega^2 rho h / D

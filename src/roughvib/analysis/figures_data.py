@@ -314,8 +314,8 @@ class StiffnessScale:
     Attributes
     ----------
     limit : float
-        Half range of the ordinate [N/m]: the ``coverage`` quantile of |dT/dx| over the slip
-        samples (1e3 N/m without any evaluated slip sample).
+        Half range of the ordinate [N/m]: the ``coverage`` quantile of ``|dT/dx|`` over the
+        slip samples (1e3 N/m without any evaluated slip sample).
     coverage : float
         Share of the evaluated slip samples within ±``limit`` [-].
     stick_median : float
