@@ -188,6 +188,13 @@ def _opt_positive(path: str, value: Any, unit: str) -> float | None:
     return None if value is None else _positive(path, value, unit)
 
 
+def _auto_or_positive(path: str, value: Any, unit: str) -> float | str:
+    """``"auto"``, or a number > 0 in ``unit``."""
+    if isinstance(value, str):
+        return _choice(path, value, ("auto",))
+    return _positive(path, value, unit)
+
+
 #: longest scene name [characters]; it names the output directory runs/<name>, next to which a
 #: run keeps a temporary directory and a lock file with a few more characters
 NAME_MAX = 100
@@ -231,6 +238,7 @@ SANE_BOUNDS: dict[str, tuple[float, float, str]] = {
     "contact.summit_radius": (1e-9, 10.0, "m"),
     "contact.summit_std": (1e-12, 1e-3, "m"),
     "contact.hardness": (1e5, 1e12, "Pa"),
+    "contact.spot_radius": (1e-9, 1e-2, "m"),
     "roughness.amplitude": (0.0, 1e-2, "m"),
     "roughness.wavelength": (1e-9, 10.0, "m"),
     "roughness.rms": (0.0, 1e-2, "m"),
@@ -504,6 +512,16 @@ class Contact:
         block; ``area``, every contact force is spread evenly over the block's nominal contact
         area (``block.length`` x ``block.width``, centred at ``plate.block_position``) and
         feels the area mean of the structure's displacement (docs/structures.md).
+    filter : {"hertz", "none"}
+        The contact filter of the kinematic input: ``hertz`` (default), each contact sees the
+        surface averaged over its real contact spot, weighted by the Hertz pressure of a spot
+        of radius ``spot_radius`` (docs/theory.md, "The contact filter"); ``none``, the
+        surface's own heights (the paper's model).
+    spot_radius : float or "auto"
+        Radius a of the contact spots [m]: the contact filter's radius and the scale at which
+        the summits of the statistical contact are counted. ``"auto"`` (default): the mean
+        micro-contact radius of the statistical contact, found self-consistently
+        (docs/theory.md, "Contact module").
     friction_moment : bool
         Let the friction force act where it does, on the plate's top surface half a thickness
         (``plate.thickness`` / 2) above its mid-plane: besides the contact forces, the modes
@@ -524,10 +542,15 @@ class Contact:
     velocity_factor: bool = True
     selection: str = "separated"
     patch: str = "point"
+    filter: str = "hertz"
+    spot_radius: float | str = "auto"
     friction_moment: bool = False
 
     def __post_init__(self) -> None:
         _set(self, "patch", _choice("contact.patch", self.patch, ("point", "area")))
+        _set(self, "filter", _choice("contact.filter", self.filter, ("hertz", "none")))
+        _set(self, "spot_radius",
+             _auto_or_positive("contact.spot_radius", self.spot_radius, "m"))
         _set(self, "friction_moment", _boolean("contact.friction_moment", self.friction_moment))
         if isinstance(self.points, str):
             _choice("contact.points", self.points, ("auto",))
@@ -571,10 +594,18 @@ class Roughness:
         Hurst exponent H of the self-affine PSD tail, slope -(1 + 2H).
     rolloff_wavelength : float
         lambda_0 [m]: flat PSD above it, power law below it.
-    shortest_wavelength, longest_wavelength : float
-        Band limits [m] (50 um ... 40 mm in the paper).
-    spacing : float
-        Profile grid spacing [m] (synthetic and ``file`` with one column).
+    shortest_wavelength : float or "auto"
+        Where the surface's self-affine tail stops [m]. ``"auto"`` (default): the wavelength
+        that the rms sliding speed maps to the top of the output band (v_rms / (2
+        output.step): 0.2 um at 10 mm/s), at most 50 um, so that no band shown depends on it
+        (docs/surfaces.md); 50e-6 is the paper's measured band.
+    longest_wavelength : float
+        Long end of the band [m] (40 mm, the block length, in the paper).
+    spacing : float or "auto"
+        Grid spacing of the input [m]: the field is sampled on it and interpolated between
+        the samples (``synthetic``); the sample spacing of a one-column ``file``. ``"auto"``
+        (default): half the shortest wavelength with the contact filter, an eighth without
+        (``synthetic``), the paper's 10 um for a one-column file and the other kinds.
     trace_length : float
         Length of the synthetic trace [m].
     raw_rms : float
@@ -613,9 +644,9 @@ class Roughness:
     seed: int = 1
     hurst: float = 0.8
     rolloff_wavelength: float = 0.5e-3
-    shortest_wavelength: float = 50e-6
+    shortest_wavelength: float | str = "auto"
     longest_wavelength: float = 0.04
-    spacing: float = 10e-6
+    spacing: float | str = "auto"
     trace_length: float = 0.16
     raw_rms: float = 3.5e-6
     reduce_3d: bool = False
@@ -639,10 +670,10 @@ class Roughness:
         _set(self, "rolloff_wavelength",
              _positive(f"{p}.rolloff_wavelength", self.rolloff_wavelength, "m"))
         _set(self, "shortest_wavelength",
-             _positive(f"{p}.shortest_wavelength", self.shortest_wavelength, "m"))
+             _auto_or_positive(f"{p}.shortest_wavelength", self.shortest_wavelength, "m"))
         _set(self, "longest_wavelength",
              _positive(f"{p}.longest_wavelength", self.longest_wavelength, "m"))
-        _set(self, "spacing", _positive(f"{p}.spacing", self.spacing, "m"))
+        _set(self, "spacing", _auto_or_positive(f"{p}.spacing", self.spacing, "m"))
         _set(self, "trace_length", _positive(f"{p}.trace_length", self.trace_length, "m"))
         _set(self, "raw_rms", _nonneg(f"{p}.raw_rms", self.raw_rms, "m"))
         _set(self, "reduce_3d", _boolean(f"{p}.reduce_3d", self.reduce_3d))
@@ -656,10 +687,12 @@ class Roughness:
         _set(self, "format", _choice(f"{p}.format", self.format,
                                      ("auto", "text", "topography")))
         _check_bounds(self, "roughness")
-        if self.shortest_wavelength >= self.longest_wavelength:
+        numeric = not isinstance(self.shortest_wavelength, str)
+        if numeric and self.shortest_wavelength >= self.longest_wavelength:
             raise SceneError(f"{p}.shortest_wavelength must be < roughness.longest_wavelength "
                              f"({self.longest_wavelength} m), got {self.shortest_wavelength} m")
-        if self.kind == "synthetic" and self.shortest_wavelength < 2 * self.spacing:
+        if (self.kind == "synthetic" and numeric and not isinstance(self.spacing, str)
+                and self.shortest_wavelength < 2 * self.spacing):
             raise SceneError(f"{p}.shortest_wavelength must be >= 2 * roughness.spacing "
                              f"({2 * self.spacing} m), got {self.shortest_wavelength} m")
         if self.kind == "file" and not self.path:
@@ -1203,7 +1236,8 @@ class Scene:
                              f"{len(self.output.microphones)} microphones with radiation off")
         # derived quantities a run needs, checked here with the keys they derive from
         r = self.roughness
-        if r.kind != "file" and r.trace_length / r.spacing > MAX_PROFILE_SAMPLES:
+        if (r.kind != "file" and not isinstance(r.spacing, str)
+                and r.trace_length / r.spacing > MAX_PROFILE_SAMPLES):
             raise SceneError(f"roughness.trace_length / roughness.spacing must be at most "
                              f"{MAX_PROFILE_SAMPLES:.0e} profile samples, got "
                              f"{r.trace_length} m / {r.spacing} m = "

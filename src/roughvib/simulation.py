@@ -295,6 +295,44 @@ def _resolve_contact(scene: Scene, system: System, comments: dict) -> Scene:
     return replace_section(scene, "block", vertical_damping=float(info["vertical_damping"]))
 
 
+def _resolve_input(scene: Scene, system: System, comments: dict) -> Scene:
+    """The scene with the input's ``"auto"`` keys written in as numbers (tail limit, grid,
+    spot radius), so that the saved scene.toml repeats the run: its ``"auto"`` tail follows
+    the velocity target, which the saved scene replaces by the calibrated force."""
+    r, c = scene.roughness, scene.contact
+    band = system.contact.get("input", {})
+    if isinstance(r.shortest_wavelength, str) and band:
+        comments["roughness.shortest_wavelength"] = (
+            f"auto: {band['speed']:.4g} m/s rms over {band['top_frequency']:.6g} Hz")
+        scene = replace_section(scene, "roughness",
+                                shortest_wavelength=float(band["shortest_wavelength"]))
+    if isinstance(r.spacing, str) and band:
+        comments["roughness.spacing"] = "auto"
+        scene = replace_section(scene, "roughness", spacing=float(band["spacing"]))
+    spot = system.profile.stats.get("spot_radius")
+    if isinstance(c.spot_radius, str) and spot is not None:
+        comments["contact.spot_radius"] = "contact module: mean micro-contact radius"
+        scene = replace_section(scene, "contact", spot_radius=float(spot))
+    return scene
+
+
+def _input_summary(system: System, ds) -> dict:
+    """What the run's input resolves: the tail limit, the grid, the contact filter, and the
+    frequency up to which the input holds the surface at the run's rms and peak speed."""
+    band = dict(system.contact.get("input", {}))
+    st = system.profile.stats
+    lam = st.get("shortest_wavelength", band.get("shortest_wavelength"))
+    out = {**band, "grid_spacing": system.profile.dx, "contact_filter":
+           st.get("contact_filter", "none"), "spot_radius": st.get("spot_radius")}
+    if system.tangential and "block_tangential_velocity" in ds and lam:
+        v = np.abs(np.asarray(ds["block_tangential_velocity"]))
+        if v.size:
+            out["peak_speed"] = float(v.max())
+            out["resolved_frequency_peak"] = float(v.max() / lam)
+            out["resolved_frequency_rms"] = float(np.sqrt(np.mean(v**2)) / lam)
+    return out
+
+
 def simulate(scene: Scene, *, progress: bool | None = None,
              force_amplitude: float | None = None,
              checkpoint_dir: str | os.PathLike | None = None, verify: bool = False) -> Result:
@@ -393,7 +431,8 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
                   "contact": system.contact,
                   "initially_closed_contacts": int(np.sum(raw.y_initial[
                       system.layout.slice("contact.force")] > 0)),
-                  "profile": system.profile.stats},
+                  "profile": system.profile.stats,
+                  "input": _input_summary(system, ds)},
         "events_by_kind": by_kind,
         "metrics": _metrics(system, ds) if raw.status == "success" else {},
         "energy_audit": audit,
@@ -442,6 +481,7 @@ def _resolved_scene(scene: Scene, system: System) -> tuple[Scene, str]:
                 comments["excitation.force_amplitude"] = (
                     f"calibrated for target_rms_velocity = {exc.target_rms_velocity} m/s")
         resolved = _resolve_contact(resolved, system, comments)
+        resolved = _resolve_input(resolved, system, comments)
     except SceneError as exc:
         raise SceneError(f"a value derived for this run (calibrated force amplitude, contact "
                          f"module or solver tolerance) is out of range: {exc}") from None

@@ -65,6 +65,14 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
                      f"r1 {c['vertical_damping']:.4g} N s/m")
     if (note := cal.get("contact_stiffness", {}).get("velocity_factor_note")):
         lines.append(f"                 {note}")
+    if (inp := summary.get("model", {}).get("input")) and inp.get("shortest_wavelength"):
+        spot = inp.get("spot_radius")
+        filt = (f"contact filter a = {spot * 1e6:.3g} um" if spot else "no contact filter")
+        res = inp.get("resolved_frequency_rms")
+        lines.append(f"input            surface to {inp['shortest_wavelength'] * 1e6:.3g} um "
+                     f"({inp.get('shortest_source')}), {filt}, grid "
+                     f"{inp.get('grid_spacing', float('nan')) * 1e6:.3g} um"
+                     + (f"; resolved to {res / 1e3:.3g} kHz at the rms speed" if res else ""))
     ev = summary.get("events_by_kind", {})
     lines.append("events           " + (", ".join(f"{k} {v}" for k, v in sorted(ev.items()))
                                         or "none"))

@@ -24,9 +24,9 @@ from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import LAWS, calibrated_force_amplitude, law_table
 from roughvib.physics.structures import Structure, build_structure
-from roughvib.physics.surface.contact import contact_layout
+from roughvib.physics.surface.contact import contact_layout, scene_input
 from roughvib.physics.surface.interp import cached_coefficients
-from roughvib.physics.surface.roughness import Profile, build_profile
+from roughvib.physics.surface.roughness import Profile
 from roughvib.scene import (
     ModelValidityWarning,
     Scene,
@@ -63,6 +63,11 @@ class System:
     stiff: np.ndarray
     cres: np.ndarray
     prof: np.ndarray
+    #: (K,) coordinates of the contacts at x = 0 in the interpolant's cells (``prof``): the
+    #: interpolant holds one window of the input per contact (:func:`input_windows`)
+    input_s: np.ndarray
+    #: (K, 2) tangential displacements x [m] between which contact k stays in its window
+    input_reach: np.ndarray
     work: np.ndarray = field(repr=False)
     warnings: list[str] = field(default_factory=list)  # validity warnings (one line each)
     #: how the contact was resolved: points, stiffness, their sources, selection, r1
@@ -91,10 +96,10 @@ class System:
     def kernel_args(self, reg: np.ndarray, rf: np.ndarray) -> tuple:
         """The shared argument tail of the residual/Jacobian/output kernels."""
         return (self.off, self.fp, self.omega2, self.cdamp, self.phi, self.phi_obs, self.stiff,
-                self.cres, self.contact_s, self.prof, reg, rf, self.work)
+                self.cres, self.input_s, self.prof, reg, rf, self.work)
 
     def event_args(self, reg: np.ndarray, rf: np.ndarray) -> tuple:
-        return (self.off, self.fp, self.phi, self.cres, self.contact_s, self.prof, reg, rf,
+        return (self.off, self.fp, self.phi, self.cres, self.input_s, self.prof, reg, rf,
                 self.work)
 
     def new_regime_arrays(self) -> tuple[np.ndarray, np.ndarray]:
@@ -129,7 +134,7 @@ class System:
         iF = self.layout.slice("contact.force")
         yy = y.copy()
         yy[iF] = 0.0
-        kn.compressions(t, yy, self.off, self.fp, self.phi, self.cres, self.contact_s,
+        kn.compressions(t, yy, self.off, self.fp, self.phi, self.cres, self.input_s,
                         self.prof, self.work)
         rhs = self.work[:k_all].copy()  # compression with F = 0 in the residual term
         return self._solve_closed(closed, rhs)
@@ -151,7 +156,7 @@ class System:
         """
         k_all = self.n_contacts
         lay = self.layout
-        kn.compressions(t, y, self.off, self.fp, self.phi, self.cres, self.contact_s,
+        kn.compressions(t, y, self.off, self.fp, self.phi, self.cres, self.input_s,
                         self.prof, self.work)
         _, vx = kn.tangential_kinematics(t, y, self.off, self.fp)
         rate = y[lay.index("block.vz")] + self.work[k_all:2 * k_all] * vx
@@ -206,7 +211,7 @@ class System:
         tt = 0.0
         heights = np.empty(K)
         for k in range(K):
-            heights[k] = _profile_height(self, self.contact_s[k] + x0)
+            heights[k] = _profile_height(self, self.input_s[k] + x0)
         G = self.static_compliance_matrix()
         # start with the highest contact only closed (always a feasible first guess)
         closed = np.zeros(K, dtype=np.int64)
@@ -396,11 +401,12 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
     tangential = exc.kind == "force"
 
-    profile = build_profile(scene.roughness, blk, Path(scene.base_dir))
+    inp = scene_input(scene)
+    profile = inp.profile
     notes = check_profile(scene, profile) + validity_warnings(scene)
     # contact points and s_total, as given or from the statistical contact (docs/theory.md);
-    # a measured profile brings its own moments, synthetic ones use the model PSD
-    cl = contact_layout(scene, profile)
+    # a measured profile brings its own spectrum, synthetic ones use the model PSD
+    cl = contact_layout(scene, profile, inp.statistical)
     spos, s_total, K = cl.positions, cl.stiffness_total, cl.n
     stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
     if travel is not None:
@@ -468,7 +474,9 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
 
-    coeffs, _ = cached_coefficients(profile.z, profile.dx, scene.roughness.interpolation)
+    reach = max(travel if travel is not None else 0.0, estimate_travel(scene))
+    coeffs, input_s, input_reach = input_windows(profile, spos, reach,
+                                                 scene.roughness.interpolation)
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass
     fp[kn.FP_GRAV] = GRAVITY
@@ -487,7 +495,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_PA] = exc.amplitude if not tangential else 0.0
     fp[kn.FP_PW] = exc.omega
     fp[kn.FP_MMODAL] = 1.0  # mass-normalised shapes (physics/structures)
-    fp[kn.FP_S0] = profile.s0
+    fp[kn.FP_S0] = 0.0  # the windows' own coordinate (input_windows)
     fp[kn.FP_DX] = profile.dx
     fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
     fp[kn.FP_HYST] = fr.switching_hysteresis
@@ -506,23 +514,77 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         off=off, fp=fp,
         omega2=np.ascontiguousarray(omega2), cdamp=np.ascontiguousarray(cdamp), phi=phi,
         phi_obs=phi_obs, stiff=stiff, cres=np.ascontiguousarray(cres), prof=coeffs,
+        input_s=input_s, input_reach=input_reach,
         work=np.zeros(kn.work_size(K)), warnings=notes,
-        contact={**cl.as_dict(), "vertical_damping": r1},
+        contact={**cl.as_dict(), "vertical_damping": r1, "input": inp.band.as_dict()},
         mode_scale=np.asarray(structure.max_shape(), dtype=float),
         phi_dx=np.ascontiguousarray(phi_dx, dtype=float),
     )
 
 
+#: cells of a window beyond the travel it must cover: a spline's end conditions disturb
+#: only the few cells next to its ends
+WINDOW_MARGIN_CELLS = 16
+
+
+def input_windows(profile: Profile, contact_s: np.ndarray, travel: float, kind: str
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The interpolant of the input around each contact, in one coefficient array.
+
+    Contact k reads the profile only within ``contact_s[k] +- travel``; its window is that
+    stretch of the profile's grid plus :data:`WINDOW_MARGIN_CELLS` cells on each side (taken
+    across the period's end for a periodic field; clipped to a measured profile), and its own
+    interpolant (:func:`~roughvib.physics.surface.interp.cached_coefficients`) is built on it.
+    The windows follow each other on one grid of the profile's spacing, one spare cell
+    apart, starting at 0: the kernels' profile coordinate of contact k at x = 0 is
+    ``input_s[k]``. A fine grid thus costs memory only where the contacts go.
+
+    Parameters
+    ----------
+    profile : Profile
+    contact_s : ndarray, shape (K,)
+        Profile coordinates of the contacts at x = 0 [m].
+    travel : float
+        Largest tangential travel either way [m], >= 0.
+    kind : {"linear", "cubic", "quintic"}
+
+    Returns
+    -------
+    coefficients : ndarray, shape (cells, degree + 1)
+    input_s : ndarray, shape (K,)
+        [m] in the windows' coordinate.
+    reach : ndarray, shape (K, 2)
+        The displacements x [m] between which contact k reads its own window.
+    """
+    dx = profile.dx
+    n = profile.z.size
+    half = int(math.ceil(travel / dx)) + WINDOW_MARGIN_CELLS
+    blocks, input_s, reach = [], [], []
+    start = 0
+    for s_k in np.asarray(contact_s, dtype=float):
+        pos = (s_k - profile.s0) / dx
+        i0, i1 = int(math.floor(pos)) - half, int(math.ceil(pos)) + half
+        if not profile.periodic:
+            i0, i1 = max(i0, 0), min(i1, n - 1)
+        idx = np.arange(i0, i1 + 1) % n
+        c, _ = cached_coefficients(np.ascontiguousarray(profile.z[idx]), dx, kind)
+        blocks.append(c)
+        blocks.append(c[-1:])  # a spare cell: never read by a contact within its reach
+        local = (pos - i0) * dx
+        input_s.append(start * dx + local)
+        reach.append((-local + WINDOW_MARGIN_CELLS * dx,
+                      (i1 - i0) * dx - local - WINDOW_MARGIN_CELLS * dx))
+        start += c.shape[0] + 1
+    return (np.ascontiguousarray(np.vstack(blocks)), np.asarray(input_s, dtype=float),
+            np.asarray(reach, dtype=float))
+
+
 def check_stroke(system: System, x: np.ndarray) -> None:
-    """Raise if the block's tangential travel leaves the roughness profile."""
-    prof = system.profile
-    lo = prof.s0
-    hi = prof.s0 + (prof.z.size - 1) * prof.dx
-    smin = system.contact_s.min() + float(np.min(x))
-    smax = system.contact_s.max() + float(np.max(x))
-    if smin < lo or smax > hi:
+    """Raise if the block's tangential travel left a contact's window of the input."""
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if lo < system.input_reach[:, 0].max() or hi > system.input_reach[:, 1].min():
         raise SceneError(
-            f"roughness.trace_length must cover the contacts' travel: contacts reach "
-            f"[{smin:.4g}, {smax:.4g}] m but the profile spans [{lo:.4g}, {hi:.4g}] m, got "
-            f"{system.scene.roughness.trace_length} m")
-    _ = math
+            f"roughness.trace_length must cover the contacts' travel: the block moved over "
+            f"[{lo:.4g}, {hi:.4g}] m but the input around the contacts covers only "
+            f"[{system.input_reach[:, 0].max():.4g}, {system.input_reach[:, 1].min():.4g}] m "
+            f"(estimated before the run), got {system.scene.roughness.trace_length} m")

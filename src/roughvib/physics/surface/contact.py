@@ -47,6 +47,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from roughvib._cache import cached_values, code_fingerprint
+from roughvib.physics.surface.field import InputBand, ModelPSD, input_band
 from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
 from roughvib.scene import MAX_CONTACTS, SANE_BOUNDS, Scene, SceneError
 
@@ -372,6 +373,11 @@ class ContactStiffness:
     velocity_factor_note : str
         Why ``contact.velocity_factor = true`` was not applied (factor 1): a block that does
         not slide, or no stated rms velocity; empty when it was applied or is off.
+    spot_radius : float
+        Mean radius a of the micro-contacts [m], the scale the summits are counted at and the
+        radius of the contact filter.
+    spot_radius_source : {"auto", "scene"}
+        The fixed point of :func:`contact_stiffness`, or ``contact.spot_radius``.
     """
 
     s_total: float
@@ -393,6 +399,8 @@ class ContactStiffness:
     nominal_area: float
     surface_rms: float
     summit_source: str
+    spot_radius: float
+    spot_radius_source: str
     velocity_factor_note: str = ""
 
     def as_dict(self) -> dict:
@@ -451,15 +459,19 @@ def _scene_v_rms(scene: Scene) -> tuple[float | None, str]:
                   f"{exc.force_amplitude} N only): factor 1, the static contact stiffness")
 
 
-def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool) -> None:
+def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool,
+                         shortest: float | None = None) -> None:
     """Refuse, naming ``roughness.raw_rms``, an rms too small for the contact module: summits
     it derives lower than the lowest ``contact.summit_std`` or blunter than the largest
     ``contact.summit_radius`` (docs/scenes.md), down to spectral moments that underflow to
     zero. The summits' shape follows from the band alone (moments ~ rms^2: height spread ~
     rms, radius ~ 1 / rms), so the band's own summits at 1 m rms tell which key is at fault:
-    the band (no summits at any rms; the caller names it) or the rms."""
+    the band (no summits at any rms; the caller names it) or the rms. ``shortest`` [m] is the
+    resolved tail limit; the moments are the unfiltered band's (a bound: the contact filter
+    only blunts the summits the module counts)."""
     try:
-        unit = summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d))
+        unit = summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d,
+                                                   shortest=shortest))
     except ValueError:
         return
     std_lo, _, _ = SANE_BOUNDS["contact.summit_std"]
@@ -475,11 +487,11 @@ def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool) -> None:
             f"{rad_hi:g} m, docs/scenes.md), got {r.raw_rms!r} m")
 
 
-def _check_raw_rms_underflow(r, moments) -> None:
+def _check_raw_rms_underflow(r, moments, shortest: float | None = None) -> None:
     """Refuse, naming ``roughness.raw_rms``, an rms whose spectral moments are too small for
     floating point (they scale as rms^2) where the band itself gives summits at 1 m rms."""
     try:
-        summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d))
+        summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d, shortest=shortest))
     except ValueError:
         return  # the band's fault: the caller names the band
     m0, m2, m4 = moments
@@ -489,23 +501,127 @@ def _check_raw_rms_underflow(r, moments) -> None:
                      f"{r.raw_rms!r} m")
 
 
-def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None = None
-                      ) -> ContactStiffness:
+#: bracket of the spot radius [m] searched by the self-consistent summit scale
+_SPOT_BRACKET = (1e-10, 1e-2)
+
+
+def _surface_source(scene: Scene):
+    """The raw surface's PSD model of a scene's ``[roughness]`` section, over its band down to
+    the resolved tail limit (:func:`~roughvib.physics.surface.field.input_band`)."""
+    from roughvib.physics.surface.roughness import areal_psd, band_psd
+
+    r = scene.roughness
+    lam = input_band(scene).shortest_wavelength
+    psd = ((lambda k: areal_psd(k, r, r.raw_rms, shortest=lam)) if r.reduce_3d
+           else (lambda k: band_psd(k, r, r.raw_rms, shortest=lam)))
+    key = {"raw_rms": r.raw_rms, "hurst": r.hurst, "rolloff": r.rolloff_wavelength,
+           "longest": r.longest_wavelength, "shortest": lam, "areal": bool(r.reduce_3d)}
+    return ModelPSD(psd=psd, k_low=2.0 * math.pi / r.longest_wavelength,
+                    k_high=2.0 * math.pi / lam, areal=bool(r.reduce_3d), key=key)
+
+
+def _summits_at(source, radius: float, given: dict) -> SummitParameters | None:
+    """Summit statistics of the surface seen at spot ``radius``, the given keys overriding."""
+    sp = summit_parameters(*source.moments(radius))
+    over = {"density": given["density"], "radius": given["radius"], "std": given["std"]}
+    if all(v is None for v in over.values()):
+        return sp
+    return SummitParameters(
+        density=over["density"] if over["density"] is not None else sp.density,
+        radius=over["radius"] if over["radius"] is not None else sp.radius,
+        std=over["std"] if over["std"] is not None else sp.std, alpha=sp.alpha, rms=sp.rms,
+        rms_slope=sp.rms_slope, rms_curvature=sp.rms_curvature, mean_height=sp.mean_height)
+
+
+def spot_radius_of(sol: ContactSolution) -> float:
+    """Mean radius of the micro-contacts, sqrt(A_r / (pi n_c)) [m]."""
+    return math.sqrt(sol.real_area / (math.pi * sol.micro_contacts))
+
+
+def _spot_scale_contact(source, given: dict, solve, fixed_radius: float | None
+                        ) -> tuple[float, SummitParameters, ContactSolution]:
+    """The summit statistics at the scale of the contact spots (docs/theory.md).
+
+    Summits are counted on the surface as the spots see it, its spectrum weighted by the
+    contact filter H(k a)^2, and a is the mean spot radius that those summits give at the
+    load: the fixed point a = a_GW(a) in log a (unique: a_GW grows slower than a, about as
+    a^0.6 for H = 0.8). A given ``fixed_radius`` takes that a instead.
+    """
+    def at(a: float) -> tuple[SummitParameters, ContactSolution]:
+        sp = _summits_at(source, a, given)
+        return sp, solve(sp)
+
+    if fixed_radius is not None:
+        sp, sol = at(fixed_radius)
+        return float(fixed_radius), sp, sol
+
+    def g(u: float) -> float:
+        _, sol = at(math.exp(u))
+        return math.log(spot_radius_of(sol)) - u
+
+    from scipy import optimize
+
+    lo, hi = (math.log(v) for v in _SPOT_BRACKET)
+    u = optimize.brentq(g, lo, hi, xtol=1e-10, rtol=1e-12, maxiter=200)
+    a = math.exp(u)
+    sp, sol = at(a)
+    return a, sp, sol
+
+
+def _spot_scale_cached(source, given: dict, load: float, area: float, e_star: float,
+                       model: str, fixed_radius: float | None
+                       ) -> tuple[float, SummitParameters, ContactSolution]:
+    """:func:`_spot_scale_contact` through the on-disk cache (exact values)."""
+    beta_factor = 1.0 if model == "gw" else 2.0
+
+    def solve(sp: SummitParameters) -> ContactSolution:
+        return solve_contact(load, sp.density, beta_factor * sp.radius, sp.std, area, e_star,
+                             model=model)
+
+    inputs = {"source": source.key, "given": {k: (None if v is None else float(v))
+                                              for k, v in given.items()},
+              "load": float(load), "area": float(area), "modulus": float(e_star),
+              "model": model, "fixed_radius": fixed_radius}
+
+    def compute() -> dict[str, float]:
+        a, sp, sol = _spot_scale_contact(source, given, solve, fixed_radius)
+        out = {"spot_radius": a}
+        out.update({f"sp_{f.name}": getattr(sp, f.name) for f in fields(sp)})
+        out.update({f"sol_{f.name}": getattr(sol, f.name) for f in fields(sol)})
+        return out
+
+    from roughvib.physics.surface import field as field_module
+
+    values, _ = cached_values("spot-scale-contact", inputs, compute,
+                              code=code_fingerprint([__file__, field_module.__file__]))
+    sp = SummitParameters(**{f.name: values[f"sp_{f.name}"] for f in fields(SummitParameters)})
+    sol = ContactSolution(**{f.name: values[f"sol_{f.name}"]
+                             for f in fields(ContactSolution)})
+    return float(values["spot_radius"]), sp, sol
+
+
+def contact_stiffness(scene: Scene, surface=None) -> ContactStiffness:
     """Tangent normal contact stiffness of the scene at the static load m g.
 
     Summit parameters: ``contact.summit_density``, ``summit_radius``, ``summit_std`` where
-    given; the others from the profile spectral moments of the raw surface (McCool,
-    :func:`summit_parameters`). The moments default to the model PSD of ``[roughness]`` (its
-    band, roll-off and Hurst exponent) at the rms ``roughness.raw_rms``: the areal PSD when
-    ``reduce_3d`` is set (that surface is generated), the profile PSD of :func:`.band_psd`
-    otherwise (this gives the values of docs/theory.md, 3.1e6 and 7.4e6 N/m). Both surfaces
-    are steel of the plate's E and nu; A_n = block length x width.
+    given; the others from the spectral moments of the raw surface **at the scale of the
+    contact spots** (McCool, :func:`summit_parameters`): the surface's PSD weighted by the
+    contact filter H(k a)^2 of the mean spot radius a, which is itself the mean spot radius
+    sqrt(A_r / (pi n_c)) those summits give at the load (a fixed point; ``contact.spot_radius``
+    given takes that a). Counting summits on the raw band instead would make their number
+    follow the shortest wavelength of the band, which for a self-affine surface is a limit
+    of the measurement, not of the surface (Greenwood and Wu 2001). The surface defaults to
+    the model PSD of ``[roughness]`` at the rms ``roughness.raw_rms``, down to the resolved
+    tail limit: the areal PSD when ``reduce_3d`` is set, the profile PSD of
+    :func:`.band_psd` otherwise. Both bodies are steel of the plate's E and nu; A_n = block
+    length x width.
 
     Parameters
     ----------
     scene : Scene
-    moments : tuple of float, optional
-        (m0 [m^2], m2 [-], m4 [1/m^2]) of the raw surface, e.g. measured; overrides the model.
+    surface : object with ``moments(radius)`` and ``key``, optional
+        The raw surface's spectrum (a measured one,
+        :class:`~roughvib.physics.surface.field.DiscretePSD`); overrides the model.
 
     Returns
     -------
@@ -521,43 +637,32 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
     c, r, blk, plt = scene.contact, scene.roughness, scene.block, scene.plate
     given = {"density": c.summit_density, "radius": c.summit_radius, "std": c.summit_std}
     need_moments = any(v is None for v in given.values())
-    surface_rms = float("nan")
-    source = "keys"
-    from_rms = moments is None  # the model PSD at roughness.raw_rms, not given moments
+    e_star = effective_modulus(plt.youngs_modulus, plt.poisson_ratio)
+    area = blk.length * blk.width
+    load = blk.mass * GRAVITY
+    fixed = None if isinstance(c.spot_radius, str) else float(c.spot_radius)
     if need_moments:
-        if moments is None:
+        if surface is None:
             if r.raw_rms <= 0:
                 raise SceneError("roughness.raw_rms must be > 0 m for contact.stiffness = "
                                  "'auto' (or give contact.summit_density, summit_radius and "
                                  "summit_std), got 0.0 m")
             _check_raw_rms_scale(r, derive_std=c.summit_std is None,
-                                 derive_radius=c.summit_radius is None)
-            moments = spectral_moments(r, r.raw_rms, areal=r.reduce_3d)
-        try:
-            sp = summit_parameters(*moments)
-        except (ValueError, ArithmeticError) as err:
-            if from_rms and r.raw_rms > 0:
-                _check_raw_rms_underflow(r, moments)
-            raise SceneError(f"roughness band gives no summit statistics ({err}); widen "
-                             f"roughness.shortest_wavelength .. longest_wavelength, got "
-                             f"[{r.shortest_wavelength}, {r.longest_wavelength}] m") from None
-        surface_rms = sp.rms
-        derived = {"density": sp.density, "radius": sp.radius, "std": sp.std}
+                                 derive_radius=c.summit_radius is None,
+                                 shortest=input_band(scene).shortest_wavelength)
+            surface = _surface_source(scene)
         source = "moments" if all(v is None for v in given.values()) else "moments+keys"
-        for key, v in given.items():
-            if v is None:
-                given[key] = derived[key]
-    eta, rad, std = float(given["density"]), float(given["radius"]), float(given["std"])
-    e_star = effective_modulus(plt.youngs_modulus, plt.poisson_ratio)
-    area = blk.length * blk.width
-    load = blk.mass * GRAVITY
-    beta = rad if c.model == "gw" else 2.0 * rad
+    else:
+        surface, source = _KeysOnly(), "keys"
     try:
-        sol = _solve_contact_cached(load, eta, beta, std, area, e_star, c.model)
-    except ValueError as err:
+        a, sp, sol = _spot_scale_cached(surface, given, load, area, e_star, c.model, fixed)
+    except (ValueError, ArithmeticError) as err:
+        if isinstance(surface, ModelPSD) and r.raw_rms > 0:
+            _check_raw_rms_underflow(r, surface.moments(0.0), surface.key["shortest"])
         raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
-                         f"on these summits ({err}), got summit density {eta:.4g} 1/m^2, "
-                         f"radius {rad:.4g} m, std {std:.4g} m") from None
+                         f"on the summits of this surface ({err}), got roughness.raw_rms "
+                         f"{r.raw_rms} m and summit keys {given}") from None
+    eta, rad, std = sp.density, sp.radius, sp.std
     v_rms, vf_note = _scene_v_rms(scene) if c.velocity_factor else (None, "")
     vf = velocity_factor(v_rms) if v_rms is not None else 1.0
     if c.velocity_factor and vf_note:
@@ -572,7 +677,20 @@ def contact_stiffness(scene: Scene, moments: tuple[float, float, float] | None =
         resonance_hz=float(math.sqrt(s_total / blk.mass) / (2.0 * math.pi)), model=c.model,
         load=float(load), stiffness_ratio=float(sol.stiffness * std / load),
         velocity_factor=float(vf), effective_modulus=float(e_star), nominal_area=float(area),
-        surface_rms=surface_rms, summit_source=source, velocity_factor_note=vf_note)
+        surface_rms=sp.rms if need_moments else float("nan"), summit_source=source,
+        spot_radius=float(a), spot_radius_source="scene" if fixed is not None else "auto",
+        velocity_factor_note=vf_note)
+
+
+class _KeysOnly:
+    """A surface known only by the three summit keys: its moments are never needed."""
+
+    key = {"keys-only": True}
+
+    def moments(self, radius: float) -> tuple[float, float, float]:
+        # summit_parameters needs alpha > 0.8968: any positive consistent triple serves,
+        # the keys replace all three derived values
+        return 1.0, 1.0, 2.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -623,7 +741,79 @@ class ContactLayout:
                                    if self.statistical is not None else None)}
 
 
-def contact_layout(scene: Scene, profile: Profile) -> ContactLayout:
+@dataclass(frozen=True)
+class SceneInput:
+    """A scene's kinematic input and the statistical contact it was filtered with.
+
+    Attributes
+    ----------
+    profile : Profile
+        The input profile: the surface seen through the contact filter.
+    band : InputBand
+        The resolved tail limit and grid.
+    statistical : ContactStiffness or None
+        The statistical contact, when the contact points, the stiffness or the spot radius
+        come from it.
+    """
+
+    profile: Profile
+    band: InputBand
+    statistical: ContactStiffness | None
+
+
+def _needs_statistics(scene: Scene) -> bool:
+    c, r = scene.contact, scene.roughness
+    filtered = c.filter == "hertz" and r.kind in ("synthetic", "file")
+    return (isinstance(c.points, str) or isinstance(c.stiffness, str)
+            or (filtered and isinstance(c.spot_radius, str)))
+
+
+def scene_input(scene: Scene, *, stroke: float | None = None) -> SceneInput:
+    """Build a scene's input profile, through the contact filter where it applies.
+
+    Order: the tail limit and grid (:func:`~roughvib.physics.surface.field.input_band`); the
+    statistical contact when anything comes from it (:func:`contact_stiffness`, on a
+    measured surface's own spectrum); the profile (:func:`.build_profile`) seen through the
+    contact filter of the spot radius (``contact.filter = "hertz"``; ``synthetic`` and
+    ``file`` surfaces only).
+
+    Parameters
+    ----------
+    scene : Scene
+    stroke : float, optional
+        As for :func:`.build_profile`.
+
+    Returns
+    -------
+    SceneInput
+    """
+    from roughvib.physics.surface.field import input_band
+    from roughvib.physics.surface.roughness import build_profile, contact_filtered_profile
+
+    c, r = scene.contact, scene.roughness
+    band = input_band(scene)
+    need = _needs_statistics(scene)
+    filtered = c.filter == "hertz" and r.kind in ("synthetic", "file")
+    stat = None
+    if r.kind == "file":
+        profile = build_profile(r, scene.block, scene.base_dir, stroke=stroke, band=band)
+        stat = contact_stiffness(scene, surface=profile.raw_spectrum) if need else None
+    else:
+        stat = contact_stiffness(scene) if need else None
+        profile = None
+    spot = None
+    if filtered:
+        spot = float(c.spot_radius) if not isinstance(c.spot_radius, str) else stat.spot_radius
+    if profile is None:
+        profile = build_profile(r, scene.block, scene.base_dir, stroke=stroke, band=band,
+                                spot_radius=spot)
+    else:
+        profile = contact_filtered_profile(profile, spot)
+    return SceneInput(profile=profile, band=band, statistical=stat)
+
+
+def contact_layout(scene: Scene, profile: Profile,
+                   statistical: ContactStiffness | None = None) -> ContactLayout:
     """Resolve the contact points and total stiffness of a scene on its profile.
 
     ``contact.points`` and ``contact.stiffness`` are taken as given, or, when ``"auto"``,
@@ -637,7 +827,9 @@ def contact_layout(scene: Scene, profile: Profile) -> ContactLayout:
     ----------
     scene : Scene
     profile : Profile
-        The scene's profile (a measured one brings the moments of its raw surface).
+        The scene's profile (a measured one brings the spectrum of its raw surface).
+    statistical : ContactStiffness, optional
+        The statistical contact already solved (:func:`scene_input`).
 
     Returns
     -------
@@ -651,8 +843,9 @@ def contact_layout(scene: Scene, profile: Profile) -> ContactLayout:
     """
     c = scene.contact
     auto_n, auto_s = isinstance(c.points, str), isinstance(c.stiffness, str)
-    stat = (contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
-            if auto_n or auto_s else None)
+    stat = statistical
+    if stat is None and (auto_n or auto_s):
+        stat = contact_stiffness(scene, surface=profile.raw_spectrum)
     if auto_n:
         n = stat.points
         if n > MAX_CONTACTS:

@@ -43,6 +43,14 @@ from pathlib import Path
 
 import numpy as np
 
+from roughvib.physics.surface.field import (
+    PAPER_SHORTEST_WAVELENGTH,
+    DiscretePSD,
+    InputBand,
+    SurfaceSpectrum,
+    hertz_filter,
+    synthetic_spectrum,
+)
 from roughvib.scene import SANE_BOUNDS, Block, Roughness, SceneError, user_stacklevel
 
 __all__ = [
@@ -66,6 +74,9 @@ __all__ = [
 ]
 
 _UNITS = {"m": 1.0, "um": 1e-6, "nm": 1e-9}
+#: the paper's profile grid [m]: the grid of the kinds sampled on a plain grid when
+#: ``roughness.spacing`` is "auto" (and of a one-column file, see read_profile_file)
+PAPER_SPACING = 10e-6
 
 # kx rows of the 2-D synthesis handled per chunk: bounds the memory to a few MB; fixed so that
 # the random stream (and with it the surface of a seed) does not depend on anything else
@@ -110,6 +121,11 @@ class Profile:
     s0: float
     s_centre: float
     stats: dict = field(default_factory=dict)
+    #: a measured surface's raw spectrum (DiscretePSD of its traces before span averaging and
+    #: filtering), for the statistical contact; None for the model surfaces
+    raw_spectrum: object = field(default=None, repr=False, compare=False)
+    #: True when z holds one period of a periodic field (the synthetic surfaces)
+    periodic: bool = False
 
     @property
     def s(self) -> np.ndarray:
@@ -172,9 +188,14 @@ def profile_statistics(z: np.ndarray, dx: float, *, periodic: bool = False) -> d
 # --------------------------------------------------------------------------------------------
 
 
-def _band(r: Roughness) -> tuple[float, float, float]:
+def _band(r: Roughness, shortest: float | None = None) -> tuple[float, float, float]:
+    """(k_L, k_0, k_H) [rad/m]; ``shortest`` [m] resolves an ``"auto"`` tail limit."""
+    lam = r.shortest_wavelength if shortest is None else shortest
+    if isinstance(lam, str):
+        raise ValueError("roughness.shortest_wavelength is 'auto': pass the resolved limit "
+                         "(roughvib.physics.surface.field.input_band)")
     return (2.0 * np.pi / r.longest_wavelength, 2.0 * np.pi / r.rolloff_wavelength,
-            2.0 * np.pi / r.shortest_wavelength)
+            2.0 * np.pi / lam)
 
 
 def _power_integral(p: float, a: float, b: float) -> float:
@@ -193,11 +214,11 @@ def _shape_moment(n: float, kl: float, k0: float, kh: float, q: float) -> float:
     return flat + tail
 
 
-def _psd_shape(k: np.ndarray, roughness: Roughness, q: float
+def _psd_shape(k: np.ndarray, roughness: Roughness, q: float, shortest: float | None = None
                ) -> tuple[np.ndarray, tuple[float, float, float]]:
     """Band-limited shape: 1 for k_L <= k < k_0, (k/k_0)^-q up to k_H, 0 outside; and the
     band (k_L, k_0, k_H) [rad/m]."""
-    kl, k0, kh = _band(roughness)
+    kl, k0, kh = _band(roughness, shortest)
     k = np.asarray(k, dtype=float)
     g = np.zeros_like(k)
     band = (k >= kl) & (k <= kh)
@@ -205,7 +226,8 @@ def _psd_shape(k: np.ndarray, roughness: Roughness, q: float
     return g, (kl, k0, kh)
 
 
-def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
+def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None, *,
+             shortest: float | None = None) -> np.ndarray:
     """One-sided profile PSD G(k) of the synthetic profiles (docs/theory.md).
 
     G = C for k_L <= k < k_0, C (k/k_0)^-(1+2H) for k_0 <= k <= k_H, zero outside, with
@@ -219,6 +241,8 @@ def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> n
         Band and Hurst exponent.
     rms : float, optional
         Normalise so that ``integral G dk = rms**2`` [m]; default ``C = 1`` (shape only).
+    shortest : float, optional
+        k_H = 2 pi / shortest [m]; default ``roughness.shortest_wavelength`` (a number).
 
     Returns
     -------
@@ -226,13 +250,14 @@ def band_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> n
         [m^2/(rad/m)] (or the dimensionless shape).
     """
     q = 1.0 + 2.0 * roughness.hurst
-    g, (kl, k0, kh) = _psd_shape(k, roughness, q)
+    g, (kl, k0, kh) = _psd_shape(k, roughness, q, shortest)
     if rms is not None:
         g *= rms**2 / _shape_moment(0.0, kl, k0, kh, q)
     return g
 
 
-def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> np.ndarray:
+def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None, *,
+              shortest: float | None = None) -> np.ndarray:
     """Isotropic areal PSD S2(``|k|``) of the raw surface (docs/theory.md).
 
     The same band and roll-off as :func:`band_psd` with the areal exponent: S2 = C for
@@ -246,6 +271,8 @@ def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> 
     roughness : Roughness
     rms : float, optional
         Normalise so that the integral over the wavenumber plane is ``rms**2`` [m].
+    shortest : float, optional
+        As for :func:`band_psd`.
 
     Returns
     -------
@@ -253,14 +280,14 @@ def areal_psd(k: np.ndarray, roughness: Roughness, rms: float | None = None) -> 
         [m^2/(rad/m)^2] (or the shape).
     """
     q = 2.0 + 2.0 * roughness.hurst
-    s, (kl, k0, kh) = _psd_shape(k, roughness, q)
+    s, (kl, k0, kh) = _psd_shape(k, roughness, q, shortest)
     if rms is not None:
         s *= rms**2 / (2.0 * np.pi * _shape_moment(1.0, kl, k0, kh, q))
     return s
 
 
-def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: bool = False
-                     ) -> tuple[float, float, float]:
+def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: bool = False,
+                     shortest: float | None = None) -> tuple[float, float, float]:
     """Profile spectral moments m0, m2, m4 of the model surface (closed form).
 
     Parameters
@@ -282,7 +309,7 @@ def spectral_moments(roughness: Roughness, rms: float | None = None, *, areal: b
         [m^2], [-], [1/m^2].
     """
     sigma = roughness.raw_rms if rms is None else rms
-    kl, k0, kh = _band(roughness)
+    kl, k0, kh = _band(roughness, shortest)
     if not areal:
         q = 1.0 + 2.0 * roughness.hurst
         i0, i2, i4 = (_shape_moment(n, kl, k0, kh, q) for n in (0.0, 2.0, 4.0))
@@ -589,22 +616,44 @@ def functional_filter(z: np.ndarray, dx: float, kind: str, length: float, *,
     """
     if kind == "none":
         return np.asarray(z, dtype=float).copy()
-    if kind not in ("highpass", "block-lowpass"):
-        raise ValueError(f"filter must be 'highpass', 'block-lowpass' or 'none', got {kind!r}")
     z = np.asarray(z, dtype=float)
     n = z.size
     ext = z if periodic else np.concatenate([z, z[::-1]])
     m = ext.size
-    k = 2 * np.pi * np.fft.rfftfreq(m, dx)
-    sinc = np.sinc(k * length / 2 / np.pi)  # numpy sinc(x) = sin(pi x)/(pi x)
-    if kind == "highpass":
-        h = 1.0 - sinc
-    else:
-        warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
-                      "block length: it removes almost all short-wavelength input "
-                      "(docs/theory.md)", stacklevel=user_stacklevel())
-        h = sinc
+    h = functional_gain(2 * np.pi * np.fft.rfftfreq(m, dx), kind, length)
     return np.fft.irfft(np.fft.rfft(ext) * h, m)[:n]
+
+
+def functional_gain(k: np.ndarray, kind: str, length: float) -> np.ndarray:
+    """Gain of the functional filter over the block length at angular wavenumbers k.
+
+    ``highpass``: 1 - sinc(kL/2); ``block-lowpass``: sinc(kL/2) (warns, see
+    :func:`functional_filter`); ``none``: 1.
+
+    Parameters
+    ----------
+    k : ndarray
+        [rad/m].
+    kind : {"highpass", "block-lowpass", "none"}
+    length : float
+        Block length L [m].
+
+    Returns
+    -------
+    ndarray, shape of ``k``
+        [-].
+    """
+    if kind not in ("highpass", "block-lowpass", "none"):
+        raise ValueError(f"filter must be 'highpass', 'block-lowpass' or 'none', got {kind!r}")
+    if kind == "none":
+        return np.ones_like(np.asarray(k, dtype=float))
+    sinc = np.sinc(np.asarray(k, dtype=float) * length / 2 / np.pi)  # sin(pi x)/(pi x)
+    if kind == "highpass":
+        return 1.0 - sinc
+    warnings.warn("roughness.filter = 'block-lowpass' is the literal sinc low-pass over the "
+                  "block length: it removes almost all short-wavelength input "
+                  "(docs/theory.md)", stacklevel=user_stacklevel())
+    return sinc
 
 
 # --------------------------------------------------------------------------------------------
@@ -877,7 +926,8 @@ def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = "."
 
     r = roughness
     if not uses_topography(r.path, r.format, base_dir=base_dir):
-        return read_profile_file(r.path, r.units, r.spacing, base_dir=base_dir,
+        spacing = PAPER_SPACING if isinstance(r.spacing, str) else r.spacing
+        return read_profile_file(r.path, r.units, spacing, base_dir=base_dir,
                                  min_length=min_length, min_length_reason=min_length_reason)
     p = Path(r.path) if Path(r.path).is_absolute() else Path(base_dir) / r.path
     tm = read_topography_map(r.path, base_dir=base_dir)
@@ -924,8 +974,94 @@ def _reduction_db(reduced: np.ndarray, raw_rms: float) -> float:
     return 20.0 * math.log10(rr / raw_rms)
 
 
+def synthetic_field(roughness: Roughness, block_length: float, shortest: float,
+                    spot_radius: float | None = None) -> tuple[SurfaceSpectrum, dict]:
+    """The synthetic input surface as a field (docs/theory.md, "The input field").
+
+    The bins of :func:`~roughvib.physics.surface.field.synthetic_spectrum` with the PSD
+    :func:`band_psd` carried down to ``shortest``, over the period ``trace_length``;
+    functionally filtered (:func:`functional_gain`); scaled so that its rms is
+    ``roughness.rms`` exactly; then, with ``spot_radius``, seen through the contact filter.
+
+    Parameters
+    ----------
+    roughness : Roughness
+    block_length : float
+        L of the functional filter [m].
+    shortest : float
+        Tail limit lambda_min [m].
+    spot_radius : float, optional
+        Contact-filter radius a [m]; None: unfiltered.
+
+    Returns
+    -------
+    spectrum : SurfaceSpectrum
+        The input field.
+    stats : dict
+        ``seed``, ``target_rms`` [m], ``shortest_wavelength`` [m], ``n_bins``,
+        ``spot_radius`` [m] or None, ``contact_filter``, ``filtered_rms`` [m] (after the
+        contact filter), ``surface_rms_slope`` [-] (before it).
+
+    Raises
+    ------
+    SceneError
+        No bin of the band fits the trace, or the functional filter removes them all.
+    """
+    r = roughness
+    spec = synthetic_spectrum(lambda k: band_psd(k, r, shortest=shortest), r.trace_length,
+                              shortest, r.seed)
+    if not spec.variance() > 0:
+        raise SceneError(f"roughness.trace_length ({r.trace_length} m) holds no wavenumber of "
+                         f"the band [{shortest:.3g}, {r.longest_wavelength}] m, got "
+                         f"{r.trace_length} m")
+    k = spec.wavenumbers
+    spec = spec.with_gain(functional_gain(k, r.filter, block_length))
+    var = spec.variance()
+    if not var > 0:
+        raise SceneError(f"roughness.filter = {r.filter!r} over block.length = "
+                         f"{block_length:g} m removes the whole profile (the block must be "
+                         f"longer than the profile's shortest wavelengths), got block.length "
+                         f"{block_length:g} m")
+    spec = spec.with_gain(r.rms / math.sqrt(var))
+    surface_slope = math.sqrt(spec.moments()[1])
+    if spot_radius is not None:
+        spec = spec.with_gain(hertz_filter(k * spot_radius))
+    stats = {"seed": r.seed, "target_rms": r.rms, "shortest_wavelength": float(shortest),
+             "n_bins": spec.n_bins, "spot_radius": spot_radius,
+             "contact_filter": "none" if spot_radius is None else "hertz",
+             "filtered_rms": math.sqrt(spec.variance()),
+             "surface_rms_slope": surface_slope}
+    return spec, stats
+
+
+def _contact_filtered(z: np.ndarray, dx: float, spot_radius: float | None, *,
+                      periodic: bool) -> np.ndarray:
+    """A sampled profile seen through the contact filter (none for ``spot_radius`` None);
+    not periodic: the even extension is filtered, as in :func:`functional_filter`."""
+    if spot_radius is None:
+        return z
+    n = z.size
+    ext = z if periodic else np.concatenate([z, z[::-1]])
+    k = 2 * np.pi * np.fft.rfftfreq(ext.size, dx)
+    return np.fft.irfft(np.fft.rfft(ext) * hertz_filter(k * spot_radius), ext.size)[:n]
+
+
+def _numeric_band(r: Roughness) -> Roughness:
+    """The section with ``"auto"`` band keys replaced for the kinds sampled on a plain grid
+    (none, sinusoid, the span-averaged surface): the paper's 50 um band and 10 um grid."""
+    from dataclasses import replace
+
+    out = r
+    if isinstance(out.shortest_wavelength, str):
+        out = replace(out, shortest_wavelength=PAPER_SHORTEST_WAVELENGTH)
+    if isinstance(out.spacing, str):
+        out = replace(out, spacing=PAPER_SPACING)
+    return out
+
+
 def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,
-                  stroke: float | None = None) -> Profile:
+                  stroke: float | None = None, band: InputBand | None = None,
+                  spot_radius: float | None = None) -> Profile:
     """Build the kinematic input profile of a scene.
 
     Parameters
@@ -940,6 +1076,15 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         Peak-to-peak tangential travel of the block [m]; the profile must cover
         block.length + stroke. Default: block.length (the profile then spans at least two
         block lengths). The solver checks the actual travel again at run time.
+    band : InputBand, optional
+        The resolved tail limit and grid (:func:`~roughvib.physics.surface.field.input_band`);
+        needed by a synthetic surface (``reduce_3d`` off), which is then the field of
+        :func:`synthetic_field` sampled over one period (``trace_length``) on a grid no
+        coarser than ``band.spacing``.
+    spot_radius : float, optional
+        Radius a of the contact spots [m]: the input is the surface seen through the contact
+        filter :func:`~roughvib.physics.surface.field.hertz_filter` of ``k a``. None: no
+        contact filter. ``sinusoid`` and ``none`` are never filtered (test inputs).
 
     Returns
     -------
@@ -957,6 +1102,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         Unreadable or malformed files, profiles shorter than the block plus the stroke.
     """
     r = roughness
+    raw_spectrum = None
     bl = block.length
     stroke = bl if stroke is None else float(stroke)
     min_len = bl + stroke
@@ -986,11 +1132,25 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         per = [profile_statistics(raw_traces[:, j], dx) for j in range(raw_traces.shape[1])]
         stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
                                      for key in ("rms", "rms_slope", "rms_curvature"))
+        raw_spectrum = _raw_spectrum(raw_traces, dx)
         if r.filter != "none":
             raw_z = z
             z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
             _check_filtered(raw_z - raw_z.mean(), z, r, bl)
+        z = _contact_filtered(z, dx, spot_radius, periodic=False)
+    elif r.kind == "synthetic" and not r.reduce_3d:
+        if band is None:
+            raise ValueError("build_profile needs the resolved input band of a synthetic "
+                             "surface (roughvib.physics.surface.field.input_band)")
+        if r.trace_length < min_len * (1.0 - 1e-12):
+            raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
+                             f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
+        periodic = True
+        spec, info = synthetic_field(r, bl, band.shortest_wavelength, spot_radius)
+        z, dx = spec.sample(band.spacing)
+        stats.update(info)
     else:
+        r = _numeric_band(r)
         dx = r.spacing
         n = _n_points(r)
         if (n - 1) * dx < min_len * (1.0 - 1e-12):
@@ -1001,19 +1161,12 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         elif r.kind == "sinusoid":
             s = np.arange(n) * dx
             z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
-        elif not r.reduce_3d:
-            periodic = True
-            raw_z = _synthesize_raw(r)
-            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
-            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
-            zr = float(np.sqrt(np.mean(z**2)))
-            z = z * (r.rms / zr) if zr > 0 else z
-            stats.update(seed=r.seed, target_rms=r.rms)
         else:
             periodic = True
             raw_z = _reduce_3d(r, block, stats)
             z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
             _check_filtered(raw_z - raw_z.mean(), z, r, bl)
+            z = _contact_filtered(z, dx, spot_radius, periodic=True)
             stats.update(seed=r.seed)
     if not np.all(np.isfinite(z)):  # the interpolant (spline) needs finite heights
         raise SceneError(f"roughness.kind = {r.kind!r} gives a profile with non-finite heights "
@@ -1024,7 +1177,35 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     stats.update(profile_statistics(z, dx, periodic=periodic))
     s_centre = (n // 2) * dx
     return Profile(z=np.ascontiguousarray(z, dtype=float), dx=float(dx), s0=0.0,
-                   s_centre=float(s_centre), stats=stats)
+                   s_centre=float(s_centre), stats=stats, raw_spectrum=raw_spectrum,
+                   periodic=periodic)
+
+
+def _raw_spectrum(traces: np.ndarray, dx: float) -> DiscretePSD:
+    """Mean power per FFT bin of measured traces (n, m), mean removed: the raw spectrum the
+    statistical contact counts summits on (docs/theory.md)."""
+    t = traces - traces.mean(axis=0)
+    n = t.shape[0]
+    p = np.abs(np.fft.rfft(t, axis=0)) ** 2 * (2.0 / n**2)
+    p[0] = 0.0
+    if n % 2 == 0:
+        p[-1] *= 0.5  # the Nyquist bin is real: counted once
+    return DiscretePSD(k=2.0 * np.pi * np.fft.rfftfreq(n, dx), power=p.mean(axis=1))
+
+
+def contact_filtered_profile(profile: Profile, spot_radius: float | None) -> Profile:
+    """The profile seen through the contact filter of spots of ``spot_radius`` [m] (None:
+    unchanged). A periodic field is filtered exactly through its FFT, a measured profile
+    through its even extension (:func:`functional_filter`); ``stats`` gains
+    ``spot_radius`` and ``contact_filter`` and the rms, slope and curvature of the result."""
+    if spot_radius is None:
+        return profile
+    z = _contact_filtered(profile.z, profile.dx, spot_radius, periodic=profile.periodic)
+    stats = dict(profile.stats, spot_radius=float(spot_radius), contact_filter="hertz")
+    stats.update(profile_statistics(z, profile.dx, periodic=profile.periodic))
+    from dataclasses import replace
+
+    return replace(profile, z=np.ascontiguousarray(z), stats=stats)
 
 
 def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
