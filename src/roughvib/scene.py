@@ -604,7 +604,7 @@ class Roughness:
     spacing : float or "auto"
         Grid spacing of the input [m]: the field is sampled on it and interpolated between
         the samples (``synthetic``); the sample spacing of a one-column ``file``. ``"auto"``
-        (default): half the shortest wavelength with the contact filter, an eighth without
+        (default): a quarter of the shortest wavelength with the contact filter, an eighth without
         (``synthetic``), the paper's 10 um for a one-column file and the other kinds.
     trace_length : float
         Length of the synthetic trace [m].

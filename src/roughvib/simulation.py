@@ -754,9 +754,53 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
                "failures": [f"the verification run failed ({ref.status}): "
                             f"{ref.summary.get('message')}"]}
     acc["verification"] = info
+    if ref.ok and (rscene := representation_scene(scene, system)) is not None:
+        rep = acc["representation"] = _check_representation(result, scene, rscene, progress)
+        if rep["verdict"] != "pass":
+            acc["failures"] = list(acc.get("failures", [])) + rep["failures"]
+            acc["verdict"] = ("fail" if "fail" in (rep["verdict"], acc["verdict"])
+                              else "unverified")
     result.summary["accuracy"] = acc
     result.extra["verification"] = ref
     return acc
+
+
+def representation_scene(scene: Scene, system: System | None) -> Scene | None:
+    """The scene on a refined input: half the grid spacing and half the tail limit of the
+    run's synthetic surface (as resolved), or None where the input has no such parameters
+    (the other kinds, or no system to read the resolved values from)."""
+    r = scene.roughness
+    band = (system.contact.get("input") if system is not None else None) or {}
+    if r.kind != "synthetic" or r.reduce_3d or not band:
+        return None
+    return replace_section(scene, "roughness", spacing=0.5 * float(system.profile.dx),
+                           shortest_wavelength=0.5 * float(band["shortest_wavelength"]))
+
+
+def _check_representation(result: Result, scene: Scene, rscene: Scene,
+                          progress: bool | None) -> dict:
+    """Rerun ``rscene`` (the run's own solver, tolerances and force) and compare the bands."""
+    from roughvib.analysis.accuracy import measure_representation
+
+    t0 = time.perf_counter()
+    solver = result.extra["system"].scene.solver
+    rscene = replace(replace_section(rscene, "output", checkpoint_interval=0.0),
+                     solver=solver)
+    system = result.extra.get("system")
+    ref = _simulate(rscene, progress=progress,
+                    force_amplitude=result.summary.get("force_amplitude")
+                    if system is None or system.tangential else None, checkpoint_dir=None,
+                    verify=False, resume_from=None, warn=False)
+    how = (f"grid {rscene.roughness.spacing:.3g} m, tail to "
+           f"{rscene.roughness.shortest_wavelength:.3g} m (half the run's)")
+    if not ref.ok:
+        return {"refinement": how, "verdict": "unverified",
+                "failures": [f"the refined-input run failed ({ref.status}): "
+                             f"{ref.summary.get('message')}"]}
+    out = measure_representation(result, ref, period=scene.period,
+                                 transient=scene.output.transient, refinement=how)
+    out["wall_time"] = time.perf_counter() - t0
+    return out
 
 
 def resume(directory: str | os.PathLike, *, progress: bool | None = None) -> Result:

@@ -70,6 +70,9 @@ class Contract:
 
 
 CONTRACT = Contract()
+#: what refining the input's representation (its grid and tail limit) may move: every band
+#: within 60 dB of the strongest by at most 0.5 dB (docs/accuracy.md, "The representation")
+REPRESENTATION = Contract(band_db=0.5, dynamic_range_db=60.0)
 
 
 def analysis_window(t: np.ndarray, period: float, transient: float) -> slice:
@@ -216,6 +219,44 @@ def measure_accuracy(result, reference, *, period: float, transient: float,
     }
 
 
+def measure_representation(result, refined, *, period: float, transient: float,
+                           refinement: str = "") -> dict:
+    """Band levels of a run against the same run on a refined input representation.
+
+    Parameters
+    ----------
+    result, refined : roughvib.results.Result
+        A run and the same scene, solver and force on a finer grid and a shorter tail limit.
+    period, transient : float
+        As for :func:`measure_accuracy`.
+    refinement : str
+        What was refined (for the report).
+
+    Returns
+    -------
+    dict
+        ``refinement``, ``contract`` (:data:`REPRESENTATION`), ``bands`` (as
+        :func:`measure_accuracy`'s), ``verdict`` and ``failures``.
+    """
+    ds, dr = result.dataset, refined.dataset
+    sa, sr, dt = common_grid(ds["time"].values, dr["time"].values)
+    win = analysis_window(ds["time"].values[sa], period, transient)
+    fails: list[str] = []
+    bands = {}
+    for name, var in SIGNALS.items():
+        b = band_deviations(ds[var].values[sa][win], dr[var].values[sr][win], 1.0 / dt,
+                            contract=REPRESENTATION)
+        worst = b["worst_deviation_db"]
+        bands[name] = {"worst_band_hz": _finite_or_none(b["worst_band_hz"]),
+                       "deviation_db": _finite_or_none(worst),
+                       "bands_checked": int(b["checked"].sum())}
+        if not math.isnan(worst) and abs(worst) > REPRESENTATION.band_db:
+            fails.append(f"{name} band {_hz(b['worst_band_hz'])} moves by {worst:+.3g} dB on "
+                         f"the refined input (limit {REPRESENTATION.band_db:g} dB)")
+    return {"refinement": refinement, "contract": asdict(REPRESENTATION), "bands": bands,
+            "verdict": "fail" if fails else "pass", "failures": fails}
+
+
 def _audit_residual(result) -> float | None:
     """|relative residual| of a run's energy audit; None where the run keeps no audit."""
     value = (result.summary.get("energy_audit") or {}).get("relative_residual")
@@ -263,6 +304,11 @@ def verdict_line(acc: dict) -> str:
                                                   if ev["unmatched"] else ""))
     parts.append(f"velocity {_num(acc['velocity_rel_rms'], '.2g')}")
     parts.append(f"energy {_num(acc['energy_rel_residual'], '.2g')}")
+    if (rep := acc.get("representation")) and "bands" in rep:
+        worst = max((rep["bands"][n] for n in SIGNALS if n in rep["bands"]),
+                    key=lambda d: abs(d["deviation_db"] or 0.0))
+        parts.append(f"refined input {_num(worst['deviation_db'], '+.2g')} dB @ "
+                     f"{_hz_or(worst['worst_band_hz'])}")
     head = "PASS" if acc["verdict"] == "pass" else "FAIL"
     return f"{head} against {acc['reference']}: " + ", ".join(parts)
 
