@@ -152,7 +152,7 @@ def roughness_at(system, x: float, v: float) -> tuple[np.ndarray, np.ndarray]:
     """Profile height at the contacts [m] and its rate [m/s] for the block at x moving at v."""
     fp = system.fp
     vals = [profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX], s + x)
-            for s in system.contact_s]
+            for s in system.input_s]
     return np.array([p[0] for p in vals]), np.array([p[1] for p in vals]) * v
 
 

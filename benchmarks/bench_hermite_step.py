@@ -91,13 +91,13 @@ def main():
     rate = np.array([y0[system.layout.index("block.vz")]
                      - system.phi[:, k] @ y0[system.layout.slice("plate.dq")]
                      + profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX],
-                                    system.contact_s[k] + x)[1] * v for k in range(K)])
+                                    system.input_s[k] + x)[1] * v for k in range(K)])
     dF0 = np.linalg.solve(np.diag(1 / system.stiff) + system.cres, rate)
     wts = _atol_vector(system) + 1e-5 * np.abs(y0)
     n_ws, n_iws = hm.scratch_sizes(R, K)
     c0 = np.zeros(hm.carry_size(R, K))
     rest = (system.off, fp, system.omega2, system.cdamp, phiT)
-    hm.carried(0.0, y0, dF0, c0, *rest, system.contact_s, system.prof, reg)
+    hm.carried(0.0, y0, dF0, c0, *rest, system.input_s, system.prof, reg)
     print(describe())
     print(f"{args.scene}: R = {R}, K = {K}, h = {h:g} s, {args.calls} calls, "
           f"best of {args.repeats}")
@@ -107,7 +107,7 @@ def main():
             y, dF, c = y0.copy(), dF0.copy(), c0.copy()
             ws, iws = np.zeros(n_ws), np.zeros(n_iws, dtype=np.int64)
             call = (0.0, h, y, dF, c, y.copy(), dF.copy(), c.copy(), Pm, Cc, *rest,
-                    system.stiff, system.contact_s, system.prof, reg, wts, ws, iws)
+                    system.stiff, system.input_s, system.prof, reg, wts, ws, iws)
             calls = args.calls if rep else 2
             w0 = time.process_time()
             assert loop(calls, *call)

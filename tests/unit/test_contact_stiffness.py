@@ -100,11 +100,18 @@ TABLE = [
 ]
 
 
+#: the paper's band and grid as numbers
+PAPER_BAND = {"shortest_wavelength": 50e-6, "spacing": 10e-6}
+#: the summits of the paper's band, as the worked numbers count them: the band stops at 50 um
+#: and a spot of 1 nm filters nothing in it (H = 1 - 3e-9 at 50 um)
+BAND_SCALE = {"roughness.shortest_wavelength": 50e-6, "contact.spot_radius": 1e-9}
+
+
 @pytest.mark.parametrize("sigma,rolloff,mass,expect", TABLE)
 def test_physics_worked_numbers(sigma, rolloff, mass, expect):
     scene = load_scene("paper", {"roughness.raw_rms": sigma,
                                  "roughness.rolloff_wavelength": rolloff, "block.mass": mass,
-                                 "contact.stiffness": "auto"})
+                                 "contact.stiffness": "auto", **BAND_SCALE})
     cs = contact_stiffness(scene)
     for key, (value, tol) in expect.items():
         assert abs(getattr(cs, key) - value) <= tol * (1 + 1e-9), (key, getattr(cs, key))
@@ -117,7 +124,7 @@ def test_physics_worked_numbers(sigma, rolloff, mass, expect):
 
 @pytest.mark.parametrize("mass", [0.221, 0.543])
 def test_gw_and_gt_agree_for_the_default_surface(mass):
-    base = {"block.mass": mass, "contact.stiffness": "auto"}
+    base = {"block.mass": mass, "contact.stiffness": "auto", **BAND_SCALE}
     gw = contact_stiffness(load_scene("paper", base))
     gt = contact_stiffness(load_scene("paper", {**base, "contact.model": "gt"}))
     assert gt.model == "gt" and gw.model == "gw"
@@ -125,7 +132,10 @@ def test_gw_and_gt_agree_for_the_default_surface(mass):
     assert abs(gt.micro_contacts / gw.micro_contacts - 1) < 0.05
 
 
-def _quad_moments(r, sigma, areal):
+def _quad_moments(r, sigma, areal, spot=0.0):
+    """Moments of the model spectrum by scipy's quadrature, normalised to ``sigma`` over the
+    band, weighted by the Hertz filter 3 (sin q - q cos q) / q^3 of spots of radius ``spot``
+    (written out here, q = k spot) for m2 and m4 (m0 unfiltered: the normalisation)."""
     kl, k0, kh = (2 * np.pi / r.longest_wavelength, 2 * np.pi / r.rolloff_wavelength,
                   2 * np.pi / r.shortest_wavelength)
     q = (2 if areal else 1) + 2 * r.hurst
@@ -133,28 +143,34 @@ def _quad_moments(r, sigma, areal):
     def shape(k):
         return 1.0 if k < k0 else (k / k0) ** (-q)
 
-    def mom(n):
-        return integrate.quad(lambda k: k**n * shape(k), kl, kh, points=[k0], limit=200,
-                              epsrel=1e-12)[0]
+    def filt(k):
+        x = k * spot
+        return 1.0 if x < 1e-3 else (3 * (math.sin(x) - x * math.cos(x)) / x**3) ** 2
+
+    def mom(n, weigh=True):
+        f = (lambda k: k**n * shape(k) * filt(k)) if weigh else (lambda k: k**n * shape(k))
+        return integrate.quad(f, kl, kh, points=[k0], limit=2000, epsrel=1e-12)[0]
 
     if not areal:
-        i0 = mom(0)
-        return sigma**2, sigma**2 * mom(2) / i0, sigma**2 * mom(4) / i0
+        i0 = mom(0, weigh=False)
+        return sigma**2 * mom(0) / i0, sigma**2 * mom(2) / i0, sigma**2 * mom(4) / i0
     # m_n = integral over the plane of kx^n S2 = integral_0^2pi cos^n dtheta int k^(n+1) S2 dk
     ang = {n: integrate.quad(lambda t, n=n: math.cos(t) ** n, 0, 2 * math.pi)[0]
            for n in (0, 2, 4)}
-    i0 = ang[0] * mom(1)
-    return sigma**2, sigma**2 * ang[2] * mom(3) / i0, sigma**2 * ang[4] * mom(5) / i0
+    i0 = ang[0] * mom(1, weigh=False)
+    return (sigma**2 * ang[0] * mom(1) / i0, sigma**2 * ang[2] * mom(3) / i0,
+            sigma**2 * ang[4] * mom(5) / i0)
 
 
 @pytest.mark.parametrize("areal", [False, True])
 def test_spectral_moments_against_quadrature(areal):
-    r = Roughness(hurst=0.7, rolloff_wavelength=0.3e-3)
+    r = Roughness(hurst=0.7, rolloff_wavelength=0.3e-3, **PAPER_BAND)
     got = spectral_moments(r, 2e-6, areal=areal)
     np.testing.assert_allclose(got, _quad_moments(r, 2e-6, areal), rtol=1e-9)
-    scene = load_scene("paper", {"roughness.reduce_3d": areal, "contact.stiffness": "auto"})
+    scene = load_scene("paper", {"roughness.reduce_3d": areal, "contact.stiffness": "auto",
+                                 "roughness.shortest_wavelength": 50e-6})
     cs = contact_stiffness(scene)
-    sp = summit_parameters(*_quad_moments(scene.roughness, 3.5e-6, areal))
+    sp = summit_parameters(*_quad_moments(scene.roughness, 3.5e-6, areal, spot=cs.spot_radius))
     assert cs.summit_density == pytest.approx(sp.density, rel=1e-9)
     assert cs.summit_radius == pytest.approx(sp.radius, rel=1e-9)
 
@@ -195,11 +211,11 @@ def test_mccool_summits_agree_with_peak_counting_on_synthetic_profiles():
     equivalents.
     """
     sigma = 3.5e-6
-    m0, m2, m4 = _quad_moments(Roughness(), sigma, areal=False)
+    m0, m2, m4 = _quad_moments(Roughness(**PAPER_BAND), sigma, areal=False)
     alpha = m0 * m4 / m2**2
     dens, curv, hstd = [], [], []
     for seed in range(8):
-        r = Roughness(filter="none", seed=seed)
+        r = Roughness(filter="none", seed=seed, **PAPER_BAND)
         z = synthesize_profile(r, rms=sigma)
         d, h, c = _count_peaks(z, r.spacing)
         dens.append(d)

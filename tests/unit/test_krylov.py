@@ -84,7 +84,7 @@ def _psolve(system, t, y, cj, reg, rv, ws, work):
     zv = np.full_like(rv, np.nan)
     krylov.precond_solve(t, _as_ida_gives(y), cj, _as_ida_gives(rv), zv, system.off, system.fp,
                          system.omega2, system.cdamp, system.phi, system.stiff, system.cres,
-                         system.contact_s, system.prof, reg, work, *ws)
+                         system.input_s, system.prof, reg, work, *ws)
     return zv
 
 
@@ -92,7 +92,7 @@ def _jv(system, t, y, cj, reg, v):
     out = np.full_like(v, np.nan)
     krylov.jac_vec(t, _as_ida_gives(y), cj, _as_ida_gives(v), out, system.off, system.fp,
                    system.omega2, system.cdamp, system.phi, system.stiff, system.cres,
-                   system.contact_s, system.prof, reg, np.zeros_like(system.work))
+                   system.input_s, system.prof, reg, np.zeros_like(system.work))
     return out
 
 
@@ -156,10 +156,10 @@ def test_krylov_kernels_without_jit_match_compiled(run_without_jit):
         ws = krylov.krylov_workspace(y.size, s.n_modes, s.n_contacts)
         z = np.empty_like(v); jv = np.empty_like(v)
         krylov.precond_solve(0.002, y, 2e4, v, z, s.off, s.fp, s.omega2, s.cdamp, s.phi,
-                             s.stiff, s.cres, s.contact_s, s.prof, reg,
+                             s.stiff, s.cres, s.input_s, s.prof, reg,
                              np.zeros_like(s.work), *ws)
         krylov.jac_vec(0.002, y, 2e4, v, jv, s.off, s.fp, s.omega2, s.cdamp, s.phi, s.stiff,
-                       s.cres, s.contact_s, s.prof, reg, np.zeros_like(s.work))
+                       s.cres, s.input_s, s.prof, reg, np.zeros_like(s.work))
         out.update(z=z, jv=jv)
     """, y=y, v=v, reg=reg)
     np.testing.assert_allclose(plain["z"], z, rtol=1e-12, atol=1e-300)

@@ -18,6 +18,7 @@ from roughvib.physics.surface.roughness import (
     cbrt2_positions,
     read_profile_file,
     select_contacts,
+    section_band,
     span_average,
     trapezoid_weights,
     uniform_positions,
@@ -33,8 +34,9 @@ BLOCK = Block()
 
 
 def _edges(r):
+    """The band of a section on its own ("auto" is the paper's 50 um band, section_band)."""
     return 2 * np.pi / r.longest_wavelength, 2 * np.pi / r.rolloff_wavelength, \
-        2 * np.pi / r.shortest_wavelength
+        2 * np.pi / section_band(r).shortest_wavelength
 
 
 def _g_shape(k, r):
@@ -234,7 +236,7 @@ def test_cbrt2_layout_average_matches_its_correlation_prediction(reduced):
     p = reduced
     r = Roughness()
     kl, _, kh = _edges(r)
-    y = cbrt2_positions(BLOCK.width, r.spacing)
+    y = cbrt2_positions(BLOCK.width, section_band(r).spacing)
     w = trapezoid_weights(y)
     k = np.linspace(kl, kh, 40001)
     s2k = _s2_shape(k, r) * k
@@ -249,7 +251,7 @@ def test_cbrt2_layout_average_matches_its_correlation_prediction(reduced):
 
 
 def test_closed_form_layout_transform_equals_the_direct_sum():
-    from roughvib.physics.surface.roughness import _weight_transform
+    from roughvib.physics.surface.synthesis import _weight_transform
 
     ky = np.linspace(-2 * np.pi / 50e-6, 2 * np.pi / 50e-6, 801)
     for y in (uniform_positions(0.04, 1e-5), uniform_positions(0.01, 0.5e-3)):

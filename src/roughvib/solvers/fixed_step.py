@@ -522,7 +522,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     cpu0 = time.process_time()
     n_ev, code, n_done = _run(h, n_steps, out_every, Phi, G0, G1, system.phi, system.phi_obs,
                               system.omega2, system.cdamp, system.stiff, system.cres,
-                              system.contact_s, system.prof, system.fp,
+                              system.input_s, system.prof, system.fp,
                               int(system.off[kn.OFF_LAW]), lay.tangential, moreau,
                               LoopState(q, dq, zv, Fv, active, tang, energy), out,
                               EventArrays(ev_t, ev_kind, ev_contact))

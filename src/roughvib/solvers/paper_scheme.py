@@ -286,7 +286,7 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     ev_contact = np.empty(cap, dtype=np.int64)
     wall0 = time.perf_counter()
     n_ev, code, n_done = _run_paper(h, n_steps, out_every, G, Ga, system.stiff,
-                                    system.contact_s, system.prof, system.fp, lay.tangential,
+                                    system.input_s, system.prof, system.fp, lay.tangential,
                                     zv, tang, Fv, Fhist, out, ev_t, ev_kind, ev_contact)
     wall = time.perf_counter() - wall0
     status, message = "success", "reached the end of the output grid"

@@ -511,13 +511,16 @@ def _surface_source(scene: Scene):
     from roughvib.physics.surface.roughness import areal_psd, band_psd
 
     r = scene.roughness
-    lam = input_band(scene).shortest_wavelength
+    # an "auto" tail is where the run's input stops, not the surface: the contact counts the
+    # summits of the whole self-affine tail, which its filter makes converge
+    lam = 0.0 if isinstance(r.shortest_wavelength, str) else float(r.shortest_wavelength)
     psd = ((lambda k: areal_psd(k, r, r.raw_rms, shortest=lam)) if r.reduce_3d
            else (lambda k: band_psd(k, r, r.raw_rms, shortest=lam)))
     key = {"raw_rms": r.raw_rms, "hurst": r.hurst, "rolloff": r.rolloff_wavelength,
            "longest": r.longest_wavelength, "shortest": lam, "areal": bool(r.reduce_3d)}
     return ModelPSD(psd=psd, k_low=2.0 * math.pi / r.longest_wavelength,
-                    k_high=2.0 * math.pi / lam, areal=bool(r.reduce_3d), key=key)
+                    k_high=2.0 * math.pi / lam if lam else math.inf, areal=bool(r.reduce_3d),
+                    key=key, breaks=(2.0 * math.pi / r.rolloff_wavelength,))
 
 
 def _summits_at(source, radius: float, given: dict) -> SummitParameters | None:
@@ -658,7 +661,8 @@ def contact_stiffness(scene: Scene, surface=None) -> ContactStiffness:
         a, sp, sol = _spot_scale_cached(surface, given, load, area, e_star, c.model, fixed)
     except (ValueError, ArithmeticError) as err:
         if isinstance(surface, ModelPSD) and r.raw_rms > 0:
-            _check_raw_rms_underflow(r, surface.moments(0.0), surface.key["shortest"])
+            _check_raw_rms_underflow(r, surface.moments(_SPOT_BRACKET[0]),
+                                     surface.key["shortest"] or None)
         raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
                          f"on the summits of this surface ({err}), got roughness.raw_rms "
                          f"{r.raw_rms} m and summit keys {given}") from None

@@ -350,6 +350,15 @@ def _contact_filtered(z: np.ndarray, dx: float, spot_radius: float | None, *,
     return np.fft.irfft(np.fft.rfft(ext) * hertz_filter(k * spot_radius), ext.size)[:n]
 
 
+def section_band(r: Roughness) -> InputBand:
+    """The band of a ``[roughness]`` section on its own, without a scene to resolve ``"auto"``
+    from: its numbers, ``"auto"`` read as the paper's 50 um band on its 10 um grid."""
+    q = _numeric_band(r)
+    return InputBand(shortest_wavelength=float(q.shortest_wavelength), spacing=float(q.spacing),
+                     shortest_source="scene", spacing_source="scene", speed=0.0,
+                     top_frequency=math.inf)
+
+
 def _numeric_band(r: Roughness) -> Roughness:
     """The section with ``"auto"`` band keys replaced for the kinds sampled on a plain grid
     (none, sinusoid, the span-averaged surface): the paper's 50 um band and 10 um grid."""
@@ -381,10 +390,11 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         block.length + stroke. Default: block.length (the profile then spans at least two
         block lengths). The solver checks the actual travel again at run time.
     band : InputBand, optional
-        The resolved tail limit and grid (:func:`~roughvib.physics.surface.field.input_band`);
-        needed by a synthetic surface (``reduce_3d`` off), which is then the field of
+        The resolved tail limit and grid (:func:`~roughvib.physics.surface.field.input_band`)
+        of a synthetic surface (``reduce_3d`` off), which is the field of
         :func:`synthetic_field` sampled over one period (``trace_length``) on a grid no
-        coarser than ``band.spacing``.
+        coarser than ``band.spacing``. Default :func:`section_band`: the section's own
+        numbers, ``"auto"`` read as the paper's band and grid.
     spot_radius : float, optional
         Radius a of the contact spots [m]: the input is the surface seen through the contact
         filter :func:`~roughvib.physics.surface.field.hertz_filter` of ``k a``. None: no
@@ -444,8 +454,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         z = _contact_filtered(z, dx, spot_radius, periodic=False)
     elif r.kind == "synthetic" and not r.reduce_3d:
         if band is None:
-            raise ValueError("build_profile needs the resolved input band of a synthetic "
-                             "surface (roughvib.physics.surface.field.input_band)")
+            band = section_band(r)
         if r.trace_length < min_len * (1.0 - 1e-12):
             raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
                              f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")

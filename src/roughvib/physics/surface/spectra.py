@@ -19,13 +19,14 @@ __all__ = ["areal_psd", "band_psd", "spectral_moments"]
 
 
 def _band(r: Roughness, shortest: float | None = None) -> tuple[float, float, float]:
-    """(k_L, k_0, k_H) [rad/m]; ``shortest`` [m] resolves an ``"auto"`` tail limit."""
+    """(k_L, k_0, k_H) [rad/m]; ``shortest`` [m] resolves an ``"auto"`` tail limit (0: a tail
+    without end, k_H = inf)."""
     lam = r.shortest_wavelength if shortest is None else shortest
     if isinstance(lam, str):
         raise ValueError("roughness.shortest_wavelength is 'auto': pass the resolved limit "
                          "(roughvib.physics.surface.field.input_band)")
     return (2.0 * np.pi / r.longest_wavelength, 2.0 * np.pi / r.rolloff_wavelength,
-            2.0 * np.pi / lam)
+            2.0 * np.pi / lam if lam > 0 else math.inf)
 
 
 def _power_integral(p: float, a: float, b: float) -> float:
