@@ -10,7 +10,7 @@ import pytest
 
 import roughvib
 from roughvib.api import simulate
-from roughvib.physics.surface.contact import contact_stiffness
+from roughvib.physics.surface.contact import contact_stiffness, scene_input
 from roughvib.physics.surface.roughness import build_profile, profile_statistics, select_contacts
 from roughvib.views.report import write_report
 
@@ -47,7 +47,7 @@ def test_paper_scene_with_the_contact_module_runs_and_records_count_and_stiffnes
     info = r.summary["calibration"]["contact_stiffness"]
     assert info["model"] == "gw" and info["summit_source"] == "moments"
 
-    profile = build_profile(scene.roughness, scene.block, scene.base_dir)
+    profile = scene_input(scene).profile
     expect = select_contacts(profile, cs.points, scene.block.length,
                              scene.contact.min_separation)
     np.testing.assert_array_equal(r.dataset["contact_profile_position"].values,
@@ -118,7 +118,10 @@ def test_measured_profile_brings_its_own_moments(tmp_path):
     st = profile_statistics(z, dx)
     moments = (st["rms"] ** 2, st["rms_slope"] ** 2, st["rms_curvature"] ** 2)
     np.testing.assert_allclose(profile.stats["raw_moments"], moments, rtol=1e-9)
-    from_file = contact_stiffness(scene, moments=moments)
+    # the file's own spectrum: its power per FFT bin sums to its variance
+    raw = profile.raw_spectrum
+    assert raw.moments(0.0)[0] == pytest.approx(np.var(z), rel=1e-9)
+    from_file = contact_stiffness(scene, surface=raw)
     from_model = contact_stiffness(scene)
     assert abs(from_file.summit_density / from_model.summit_density - 1) > 0.1
     r = simulate(scene)
