@@ -199,8 +199,11 @@ def test_a_tiny_raw_rms_is_refused_by_its_own_name(raw_rms, summits):
 
 
 def test_the_lowest_raw_rms_named_is_the_lowest_that_works():
-    """The bound the refusal states follows from the band: the derived summits of a raw_rms
-    just above it lie in the summit keys' ranges, just below it they do not."""
+    """The bound the refusal states is the lowest raw_rms the contact module can use: just
+    above it the derived summits carry the block within the summit keys' ranges, just below
+    it the refusal names raw_rms again. (At the scale of the contact spots the limit is where
+    the block can no longer be carried, not an edge of the ranges: the spots grow as the
+    surface smooths, so no range edge need bind there.)"""
     from roughvib.physics.surface.contact import contact_stiffness
 
     with pytest.raises(SceneError) as info:
@@ -210,7 +213,6 @@ def test_the_lowest_raw_rms_named_is_the_lowest_that_works():
                                                 "contact.points": 10}))
     lo_std, rad_hi = SANE_BOUNDS["contact.summit_std"][0], SANE_BOUNDS["contact.summit_radius"][1]
     assert cs.summit_std >= lo_std and cs.summit_radius <= rad_hi
-    assert cs.summit_radius > 0.98 * rad_hi or cs.summit_std < 1.02 * lo_std  # the bound binds
     with pytest.raises(SceneError, match=r"^roughness.raw_rms must be >= "):
         contact_stiffness(load_scene("paper", {"roughness.raw_rms": need * 0.99}))
 

@@ -48,7 +48,7 @@ import numpy as np
 
 from roughvib._cache import cached_values, code_fingerprint
 from roughvib.physics.surface.field import InputBand, ModelPSD, input_band
-from roughvib.physics.surface.roughness import Profile, select_contacts, spectral_moments
+from roughvib.physics.surface.roughness import Profile, select_contacts
 from roughvib.scene import MAX_CONTACTS, SANE_BOUNDS, Scene, SceneError
 
 __all__ = [
@@ -459,46 +459,34 @@ def _scene_v_rms(scene: Scene) -> tuple[float | None, str]:
                   f"{exc.force_amplitude} N only): factor 1, the static contact stiffness")
 
 
-def _check_raw_rms_scale(r, *, derive_std: bool, derive_radius: bool,
-                         shortest: float | None = None) -> None:
-    """Refuse, naming ``roughness.raw_rms``, an rms too small for the contact module: summits
-    it derives lower than the lowest ``contact.summit_std`` or blunter than the largest
-    ``contact.summit_radius`` (docs/scenes.md), down to spectral moments that underflow to
-    zero. The summits' shape follows from the band alone (moments ~ rms^2: height spread ~
-    rms, radius ~ 1 / rms), so the band's own summits at 1 m rms tell which key is at fault:
-    the band (no summits at any rms; the caller names it) or the rms. ``shortest`` [m] is the
-    resolved tail limit; the moments are the unfiltered band's (a bound: the contact filter
-    only blunts the summits the module counts)."""
-    try:
-        unit = summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d,
-                                                   shortest=shortest))
-    except ValueError:
-        return
+def _summits_in_range(sp: SummitParameters, given: dict) -> bool:
+    """Whether the summits derived (not given) lie in the ranges of their keys (docs/scenes.md):
+    height spread >= the lowest ``contact.summit_std``, radius <= the largest
+    ``contact.summit_radius``."""
     std_lo, _, _ = SANE_BOUNDS["contact.summit_std"]
     _, rad_hi, _ = SANE_BOUNDS["contact.summit_radius"]
-    need = max(std_lo / unit.std if derive_std else 0.0,
-               unit.radius / rad_hi if derive_radius else 0.0)
-    if r.raw_rms < need:
-        raise SceneError(
-            f"roughness.raw_rms must be >= {need:.3g} m for the contact module ('auto' contact "
-            f"points or stiffness) on this band: its summits would have a height spread of "
-            f"{unit.std * r.raw_rms:.3g} m and a radius of {unit.radius / r.raw_rms:.3g} m "
-            f"(the ranges of contact.summit_std and summit_radius: >= {std_lo:g} m, <= "
-            f"{rad_hi:g} m, docs/scenes.md), got {r.raw_rms!r} m")
+    return ((given["std"] is not None or sp.std >= std_lo)
+            and (given["radius"] is not None or sp.radius <= rad_hi))
 
 
-def _check_raw_rms_underflow(r, moments, shortest: float | None = None) -> None:
-    """Refuse, naming ``roughness.raw_rms``, an rms whose spectral moments are too small for
-    floating point (they scale as rms^2) where the band itself gives summits at 1 m rms."""
-    try:
-        summit_parameters(*spectral_moments(r, 1.0, areal=r.reduce_3d, shortest=shortest))
-    except ValueError:
-        return  # the band's fault: the caller names the band
-    m0, m2, m4 = moments
-    raise SceneError(f"roughness.raw_rms must be large enough for the contact module's "
-                     f"spectral moments (~ raw_rms^2) to be floating-point numbers: they "
-                     f"underflow (m0 = {m0:.3g} m^2, m2 = {m2:.3g}, m4 = {m4:.3g} 1/m^2), got "
-                     f"{r.raw_rms!r} m")
+def _lowest_raw_rms(usable, value: float) -> float | None:
+    """The lowest ``roughness.raw_rms`` above ``value`` (unusable) that the contact module can
+    use [m], or None if none up to the key's largest value is (then the band is at fault).
+    ``usable(rms) -> bool``. A coarse scan in log rms finds the first usable value (with summit
+    keys given, too rough a surface may be unusable as well), bisection refines it."""
+    _, hi, _ = SANE_BOUNDS["roughness.raw_rms"]
+    lo = max(value, 1e-300)
+    grid = np.geomspace(lo, hi, max(int(math.ceil(math.log10(hi / lo))), 1) + 1)  # decades
+    prev = grid[0]
+    for x in grid[1:]:
+        if usable(float(x)):
+            lo_log, hi_log = math.log(prev), math.log(x)
+            while hi_log - lo_log > 1e-3:
+                mid = 0.5 * (lo_log + hi_log)
+                lo_log, hi_log = (lo_log, mid) if usable(math.exp(mid)) else (mid, hi_log)
+            return math.exp(hi_log)
+        prev = x
+    return None
 
 
 #: bracket of the spot radius [m] searched by the self-consistent summit scale
@@ -603,6 +591,30 @@ def _spot_scale_cached(source, given: dict, load: float, area: float, e_star: fl
     return float(values["spot_radius"]), sp, sol
 
 
+def _refuse_raw_rms(scene: Scene, given: dict, solve) -> None:
+    """Raise, naming ``roughness.raw_rms``, when a larger rms would give the contact module
+    usable summits (then the rms, not the band, is at fault), with the lowest such rms."""
+    def usable(rms: float) -> bool:
+        s2 = scene.with_overrides({"roughness.raw_rms": rms})
+        try:
+            _, sp, _ = solve(_surface_source(s2))
+        except (ValueError, ArithmeticError):
+            return False
+        return _summits_in_range(sp, given)
+
+    value = scene.roughness.raw_rms
+    need = _lowest_raw_rms(usable, value)
+    if need is None:
+        return
+    std_lo, _, _ = SANE_BOUNDS["contact.summit_std"]
+    _, rad_hi, _ = SANE_BOUNDS["contact.summit_radius"]
+    raise SceneError(
+        f"roughness.raw_rms must be >= {need:.3g} m for the contact module ('auto' contact "
+        f"points, stiffness or spot radius) on this band: a smoother surface gives no summits "
+        f"that carry the block within the ranges of contact.summit_std (>= {std_lo:g} m) and "
+        f"summit_radius (<= {rad_hi:g} m, docs/scenes.md), got {value!r} m")
+
+
 def contact_stiffness(scene: Scene, surface=None) -> ContactStiffness:
     """Tangent normal contact stiffness of the scene at the static load m g.
 
@@ -650,22 +662,28 @@ def contact_stiffness(scene: Scene, surface=None) -> ContactStiffness:
                 raise SceneError("roughness.raw_rms must be > 0 m for contact.stiffness = "
                                  "'auto' (or give contact.summit_density, summit_radius and "
                                  "summit_std), got 0.0 m")
-            _check_raw_rms_scale(r, derive_std=c.summit_std is None,
-                                 derive_radius=c.summit_radius is None,
-                                 shortest=input_band(scene).shortest_wavelength)
             surface = _surface_source(scene)
         source = "moments" if all(v is None for v in given.values()) else "moments+keys"
     else:
         surface, source = _KeysOnly(), "keys"
+
+    def solve(src):
+        return _spot_scale_cached(src, given, load, area, e_star, c.model, fixed)
+
+    failure = None
     try:
-        a, sp, sol = _spot_scale_cached(surface, given, load, area, e_star, c.model, fixed)
+        a, sp, sol = solve(surface)
+        if not _summits_in_range(sp, given):
+            failure = (f"summits of height spread {sp.std:.3g} m and radius {sp.radius:.3g} m, "
+                       f"outside the ranges of contact.summit_std and summit_radius")
     except (ValueError, ArithmeticError) as err:
+        failure = str(err)
+    if failure is not None:
         if isinstance(surface, ModelPSD) and r.raw_rms > 0:
-            _check_raw_rms_underflow(r, surface.moments(_SPOT_BRACKET[0]),
-                                     surface.key["shortest"] or None)
+            _refuse_raw_rms(scene, given, solve)
         raise SceneError(f"contact.model = {c.model!r} cannot carry block.mass = {blk.mass} kg "
-                         f"on the summits of this surface ({err}), got roughness.raw_rms "
-                         f"{r.raw_rms} m and summit keys {given}") from None
+                         f"on the summits of this surface ({failure}), got roughness.raw_rms "
+                         f"{r.raw_rms} m and summit keys {given}")
     eta, rad, std = sp.density, sp.radius, sp.std
     v_rms, vf_note = _scene_v_rms(scene) if c.velocity_factor else (None, "")
     vf = velocity_factor(v_rms) if v_rms is not None else 1.0
@@ -791,7 +809,6 @@ def scene_input(scene: Scene, *, stroke: float | None = None) -> SceneInput:
     -------
     SceneInput
     """
-    from roughvib.physics.surface.field import input_band
     from roughvib.physics.surface.roughness import build_profile, contact_filtered_profile
 
     c, r = scene.contact, scene.roughness

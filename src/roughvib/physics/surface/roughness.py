@@ -353,23 +353,22 @@ def _contact_filtered(z: np.ndarray, dx: float, spot_radius: float | None, *,
 def section_band(r: Roughness) -> InputBand:
     """The band of a ``[roughness]`` section on its own, without a scene to resolve ``"auto"``
     from: its numbers, ``"auto"`` read as the paper's 50 um band on its 10 um grid."""
-    q = _numeric_band(r)
-    return InputBand(shortest_wavelength=float(q.shortest_wavelength), spacing=float(q.spacing),
-                     shortest_source="scene", spacing_source="scene", speed=0.0,
-                     top_frequency=math.inf)
+    lam = (PAPER_SHORTEST_WAVELENGTH if isinstance(r.shortest_wavelength, str)
+           else float(r.shortest_wavelength))
+    dx = PAPER_SPACING if isinstance(r.spacing, str) else float(r.spacing)
+    return InputBand(shortest_wavelength=lam, spacing=dx, shortest_source="scene",
+                     spacing_source="scene", speed=0.0, top_frequency=math.inf)
 
 
 def _numeric_band(r: Roughness) -> Roughness:
-    """The section with ``"auto"`` band keys replaced for the kinds sampled on a plain grid
-    (none, sinusoid, the span-averaged surface): the paper's 50 um band and 10 um grid."""
+    """The section with ``"auto"`` band keys replaced by the paper's 50 um band and 10 um
+    grid (for the span-averaged surface, which is synthesised on a plain grid)."""
     from dataclasses import replace
 
-    out = r
-    if isinstance(out.shortest_wavelength, str):
-        out = replace(out, shortest_wavelength=PAPER_SHORTEST_WAVELENGTH)
-    if isinstance(out.spacing, str):
-        out = replace(out, spacing=PAPER_SPACING)
-    return out
+    if isinstance(r.shortest_wavelength, str) or isinstance(r.spacing, str):
+        band = section_band(r)
+        return replace(r, shortest_wavelength=band.shortest_wavelength, spacing=band.spacing)
+    return r
 
 
 def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,
@@ -463,9 +462,8 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         z, dx = spec.sample(band.spacing)
         stats.update(info)
     else:
-        r = _numeric_band(r)
-        dx = r.spacing
-        n = _n_points(r)
+        dx = section_band(r).spacing
+        n = int(round(r.trace_length / dx)) + 1
         if (n - 1) * dx < min_len * (1.0 - 1e-12):
             raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
                              f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
@@ -476,6 +474,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
             z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
         else:
             periodic = True
+            r = _numeric_band(r)
             raw_z = _reduce_3d(r, block, stats)
             z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
             _check_filtered(raw_z - raw_z.mean(), z, r, bl)
