@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from roughvib.analysis import figures_data as fd
-from roughvib.physics.surface.contact import contact_stiffness
-from roughvib.physics.surface.roughness import build_profile, select_contacts
+from roughvib.physics.surface.contact import contact_stiffness, scene_input
+from roughvib.physics.surface.field import input_band
+from roughvib.physics.surface.roughness import select_contacts
 from roughvib.scene import load_scene
 from roughvib.views.surface_report import scan_range, write_surface_report
 
@@ -33,9 +34,15 @@ def test_report_files_exist_and_match_the_library(report):
     for key in ("profile_png", "spectrum_png"):
         assert paths[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     lo, hi, _ = scan_range(scene)
-    prof = build_profile(scene.roughness, scene.block, scene.base_dir, stroke=hi - lo)
+    prof = scene_input(scene, stroke=hi - lo).profile
     rows = _rows(paths["profile_csv"])
-    np.testing.assert_allclose([float(r["z_m"]) for r in rows], prof.z, rtol=1e-15)
+    # the rows are grid points of the input under the block and its stroke, exactly
+    s_rows = np.array([float(r["s_m"]) for r in rows])
+    idx = np.rint((s_rows - prof.s0) / prof.dx).astype(int)
+    np.testing.assert_allclose(s_rows, prof.s[idx], rtol=1e-15)
+    np.testing.assert_allclose([float(r["z_m"]) for r in rows], prof.z[idx], rtol=1e-15)
+    assert s_rows[0] <= prof.s_centre - scene.block.length / 2
+    assert s_rows[-1] >= prof.s_centre + scene.block.length / 2
     pts = select_contacts(prof, scene.contact.points, scene.block.length,
                           scene.contact.min_separation)
     crow = _rows(paths["contacts_csv"])
@@ -89,21 +96,27 @@ def test_spectrum_figure_shows_where_the_profile_has_content(report):
     lam, glob, cont, model, k, psd = _spectrum_data(paths)
     view = fd.surface_spectrum_view(2 * np.pi / lam, glob, k, psd, others=(cont, model))
     r = scene.roughness
-    # the bands of the synthesis target (the scene's band, less what the block-length filter
-    # removes) are shown whole, little more on either side
-    target = np.isfinite(model)
+    # the bands of the synthesis target within 60 dB of its strongest (the scene's band, less
+    # what the block-length filter removes and what the contact filter takes 60 dB and more
+    # off the tail) are shown whole, little more on either side
+    target = np.isfinite(model) & (model >= np.nanmax(model) - 60.0)
     k_target = 2 * np.pi / lam[target]
     assert view.k_range[0] <= k_target.min() < 2 * view.k_range[0]
     assert view.k_range[1] / 2 < k_target.max() <= view.k_range[1]
     # every level of the profile in them is shown, the bands the filter emptied are not
     assert view.level_range[0] < glob[target].min() and view.level_range[1] > glob[target].max()
     assert np.nanmin(glob) < -200 < view.level_range[0]
-    # the density: every value inside the scene's band is shown; the floor beyond it is cut
-    k_band = (2 * np.pi / r.longest_wavelength, 2 * np.pi / r.shortest_wavelength)
-    band = (k >= k_band[0]) & (k <= k_band[1] / 1.2)
-    assert psd[band].min() > view.psd_range[0] > 1e-30 > psd.min()
+    # the density: its average over every band shown is shown (single values dip into the
+    # contact filter's zeros); the floor beyond the scene's tail limit is cut
+    k_band = (2 * np.pi / r.longest_wavelength, 2 * np.pi / input_band(scene).shortest_wavelength)
+    for kc in 2 * np.pi / lam[view.content]:
+        sel = (k >= kc * 10**-0.05) & (k < kc * 10**0.05)
+        if sel.any():
+            assert psd[sel].mean() > view.psd_range[0]
+    assert view.psd_range[0] > 1e-30 > psd.min()
     assert psd[k > 1.5 * k_band[1]].max() < view.psd_range[0]
-    assert view.psd_range[1] > psd[band].max()
+    shown = (k >= view.k_range[0]) & (k <= view.k_range[1])
+    assert view.psd_range[1] > psd[shown].max()
 
 
 def test_spectrum_figure_axes_are_the_view(report):

@@ -29,12 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from roughvib.physics.surface.contact import contact_layout, contact_stiffness
-from roughvib.physics.surface.roughness import (
-    Profile,
-    band_psd,
-    build_profile,
-)
+from roughvib.physics.surface.contact import contact_layout, contact_stiffness, scene_input
+from roughvib.physics.surface.field import hertz_filter
+from roughvib.physics.surface.roughness import Profile, band_psd
 from roughvib.scene import Scene, SceneError
 
 __all__ = ["SURFACE_FILES", "scan_range", "write_surface_report"]
@@ -76,20 +73,37 @@ def scan_range(scene: Scene) -> tuple[float, float, str]:
     return 0.0, 0.0, "no tangential motion"
 
 
+#: most rows of profile.csv (the input under the block; a finer grid is written sparser)
+MAX_PROFILE_ROWS = 200_000
+
+
+def _csv_rows(profile: Profile, span: float) -> slice:
+    """The grid points of the profile within ``span`` / 2 of the block centre, every m-th so
+    that at most :data:`MAX_PROFILE_ROWS` remain."""
+    half = int(math.ceil(0.5 * span / profile.dx))
+    c = int(round((profile.s_centre - profile.s0) / profile.dx))
+    i0, i1 = max(c - half, 0), min(c + half + 1, profile.z.size)
+    return slice(i0, i1, max(1, int(math.ceil((i1 - i0) / MAX_PROFILE_ROWS))))
+
+
 def _model_band_levels(profile: Profile, scene: Scene, lower: np.ndarray, upper: np.ndarray
                        ) -> np.ndarray:
-    """Band levels of the synthesis target |H|^2 G, normalised to the profile's rms."""
+    """Band levels of the synthesis target: the model PSD G carried to the run's tail limit,
+    times the functional filter's and the contact filter's squared gains, normalised so that
+    the unfiltered surface has ``roughness.rms`` (as the synthesis does)."""
     r = scene.roughness
     n = profile.z.size
     k = 2.0 * np.pi * np.fft.rfftfreq(n, profile.dx)
-    g = band_psd(k, r)
+    g = band_psd(k, r, shortest=profile.stats.get("shortest_wavelength"))
     if r.filter != "none":
         sinc = np.sinc(k * scene.block.length / 2.0 / np.pi)
         g = g * ((1.0 - sinc) if r.filter == "highpass" else sinc) ** 2
     total = g.sum()
     if total <= 0:
         return np.full(lower.size, np.nan)
-    g = g / total * profile.stats["rms"] ** 2
+    g = g / total * profile.stats.get("target_rms", profile.stats["rms"]) ** 2
+    if profile.stats.get("spot_radius"):
+        g = g * hertz_filter(k * profile.stats["spot_radius"]) ** 2
     out = np.full(lower.size, np.nan)
     for i, (a, b) in enumerate(zip(lower, upper, strict=True)):
         sel = (k >= a) & (k < b)
@@ -157,14 +171,14 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
     output_folder(out)
     lo, hi, how = scan_range(scene)
     stroke = hi - lo
-    profile = build_profile(scene.roughness, scene.block, scene.base_dir,
-                            stroke=stroke if stroke > 0 else None)
-    cl = contact_layout(scene, profile)
+    inp = scene_input(scene, stroke=stroke if stroke > 0 else None)
+    profile = inp.profile
+    cl = contact_layout(scene, profile, inp.statistical)
     s_pts, n_pts = cl.positions, cl.n
     cs = cl.statistical
     if cs is None:
         try:
-            cs = contact_stiffness(scene, moments=profile.stats.get("raw_moments"))
+            cs = contact_stiffness(scene, surface=profile.raw_spectrum)
         except SceneError as err:
             statistical = {"error": str(err)}
     if cs is not None:
@@ -180,14 +194,18 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
 
     # ---- profile ----------------------------------------------------------------------
     p = out / "profile.csv"
+    rows_z = _csv_rows(profile, scene.block.length + stroke)
     with writing(p, newline="") as fh:
         fh.write(f"# roughvib surface report, scene {scene.name!r}\n")
         for key, val in profile.stats.items():
             fh.write(f"# {key} = {val}\n")
         fh.write(f"# s_centre = {profile.s_centre} m (block centre at t = 0)\n")
+        fh.write(f"# rows: the input under the block and its stroke, every "
+                 f"{rows_z.step or 1}. sample of its grid of {dx:.6g} m (exact values of the "
+                 f"field there)\n")
         w = csv.writer(fh)
         w.writerow(["s_m", "z_m"])
-        w.writerows(zip(s.tolist(), z.tolist(), strict=True))
+        w.writerows(zip(s[rows_z].tolist(), z[rows_z].tolist(), strict=True))
     paths["profile_csv"] = p
 
     # ---- contacts ---------------------------------------------------------------------
