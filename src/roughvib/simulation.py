@@ -24,7 +24,7 @@ from roughvib._progress import kernel_clock
 from roughvib.analysis.levels import rms, stick_fraction, whole_period_window
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS
-from roughvib.model.system import System, assemble, estimate_travel
+from roughvib.model.system import System, assemble, check_stroke, estimate_travel
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, RunData, events_frame
 from roughvib.scene import (
     FIXED_STEP_METHODS,
@@ -402,6 +402,8 @@ def _simulate(scene: Scene, *, progress: bool | None, force_amplitude: float | N
                "preprocessing": k_pre, "pilot": (pilot or {}).get("kernel_time", 0.0),
                "solve": clock.seconds - k_solve}
     ds = _build_dataset(system, raw)
+    if system.tangential and ds["block_tangential_displacement"].size:
+        check_stroke(system, np.asarray(ds["block_tangential_displacement"]))
     events = list(raw.events)  # Result.events makes the table when it is first read
     audit = energy_audit(system, raw)
     _add_regimes(ds, system, events)

@@ -357,6 +357,21 @@ def estimate_travel(scene: Scene) -> float:
     return 0.0
 
 
+def _window_travel(scene: Scene, force_amplitude: float) -> float:
+    """How far either way the input windows reach [m] (:func:`input_windows`): the prescribed
+    travel, or for a force-driven block the peak-to-peak travel of the frictionless block
+    from rest, 2 T0 / (m omega^2), which friction and damping only shorten. It depends on T0
+    alone, not on how T0 was found, so the saved scene (with the calibrated T0) builds the
+    same windows as the run that calibrated it; a run that still leaves its windows ends with
+    an error (:func:`check_stroke`)."""
+    exc = scene.excitation
+    if exc.kind == "prescribed":
+        return abs(exc.velocity) * scene.output.duration + abs(exc.amplitude)
+    if exc.omega > 0:
+        return 2.0 * abs(force_amplitude) / (scene.block.mass * exc.omega**2)
+    return 0.0
+
+
 def _check_travel(scene: Scene, profile: Profile, contact_s: np.ndarray, travel: float) -> None:
     lo = profile.s0
     hi = profile.s0 + (profile.z.size - 1) * profile.dx
@@ -473,8 +488,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
 
-    reach = max(travel if travel is not None else 0.0, estimate_travel(scene))
-    coeffs, input_s, input_reach = input_windows(profile, spos, reach,
+    coeffs, input_s, input_reach = input_windows(profile, spos, _window_travel(scene, T0),
                                                  scene.roughness.interpolation)
     fp = np.zeros(kn.N_FP)
     fp[kn.FP_MASS] = blk.mass

@@ -127,12 +127,10 @@ class SurfaceSpectrum:
 
     def grid_size(self, spacing: float) -> int:
         """Samples over one period for a grid no coarser than ``spacing`` [m]: the smallest
-        fast FFT length >= P / spacing that also exceeds 2 J + 1 (no bin at or above the
-        grid's Nyquist wavenumber)."""
-        from scipy.fft import next_fast_len
-
+        length 2^a 3^b 5^c (fast for numpy's FFT) >= P / spacing that also exceeds 2 J + 1
+        (no bin at or above the grid's Nyquist wavenumber)."""
         n = max(int(math.ceil(self.period / spacing * (1.0 - 1e-12))), 2 * self.n_bins + 2, 8)
-        return int(next_fast_len(n, real=True))
+        return _smooth_length(n)
 
     def sample(self, spacing: float) -> tuple[np.ndarray, float]:
         """The field on a uniform grid over one period, s_i = i dx.
@@ -171,6 +169,22 @@ class SurfaceSpectrum:
         k = self.wavenumbers
         e = np.exp(1j * np.outer(s, k)) * self.coefficients
         return ((e.sum(axis=1)).real, (e @ (1j * k)).real, (e @ (-(k**2))).real)
+
+
+def _smooth_length(n: int) -> int:
+    """The smallest integer >= n whose prime factors are 2, 3 and 5."""
+    best = 1 << max(int(n - 1).bit_length(), 0)  # a power of two always qualifies
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            m = p35
+            while m < n:
+                m *= 2
+            best = min(best, m)
+            p35 *= 3
+        p5 *= 5
+    return best
 
 
 def synthetic_spectrum(psd, period: float, shortest_wavelength: float, seed: int
