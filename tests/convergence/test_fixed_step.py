@@ -142,7 +142,8 @@ def test_paper_scheme_plate_level_has_no_false_quasi_static_part():
     from roughvib.analysis.spectra import band_levels, third_octave_bands, total_level
 
     base = {"output.duration": 0.05, "output.transient": 0.0, "output.progress": False,
-            "excitation.force_amplitude": 0.915, "excitation.target_rms_velocity": "none"}
+            "excitation.force_amplitude": 0.915, "excitation.target_rms_velocity": "none",
+            "roughness.shortest_wavelength": 50e-6, "contact.filter": "none"}
     # the ten hand-set contacts (a given force amplitude needs no velocity factor)
     ref = simulate(roughvib.load_scene("paper-handset", {**base,
                                                          "solver.method": "adaptive-modal",

@@ -418,6 +418,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     inp = scene_input(scene)
     profile = inp.profile
     notes = check_profile(scene, profile) + validity_warnings(scene)
+    if profile.stats.get("contact_filter_note"):
+        notes.append(profile.stats["contact_filter_note"])
     # contact points and s_total, as given or from the statistical contact (docs/theory.md);
     # a measured profile brings its own spectrum, synthetic ones use the model PSD
     cl = contact_layout(scene, profile, inp.statistical)

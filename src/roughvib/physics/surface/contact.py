@@ -815,21 +815,34 @@ def scene_input(scene: Scene, *, stroke: float | None = None) -> SceneInput:
     band = input_band(scene)
     need = _needs_statistics(scene)
     filtered = c.filter == "hertz" and r.kind in ("synthetic", "file")
-    stat = None
+    # the statistical contact is asked for the spot radius alone: if it cannot be solved
+    # (an extreme load, no summit statistics), the run goes on without the contact filter
+    # and says so, rather than refuse a scene whose contact is given
+    spot_only = isinstance(c.points, int) and not isinstance(c.stiffness, str)
+    stat, note = None, ""
+    profile = None
     if r.kind == "file":
         profile = build_profile(r, scene.block, scene.base_dir, stroke=stroke, band=band)
-        stat = contact_stiffness(scene, surface=profile.raw_spectrum) if need else None
-    else:
-        stat = contact_stiffness(scene) if need else None
-        profile = None
+    if need:
+        try:
+            stat = contact_stiffness(scene, surface=profile.raw_spectrum
+                                     if profile is not None else None)
+        except SceneError as err:
+            if not spot_only:
+                raise
+            note = (f"contact filter not applied: the statistical contact gives no spot radius "
+                    f"for this scene ({err}); set contact.spot_radius [m] to filter")
     spot = None
     if filtered:
-        spot = float(c.spot_radius) if not isinstance(c.spot_radius, str) else stat.spot_radius
+        spot = (float(c.spot_radius) if not isinstance(c.spot_radius, str)
+                else stat.spot_radius if stat is not None else None)
     if profile is None:
         profile = build_profile(r, scene.block, scene.base_dir, stroke=stroke, band=band,
                                 spot_radius=spot)
     else:
         profile = contact_filtered_profile(profile, spot)
+    if note:
+        profile.stats["contact_filter_note"] = note
     return SceneInput(profile=profile, band=band, statistical=stat)
 
 

@@ -277,7 +277,8 @@ def input_band(scene) -> InputBand:
     ``shortest_wavelength = "auto"``: v_rms / f_top, the wavelength that the rms sliding speed
     maps to the top of the output band f_top = 1 / (2 output.step) (0.2 um at 10 mm/s and
     50 kHz), no longer than the paper's 50 um and no shorter than trace_length /
-    :data:`MAX_BINS`. At higher speeds (the slip peaks reach about twice the rms) the band's
+    :data:`MAX_BINS` or, with ``roughness.spacing`` given, twice the spacing (the shortest
+    wavelength that grid holds). At higher speeds (the slip peaks reach about twice the rms) the band's
     top comes from longer wavelengths that the field holds; at lower speeds from shorter ones
     that it lacks, but the contact filter leaves their share at f_top small (it grows with the
     speed to the power 5.6 for a self-affine tail with H = 0.8, docs/theory.md).
@@ -299,8 +300,10 @@ def input_band(scene) -> InputBand:
     speed = scene_speed(scene)
     if isinstance(r.shortest_wavelength, str):
         floor = r.trace_length / MAX_BINS
+        if not isinstance(r.spacing, str):  # a grid given: the tail stops at its Nyquist
+            floor = max(floor, 2.0 * float(r.spacing))
         lam = speed / f_top if speed > 0 else PAPER_SHORTEST_WAVELENGTH
-        lam = min(max(lam, floor), PAPER_SHORTEST_WAVELENGTH)
+        lam = max(min(max(lam, floor), PAPER_SHORTEST_WAVELENGTH), floor)
         src = "auto"
     else:
         lam, src = float(r.shortest_wavelength), "scene"
