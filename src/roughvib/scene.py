@@ -583,7 +583,10 @@ class Roughness:
     ----------
     kind : {"none", "sinusoid", "synthetic", "file"}
     interpolation : {"cubic", "linear", "quintic"}
-        Interpolant handed to the solver; cubic is C2 (default), linear is paper-like (C0).
+        Interpolant between the samples of the input grid: ``quintic`` (default), a C4
+        spline, whose knots an error-controlled step does not feel; ``cubic``, C2 (its
+        third derivative jumps at every knot, which tight tolerances pay for in steps);
+        ``linear``, C0, the paper's.
     amplitude, wavelength : float
         ``sinusoid``: z = amplitude cos(2 pi s / wavelength) [m], [m].
     rms : float
@@ -637,7 +640,7 @@ class Roughness:
     """
 
     kind: str = "synthetic"
-    interpolation: str = "cubic"
+    interpolation: str = "quintic"
     amplitude: float = 0.35e-6
     wavelength: float = 1e-3
     rms: float = 0.35e-6
