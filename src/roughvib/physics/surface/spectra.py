@@ -52,7 +52,7 @@ def _psd_shape(k: np.ndarray, roughness: Roughness, q: float, shortest: float | 
     kl, k0, kh = _band(roughness, shortest)
     k = np.asarray(k, dtype=float)
     g = np.zeros_like(k)
-    band = (k >= kl) & (k <= kh)
+    band = (k >= kl * (1.0 - 1e-12)) & (k <= kh * (1.0 + 1e-12))  # band edges included
     g[band] = np.where(k[band] < k0, 1.0, (k[band] / k0) ** (-q))
     return g, (kl, k0, kh)
 
