@@ -23,7 +23,6 @@ from roughvib.physics.surface import field as fld
 from roughvib.physics.surface.contact import contact_stiffness, scene_input
 from roughvib.physics.surface.roughness import band_psd, synthetic_field
 
-
 # --------------------------------------------------------------------------------------------
 # the contact filter
 # --------------------------------------------------------------------------------------------

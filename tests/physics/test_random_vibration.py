@@ -16,9 +16,9 @@ G the model spectrum (``band_psd``), its functional high-pass and its normalisat
 here by quadrature; the run's band powers come from the recorded ``block_vertical_acceleration``
 and from the second central difference of the recorded ``roughness_input`` (its transfer
 function (2 - 2 cos(w dt))^2 / dt^4 is applied to the closed form: the input's displacement
-spectrum falls so steeply that a window's leakage would decide its high bands). A finite record of a random process scatters about the
-expectation by about 1 / sqrt(B T) in power (B the bandwidth, T the record): the tolerance of a
-band is four times that.
+spectrum falls so steeply that a window's leakage would decide its high bands). A finite
+record of a random process scatters about the expectation by about 1 / sqrt(B T) in power (B
+the bandwidth, T the record): the tolerance of a band is four times that.
 """
 
 import math
@@ -148,6 +148,7 @@ def test_the_filter_divides_each_band_by_its_closed_form(runs):
     err = 10 * np.log10(ratio_got / ratio_want)
     bt = (upper - lower) * (DURATION - TRANSIENT) / 1.5
     tol_db = 10 * np.log10(1 + 4 / np.sqrt(bt))
-    assert np.all(np.abs(err) < tol_db), [f"{c:.0f}: {e:+.2f}/{t:.2f}" for c, e, t in zip(centre, err, tol_db, strict=True)]
+    assert np.all(np.abs(err) < tol_db), [f"{c:.0f}: {e:+.2f}/{t:.2f}"
+                                          for c, e, t in zip(centre, err, tol_db, strict=True)]
     # and the filter matters there: at 6.3 kHz (lambda = 1.6 um, q = 20) it takes > 40 dB
     assert 10 * math.log10(ratio_want[-1]) < -40

@@ -278,10 +278,11 @@ def input_band(scene) -> InputBand:
     maps to the top of the output band f_top = 1 / (2 output.step) (0.2 um at 10 mm/s and
     50 kHz), no longer than the paper's 50 um and no shorter than trace_length /
     :data:`MAX_BINS` or, with ``roughness.spacing`` given, twice the spacing (the shortest
-    wavelength that grid holds). At higher speeds (the slip peaks reach about twice the rms) the band's
-    top comes from longer wavelengths that the field holds; at lower speeds from shorter ones
-    that it lacks, but the contact filter leaves their share at f_top small (it grows with the
-    speed to the power 5.6 for a self-affine tail with H = 0.8, docs/theory.md).
+    wavelength that grid holds). At higher speeds (the slip peaks reach about twice the rms)
+    the band's top comes from longer wavelengths that the field holds; at lower speeds from
+    shorter ones that it lacks, but the contact filter leaves their share at f_top small (it
+    grows with the speed to the power 5.6 for a self-affine tail with H = 0.8,
+    docs/theory.md).
 
     ``spacing = "auto"``: lambda_min / 4 with the Hertz contact filter (the filtered field is
     weak near its band edge: a cubic spline on it reads the band next to the edge 0.1 dB low,
