@@ -5,8 +5,10 @@ Usage (from the repository root)::
     python docs/figures/contact_count.py            # prints the tables (about a minute)
 
 1. The statistical contact (``contact.points = "auto"``, ``contact.stiffness = "auto"``) of
-   the built-in surfaces and loads: micro-contacts n_c, the contact points N, s_total, the
-   rigid-plate resonance.
+   the built-in surfaces and loads: micro-contacts n_c, the contact points N, the spot radius
+   a, s_total, the rigid-plate resonance.
+1b. The summits counted on the surface's band itself (a 1 nm spot filters nothing) against
+   those counted at the scale of the spots, as the tail is carried from 50 um to 0.25 um.
 2. The rms roughness at which the count of the paper scene's load reaches the paper's ten.
 3. The finite-population check of the mean-field count: the GW summit model (Gaussian summit
    heights of density eta, radius R, std sigma_s, Hertz contacts, a rigid flat) evaluated for
@@ -59,15 +61,29 @@ def finite_population(cs, draws: int = 4000, seed: int = 0, h0: float = 2.0):
 
 
 def main() -> None:
-    print("| surface | m [kg] | raw rms [um] | n_c (GW) | N | n_c (GT) | s_total [N/m] | "
-          "f_c [Hz] |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| surface | m [kg] | raw rms [um] | n_c (GW) | N | n_c (GT) | spot a [um] | "
+          "s_total [N/m] | f_c [Hz] |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for label, m, s in CASES:
         gw = contact_stiffness(scene(m, s, **{"contact.velocity_factor": False}))
         gt = contact_stiffness(scene(m, s, **{"contact.velocity_factor": False,
                                               "contact.model": "gt"}))
         print(f"| {label} | {m} | {s * 1e6:g} | {gw.micro_contacts:.2f} | {gw.points} | "
-              f"{gt.micro_contacts:.2f} | {gw.s_total:.3g} | {gw.resonance_hz:.0f} |")
+              f"{gt.micro_contacts:.2f} | {gw.spot_radius * 1e6:.2f} | {gw.s_total:.3g} | "
+              f"{gw.resonance_hz:.0f} |")
+
+    print("\n| tail to [um] | n_c, band's summits | a [um] | s_total [N/m] | n_c, spot scale | "
+          "a [um] | s_total [N/m] |")
+    print("|---|---|---|---|---|---|---|")
+    for lam in (50e-6, 20e-6, 10e-6, 5e-6, 2e-6, 1e-6, 0.5e-6, 0.25e-6):
+        band = contact_stiffness(scene(0.221, 3.5e-6, **{"roughness.shortest_wavelength": lam,
+                                                         "contact.spot_radius": 1e-9}))
+        spot = contact_stiffness(scene(0.221, 3.5e-6, **{"roughness.shortest_wavelength": lam}))
+        # the band's own spots: the mean micro-contact radius those summits give
+        a_band = math.sqrt(band.real_area / (math.pi * band.micro_contacts))
+        print(f"| {lam * 1e6:g} | {band.micro_contacts:.2f} | {a_band * 1e6:.2f} | "
+              f"{band.s_total:.3g} | {spot.micro_contacts:.2f} | {spot.spot_radius * 1e6:.2f} | "
+              f"{spot.s_total:.3g} |")
 
     def n_of(log_rms):
         return contact_stiffness(scene(0.221, math.exp(log_rms))).micro_contacts - 9.5

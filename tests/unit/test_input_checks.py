@@ -184,7 +184,7 @@ def test_a_scene_spacing_has_the_upper_bound_of_a_profile_files_step(tmp_path):
     """roughness.spacing (the step of a profile file without an x column, or of a synthetic
     profile) is refused above 1 mm, as the step a profile file's own x column gives; it
     allowed 10 mm."""
-    from roughvib.physics.surface.roughness import FILE_SPACING
+    from roughvib.physics.surface.measured import FILE_SPACING
     from roughvib.scene import SANE_BOUNDS
 
     assert SANE_BOUNDS["roughness.spacing"][:2] == FILE_SPACING
