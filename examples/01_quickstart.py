@@ -13,8 +13,8 @@ from roughvib.views.figures import plot_velocity
 
 
 def main(out_dir: str = "runs/quickstart") -> roughvib.Result:
-    # the built-in paper scene (0.221 kg, 10 mm/s rms at 7 Hz, one contact point from the
-    # contact module, modes to 50 kHz), shortened to two excitation periods (2/7 s: one of
+    # the built-in paper scene (0.221 kg, 10 mm/s rms at 7 Hz, four contact points from
+    # the contact module, modes to 50 kHz), shortened to two excitation periods (2/7 s: one of
     # run-in, one analysed) and with fewer plate modes so that it runs in seconds
     scene = roughvib.load_scene("paper", **{"output.duration": 2 / 7,
                                             "plate.max_frequency": 10e3,

@@ -17,7 +17,7 @@ parabola is the contact filter (:func:`hertz_filter`)
 
     H(q) = 3 (sin q - q cos q) / q^3,   q = k a,
 
-1 at q = 0, -3 dB near q = 1.6, first zero at q = 4.493, falling as 3 / q^2 beyond.
+1 at q = 0, -3 dB at q = 1.81, first zero at q = 4.493, falling as 3 / q^2 beyond.
 
 :func:`input_band` resolves a scene's ``"auto"`` tail limit and grid: the tail is carried to
 the wavelength that the rms sliding speed maps to the top of the output band, so that no band
