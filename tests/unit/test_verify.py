@@ -58,3 +58,25 @@ def test_an_unverified_run_says_how_to_verify_in_its_report(tmp_path):
     assert "accuracy" not in r.summary
     r.save(tmp_path / "r")
     assert "roughvib run --verify" in _accuracy_section(load_result(tmp_path / "r").summary)
+
+
+@pytest.mark.short_run
+def test_the_verifying_solve_scales_its_tolerance_like_the_run():
+    """The second solve leaves atol_acceleration to its pilot (the preset's relative value
+    times the quieter signal's level), as the run does."""
+    from roughvib.simulation import verification_scene
+
+    scene = roughvib.load_scene("paper")
+    vscene, how = verification_scene(scene)
+    assert vscene.solver.method == "ida" and vscene.solver.atol_acceleration is None
+    assert vscene.solver.atol_acceleration_relative is not None
+    r = simulate(roughvib.load_scene("paper", {"block.mass": 1e-4, "output.duration": 0.03,
+                                               "output.progress": False}))
+    pilot = r.summary["solver"]["pilot"]
+    # a 0.1 g block: the plate is far quieter than the block, and sets the level
+    ds = r.dataset
+    t = ds["time"].values <= pilot["duration"]
+    block = float((ds["block_vertical_acceleration"].values[t] ** 2).mean() ** 0.5)
+    plate = float((ds["plate_vertical_acceleration"].values[t] ** 2).mean() ** 0.5)
+    assert plate < block / 100
+    assert pilot["level"] == pytest.approx(plate, rel=0.3)
