@@ -416,6 +416,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     """
     r = roughness
     raw_spectrum = None
+    moments = None  # of a synthetic field: from its bins
     bl = block.length
     stroke = bl if stroke is None else float(stroke)
     min_len = bl + stroke
@@ -461,6 +462,9 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
         spec, info = synthetic_field(r, bl, band.shortest_wavelength, spot_radius)
         z, dx = spec.sample(band.spacing)
         stats.update(info)
+        m0, m2, m4 = spec.moments()  # exact, and an FFT of millions of points cheaper
+        moments = {"rms": math.sqrt(m0), "rms_slope": math.sqrt(m2),
+                   "rms_curvature": math.sqrt(m4), "derivatives": "spectral"}
     else:
         dx = section_band(r).spacing
         n = int(round(r.trace_length / dx)) + 1
@@ -485,8 +489,8 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
                          f"(check roughness.rms, amplitude, raw_rms and the band), got "
                          f"{int(np.count_nonzero(~np.isfinite(z)))} of {z.size} samples")
     n = z.size
-    stats.update(n=int(n), length=float((n - 1) * dx), filter=r.filter)
-    stats.update(profile_statistics(z, dx, periodic=periodic))
+    stats.update(n=int(n), length=float((n if periodic else n - 1) * dx), filter=r.filter)
+    stats.update(moments if moments is not None else profile_statistics(z, dx, periodic=periodic))
     s_centre = (n // 2) * dx
     return Profile(z=np.ascontiguousarray(z, dtype=float), dx=float(dx), s0=0.0,
                    s_centre=float(s_centre), stats=stats, raw_spectrum=raw_spectrum,
