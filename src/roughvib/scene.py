@@ -625,6 +625,12 @@ class Roughness:
         used that layout for a coherence integral, see docs/theory.md).
     filter : {"highpass", "block-lowpass", "none"}
         Functional filter over the block length (docs/theory.md).
+    tail : {"fit", "none"}
+        ``file``: below the shortest wavelength the samples resolve (twice their spacing),
+        ``fit`` (default) continues the profile's spectrum with the self-affine slope fitted
+        to its own shortest resolved decade, down to ``shortest_wavelength`` (random phases
+        from ``seed``); ``none`` keeps the file's band alone (the bands above v / (2 dx) then
+        hold only the interpolant's residue).
     path : str
         ``file``: path of a profile file (relative paths are relative to the scene file).
     units : {"m", "um", "nm"}
@@ -655,6 +661,7 @@ class Roughness:
     reduce_3d: bool = False
     trace_layout: str = "uniform"
     filter: str = "highpass"
+    tail: str = "fit"
     path: str = ""
     units: str = "m"
     format: str = "auto"
@@ -684,6 +691,7 @@ class Roughness:
                                            ("uniform", "cbrt2")))
         _set(self, "filter", _choice(f"{p}.filter", self.filter,
                                      ("highpass", "block-lowpass", "none")))
+        _set(self, "tail", _choice(f"{p}.tail", self.tail, ("fit", "none")))
         if not isinstance(self.path, str):
             raise SceneError(f"{p}.path must be a string (file path), got {_fmt(self.path)}")
         _set(self, "units", _choice(f"{p}.units", self.units, ("m", "um", "nm")))

@@ -188,3 +188,80 @@ def test_the_default_bands_do_not_move_when_the_representation_is_refined(defaul
                      force_amplitude=ref.summary["force_amplitude"])
     moved = _bands_moved(ref, other)
     assert max(moved.values()) <= REPRESENTATION.band_db, moved
+
+
+# --------------------------------------------------------------------------------------------
+# a measured profile is read between its samples by band-limited interpolation
+# --------------------------------------------------------------------------------------------
+
+def _as_profile(z, dx):
+    from roughvib.physics.surface.roughness import Profile
+
+    return Profile(z=np.asarray(z, dtype=float), dx=dx, s0=0.0, s_centre=0.0, stats={})
+
+
+def test_a_measured_field_is_the_file_at_its_samples_and_band_limited_between_them():
+    from roughvib.physics.surface.roughness import measured_field
+
+    rng = np.random.default_rng(1)
+    z = rng.standard_normal(1001) * 1e-6
+    p = measured_field(_as_profile(z, 1e-5), 2e-5, 2.5e-6, 1, tail=False, spot_radius=None)
+    assert p.dx == pytest.approx(2.5e-6) and not p.periodic
+    np.testing.assert_allclose(p.z[::4], z - z.mean(), atol=1e-18)
+    # a sinusoid of 7.3 samples per wavelength, read between the samples inside the record
+    s = np.arange(2001) * 1e-5
+    lam = 7.3e-5
+    wave = np.cos(2 * np.pi * s / lam)
+    p = measured_field(_as_profile(wave, 1e-5), 2e-5, 2.5e-6, 1, tail=False, spot_radius=None)
+    sf = np.arange(p.z.size) * p.dx
+    inner = (sf > 0.003) & (sf < 0.017)  # the field has the samples' mean removed
+    exact = np.cos(2 * np.pi * sf[inner] / lam) - wave.mean()
+    assert np.max(np.abs(p.z[inner] - exact)) < 1e-5
+
+
+def test_the_fitted_tail_has_the_files_hurst_exponent():
+    """A file cut from a synthetic surface of H = 0.8 at 10 um: the fit of its shortest resolved
+    decade gives H within 0.1, and the tail's bins continue that line."""
+    from roughvib.physics.surface.roughness import measured_field
+
+    # the surface down to the samples' Nyquist wavelength, sampled at 10 um (no aliasing)
+    scene = roughvib.load_scene("paper", {"roughness.shortest_wavelength": 20e-6,
+                                          "roughness.spacing": 10e-6,
+                                          "contact.filter": "none"})
+    prof = scene_input(scene).profile
+    p = measured_field(_as_profile(prof.z, prof.dx), 1e-6, 0.25e-6, 3, tail=True,
+                       spot_radius=None)
+    assert p.stats["tail"] == "fitted"
+    assert p.stats["hurst_fit"] == pytest.approx(0.8, abs=0.1)
+    assert p.stats["shortest_wavelength"] == pytest.approx(1e-6, rel=1e-3)
+
+
+@pytest.fixture(scope="module")
+def measured_file(tmp_path_factory):
+    """The paper's synthetic surface down to 25 um written as a measured file at 10 um: a
+    measurement whose samples resolve its band (an instrument's filters stop what its
+    samples cannot hold)."""
+    scene = roughvib.load_scene("paper", {"roughness.shortest_wavelength": 25e-6,
+                                          "roughness.spacing": 10e-6, "contact.filter": "none"})
+    prof = scene_input(scene).profile
+    path = tmp_path_factory.mktemp("measured") / "trace.txt"
+    np.savetxt(path, prof.z * 1e6)
+    return path
+
+
+def test_a_measured_profiles_bands_do_not_move_when_its_grid_is_refined(measured_file):
+    """The file's bins, their fitted tail and the contact filter, sampled on the "auto" grid
+    and on half of it: no band within 60 dB of the strongest moves by more than 0.5 dB."""
+    over = {"roughness.kind": "file", "roughness.path": str(measured_file),
+            "roughness.units": "um", "roughness.spacing": 10e-6, "output.progress": False}
+    scene = roughvib.load_scene("paper", over)
+    band = scene_input(scene).band
+    a = simulate(scene)
+    assert a.summary["model"]["profile"]["tail"] == "fitted"
+    b = simulate(roughvib.load_scene("paper", {**over, "roughness.shortest_wavelength":
+                                               band.shortest_wavelength}),
+                 force_amplitude=a.summary["force_amplitude"])
+    assert b.summary["model"]["profile"]["shortest_wavelength"] == pytest.approx(
+        a.summary["model"]["profile"]["shortest_wavelength"], rel=1e-3)
+    moved = _bands_moved(a, b)
+    assert max(moved.values()) <= REPRESENTATION.band_db, moved

@@ -809,7 +809,7 @@ def scene_input(scene: Scene, *, stroke: float | None = None) -> SceneInput:
     -------
     SceneInput
     """
-    from roughvib.physics.surface.roughness import build_profile, contact_filtered_profile
+    from roughvib.physics.surface.roughness import build_profile, measured_field
 
     c, r = scene.contact, scene.roughness
     band = input_band(scene)
@@ -839,8 +839,9 @@ def scene_input(scene: Scene, *, stroke: float | None = None) -> SceneInput:
     if profile is None:
         profile = build_profile(r, scene.block, scene.base_dir, stroke=stroke, band=band,
                                 spot_radius=spot)
-    else:
-        profile = contact_filtered_profile(profile, spot)
+    else:  # a measured profile: its own bins, a fitted tail, the contact filter
+        profile = measured_field(profile, band.shortest_wavelength, band.spacing, r.seed,
+                                 tail=r.tail == "fit", spot_radius=spot)
     if note:
         profile.stats["contact_filter_note"] = note
     return SceneInput(profile=profile, band=band, statistical=stat)

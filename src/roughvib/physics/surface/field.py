@@ -147,7 +147,20 @@ class SurfaceSpectrum:
         dx : float
             P / n [m], <= ``spacing``.
         """
-        n = self.grid_size(spacing)
+        return self.sample_on(self.grid_size(spacing))
+
+    def sample_on(self, n: int) -> tuple[np.ndarray, float]:
+        """The field on exactly ``n`` points over one period (n > 2 J + 1), s_i = i P / n.
+
+        Returns
+        -------
+        z : ndarray, shape (n,)
+            [m].
+        dx : float
+            P / n [m].
+        """
+        if n < 2 * self.n_bins + 2:
+            raise ValueError(f"n must exceed 2 J + 1 = {2 * self.n_bins + 1}, got {n}")
         full = np.zeros(n // 2 + 1, dtype=complex)
         full[: self.coefficients.size] = self.coefficients * (n / 2.0)
         return np.fft.irfft(full, n), self.period / n
@@ -301,14 +314,14 @@ def input_band(scene) -> InputBand:
     speed = scene_speed(scene)
     if isinstance(r.shortest_wavelength, str):
         floor = r.trace_length / MAX_BINS
-        if not isinstance(r.spacing, str):  # a grid given: the tail stops at its Nyquist
-            floor = max(floor, 2.0 * float(r.spacing))
+        if not isinstance(r.spacing, str) and r.kind != "file":
+            floor = max(floor, 2.0 * float(r.spacing))  # a grid given: its Nyquist
         lam = speed / f_top if speed > 0 else PAPER_SHORTEST_WAVELENGTH
         lam = max(min(max(lam, floor), PAPER_SHORTEST_WAVELENGTH), floor)
         src = "auto"
     else:
         lam, src = float(r.shortest_wavelength), "scene"
-    if isinstance(r.spacing, str):
+    if isinstance(r.spacing, str) or r.kind == "file":  # a file's spacing: its samples
         spacing = lam / SAMPLES_PER_WAVELENGTH[scene.contact.filter]
         ssrc = "auto"
     else:

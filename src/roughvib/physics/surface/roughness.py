@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from roughvib.physics.surface.field import (
+    MAX_BINS,
     PAPER_SHORTEST_WAVELENGTH,
     DiscretePSD,
     InputBand,
@@ -451,6 +452,7 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
             raw_z = z
             z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
             _check_filtered(raw_z - raw_z.mean(), z, r, bl)
+        stats.update(shortest_wavelength=2.0 * meas.dx)
         z = _contact_filtered(z, dx, spot_radius, periodic=False)
     elif r.kind == "synthetic" and not r.reduce_3d:
         if band is None:
@@ -495,6 +497,125 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     return Profile(z=np.ascontiguousarray(z, dtype=float), dx=float(dx), s0=0.0,
                    s_centre=float(s_centre), stats=stats, raw_spectrum=raw_spectrum,
                    periodic=periodic)
+
+
+#: the decade of a measured profile's own spectrum that its tail is fitted to: wavelengths
+#: from 20 to 4 samples (below 4 samples a stylus tip and the instrument's filters take their
+#: share; above, the fit would reach the roll-off)
+TAIL_FIT_SAMPLES = (20.0, 4.0)
+#: a fitted Hurst exponent outside this range is no self-affine tail: the tail is left off
+TAIL_HURST_RANGE = (0.05, 1.0)
+
+
+def fit_tail_hurst(c: np.ndarray, k: np.ndarray, dx: float) -> tuple[float, float, str]:
+    """Hurst exponent of a measured spectrum's shortest resolved decade.
+
+    A least-squares line through log |c_j|^2 against log k_j over the wavelengths of
+    :data:`TAIL_FIT_SAMPLES` samples; a self-affine profile has the slope -(1 + 2H).
+
+    Parameters
+    ----------
+    c : ndarray of complex, shape (J + 1,)
+        Fourier bins of the profile [m].
+    k : ndarray, shape (J + 1,)
+        Their angular wavenumbers [rad/m].
+    dx : float
+        The profile's sample spacing [m].
+
+    Returns
+    -------
+    hurst : float
+        H [-] (NaN when no fit).
+    level : float
+        The fitted |c|^2 at the decade's short end [m^2] (NaN when no fit).
+    note : str
+        Why there is no tail ("" when the fit holds).
+    """
+    lo, hi = (2.0 * np.pi / (n * dx) for n in TAIL_FIT_SAMPLES)
+    sel = (k >= lo) & (k <= hi) & (np.abs(c) > 0)
+    if np.count_nonzero(sel) < 8:
+        return math.nan, math.nan, "too few bins to fit a tail"
+    slope, icept = np.polyfit(np.log(k[sel]), np.log(np.abs(c[sel]) ** 2), 1)
+    hurst = (-slope - 1.0) / 2.0
+    if not TAIL_HURST_RANGE[0] <= hurst <= TAIL_HURST_RANGE[1]:
+        return float(hurst), math.nan, (f"the fitted spectral slope {slope:.3g} is no "
+                                         f"self-affine tail (Hurst exponent {hurst:.3g} outside "
+                                         f"{TAIL_HURST_RANGE[0]}..{TAIL_HURST_RANGE[1]})")
+    return float(hurst), float(math.exp(icept + slope * math.log(hi))), ""
+
+
+def measured_field(profile: Profile, shortest: float, spacing: float, seed: int, *,
+                   tail: bool, spot_radius: float | None) -> Profile:
+    """A measured profile as a field: its own Fourier bins, a fitted tail, the contact filter.
+
+    The profile's even extension [z, z reversed] (no jump at its ends) is one period of the
+    bins its samples resolve, down to twice their spacing; with ``tail`` the spectrum goes on
+    below that with the self-affine slope of :func:`fit_tail_hurst`, bin by bin to
+    ``shortest`` (moduli on the fitted line, phases from ``numpy.random.default_rng(seed)``);
+    the contact filter of ``spot_radius`` weighs every bin; and the field is sampled on a grid
+    no coarser than ``spacing``, of which the first half of the period is the profile. At the
+    file's own samples the field without tail and filter is the file (band-limited
+    interpolation, not a spline's images).
+
+    Parameters
+    ----------
+    profile : Profile
+        The measured profile (:func:`build_profile`, ``kind = "file"``), on its file grid.
+    shortest : float
+        Where the tail stops [m].
+    spacing : float
+        Largest grid spacing of the result [m].
+    seed : int
+        Phases of the tail.
+    tail : bool
+        Continue the spectrum below the file's band.
+    spot_radius : float or None
+        Contact-filter radius [m]; None: no filter.
+
+    Returns
+    -------
+    Profile
+        Not periodic; ``stats`` gain ``file_spacing``, ``tail`` ("fitted" or why not),
+        ``hurst_fit``, ``shortest_wavelength``, ``contact_filter``, ``spot_radius`` and the
+        statistics of the result.
+    """
+    from dataclasses import replace
+
+    z = np.asarray(profile.z, dtype=float)
+    n, dx = z.size, profile.dx
+    ext = np.concatenate([z - z.mean(), (z - z.mean())[::-1]])
+    m = ext.size
+    c = np.fft.rfft(ext) * (2.0 / m)
+    c[0] = 0.0
+    c[-1] *= 0.5  # the Nyquist bin of the even-length extension is counted once
+    period = m * dx
+    k = 2.0 * np.pi / period * np.arange(c.size)
+    stats = dict(profile.stats, file_spacing=float(dx))
+    hurst, level, why = fit_tail_hurst(c, k, dx) if tail else (math.nan, math.nan, "off")
+    stats["hurst_fit"] = None if math.isnan(hurst) else float(hurst)
+    if tail and not why and shortest < 2.0 * dx:
+        j_max = min(int(math.floor(period / shortest * (1.0 + 1e-12))), MAX_BINS)
+        kj = 2.0 * np.pi / period * np.arange(c.size, j_max + 1)
+        k_ref = 2.0 * np.pi / (TAIL_FIT_SAMPLES[1] * dx)
+        amp = np.sqrt(level * (kj / k_ref) ** (-(1.0 + 2.0 * hurst)))
+        u = np.random.default_rng(seed).random(kj.size)
+        c = np.concatenate([c, amp * np.exp(2j * np.pi * u)])
+        stats.update(tail="fitted", shortest_wavelength=float(period / j_max))
+    else:
+        stats.update(tail=why or "none", shortest_wavelength=float(2.0 * dx))
+    spec = SurfaceSpectrum(period, c)
+    if spot_radius is not None:
+        spec = spec.with_gain(hertz_filter(spec.wavenumbers * spot_radius))
+        stats.update(spot_radius=float(spot_radius), contact_filter="hertz")
+    # an integer refinement of the file's grid, so that its samples are grid points
+    factor = max(int(math.ceil(dx / spacing * (1.0 - 1e-12))), 1)
+    factor = max(factor, int(math.ceil((2 * spec.n_bins + 2) / m)))
+    fine, dx_fine = spec.sample_on(m * factor)
+    keep = (n - 1) * factor + 1
+    zf = np.ascontiguousarray(fine[:keep])
+    stats.update(profile_statistics(zf, dx_fine), n=int(zf.size),
+                 length=float((zf.size - 1) * dx_fine))
+    return replace(profile, z=zf, dx=float(dx_fine), stats=stats, periodic=False)
 
 
 def _raw_spectrum(traces: np.ndarray, dx: float) -> DiscretePSD:
