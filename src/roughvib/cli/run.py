@@ -69,8 +69,15 @@ def _print_summary(summary: dict, out_dir: Path) -> None:
         spot = inp.get("spot_radius")
         filt = (f"contact filter a = {spot * 1e6:.3g} um" if spot else "no contact filter")
         res = inp.get("resolved_frequency_rms")
-        lines.append(f"input            surface to {inp['shortest_wavelength'] * 1e6:.3g} um "
-                     f"({inp.get('shortest_source')}), {filt}, grid "
+        prof = summary.get("model", {}).get("profile", {})
+        how = inp.get("shortest_source")
+        if prof.get("tail") == "fitted":
+            how = f"fitted tail, H = {prof.get('hurst_fit'):.2f}"
+        elif prof.get("tail") not in (None, "fitted"):
+            how = f"the file's band; no tail: {prof.get('tail')}"
+        lam = prof.get("shortest_wavelength", inp["shortest_wavelength"])
+        lines.append(f"input            surface to {lam * 1e6:.3g} um "
+                     f"({how}), {filt}, grid "
                      f"{inp.get('grid_spacing', float('nan')) * 1e6:.3g} um"
                      + (f"; resolved to {res / 1e3:.3g} kHz at the rms speed" if res else ""))
     ev = summary.get("events_by_kind", {})
