@@ -18,7 +18,7 @@ import sys
 import time
 
 from roughvib._version import __version__
-from roughvib.cli import compare, lab, modes, report, results, run, surface, sweep
+from roughvib.cli import compare, lab, modes, report, results, run, sources, surface, sweep
 from roughvib.cli.args import (
     EXIT_INPUT,
     EXIT_INTERRUPT,
@@ -66,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_parsers(sub)
     results.add_parsers(sub)
     compare.add_parsers(sub)
+    sources.add_parsers(sub)
     surface.add_parsers(sub)
     modes.add_parsers(sub)
     report.add_parsers(sub)
