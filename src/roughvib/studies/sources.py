@@ -49,11 +49,14 @@ class Variant:
     change : str
         What was changed, in scene keys.
     scene : Scene
+    label : str
+        What the run is, in words (a figure's legend).
     """
 
     name: str
     change: str
     scene: Scene
+    label: str = ""
 
 
 #: the sources the study can change, in the order of its table
@@ -77,15 +80,17 @@ def source_variants(scene: Scene, v_rms: float | None = None) -> list[Variant]:
         only for a force-driven block with a known rms velocity, ``friction moment`` only
         on a structure with modes and where the scene's solver runs it.
     """
-    out = [Variant("as is", "", scene)]
+    out = [Variant("as is", "", scene, "as it is")]
     r, c, exc = scene.roughness, scene.contact, scene.excitation
     below = isinstance(r.shortest_wavelength, str) or r.shortest_wavelength < 50e-6
     if r.kind == "synthetic" and not r.reduce_3d and below:
         out.append(Variant("tail", "roughness.shortest_wavelength = 50e-6",
-                           scene.with_overrides({"roughness.shortest_wavelength": 50e-6})))
+                           scene.with_overrides({"roughness.shortest_wavelength": 50e-6}),
+                           "without the surface below 50 um"))
     if c.filter != "none" and r.kind in ("synthetic", "file"):
         out.append(Variant("contact filter", "contact.filter = 'none'",
-                           scene.with_overrides({"contact.filter": "none"})))
+                           scene.with_overrides({"contact.filter": "none"}),
+                           "without the contact filter"))
     v = v_rms if v_rms is not None else exc.target_rms_velocity
     if exc.kind == "force" and v:
         amp = math.sqrt(2.0) * v / exc.omega
@@ -94,12 +99,14 @@ def source_variants(scene: Scene, v_rms: float | None = None) -> list[Variant]:
             f"(sinusoidal sliding at {v:.4g} m/s rms)",
             scene.with_overrides({"excitation.kind": "prescribed", "excitation.velocity": 0.0,
                                   "excitation.amplitude": amp,
-                                  "excitation.target_rms_velocity": "none"})))
+                                  "excitation.target_rms_velocity": "none"}),
+            "sinusoidal sliding, no stick-slip"))
     if (exc.kind == "force" and scene.plate.kind != "rigid"
             and scene.resolved_solver().method in FRICTION_MOMENT_METHODS):
         on = not c.friction_moment
         out.append(Variant("friction moment", f"contact.friction_moment = {str(on).lower()}",
-                           scene.with_overrides({"contact.friction_moment": on})))
+                           scene.with_overrides({"contact.friction_moment": on}),
+                           f"{'with' if on else 'without'} the friction moment"))
     return out
 
 
@@ -130,7 +137,7 @@ def source_study(scene: Scene, *, progress: Callable[[str], None] | None = None
     -------
     bands : DataFrame
         One row per third-octave band (``band_hz``) and per variant and signal: columns
-        ``variant``, ``signal`` ("block", "plate"), ``band_hz``, ``level_db`` [dB re
+        ``variant``, ``label`` (the variant in words), ``signal`` ("block", "plate"), ``band_hz``, ``level_db`` [dB re
         1e-6 m/s^2], ``change_db`` (the variant's level less the run as it is; NaN where
         either is not finite: a band too narrow for the window, a signal that is zero).
     runs : DataFrame
@@ -170,7 +177,8 @@ def source_study(scene: Scene, *, progress: Callable[[str], None] | None = None
         for sig in SIGNALS:
             for f, level, level_ref in zip(lv["centre"], lv[sig], ref[sig], strict=True):
                 both = math.isfinite(level) and math.isfinite(level_ref)
-                bands.append({"variant": var.name, "signal": sig, "band_hz": float(f),
+                bands.append({"variant": var.name, "label": var.label, "signal": sig,
+                              "band_hz": float(f),
                               "level_db": float(level),
                               "change_db": float(level - level_ref) if both else math.nan})
     return pd.DataFrame(bands), pd.DataFrame(rows)

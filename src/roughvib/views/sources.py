@@ -17,8 +17,8 @@ def sources_figure(bands, path: Path, title: str = "") -> Path:
     Parameters
     ----------
     bands : pandas.DataFrame
-        Columns ``variant``, ``signal`` ("block" / "plate"), ``band_hz`` [Hz], ``level_db``
-        and ``change_db`` [dB].
+        Columns ``variant``, ``label`` (the legend), ``signal`` ("block" / "plate"),
+        ``band_hz`` [Hz], ``level_db`` and ``change_db`` [dB].
     path : Path
         PNG file.
     title : str
@@ -47,8 +47,9 @@ def sources_figure(bands, path: Path, title: str = "") -> Path:
         sub = bands[bands["signal"] == sig]
         for i, v in enumerate(variants):
             b = sub[sub["variant"] == v]
+            label = b["label"].iloc[0] if "label" in b and len(b) else v
             ax.semilogx(b["band_hz"], b["change_db"], marker="o", ms=3, lw=1.2,
-                        color=f"C{i}", label=f"{v} changed")
+                        color=f"C{i}", label=label)
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_ylabel(f"{sig}: level change [dB]")
         ax.grid(True, which="both", alpha=0.3)
