@@ -138,8 +138,9 @@ def source_study(scene: Scene, *, progress: Callable[[str], None] | None = None
     bands : DataFrame
         One row per third-octave band (``band_hz``) and per variant and signal: columns
         ``variant``, ``label`` (the variant in words), ``signal`` ("block", "plate"),
-        ``band_hz``, ``level_db`` [dB re 1e-6 m/s^2], ``change_db`` (the variant's level less the run as it is; NaN where
-        either is not finite: a band too narrow for the window, a signal that is zero).
+        ``band_hz``, ``level_db`` [dB re 1e-6 m/s^2], ``change_db`` (the variant's level
+        less the run as it is; NaN where either is not finite: a band too narrow for the
+        window, a signal that is zero).
     runs : DataFrame
         One row per variant: ``variant``, ``change``, ``status``, ``lift_offs``,
         ``stick_fraction``, ``block_db``, ``plate_db`` (overall levels), ``wall_time`` [s].
