@@ -265,3 +265,12 @@ def test_a_measured_profiles_bands_do_not_move_when_its_grid_is_refined(measured
         a.summary["model"]["profile"]["shortest_wavelength"], rel=1e-3)
     moved = _bands_moved(a, b)
     assert max(moved.values()) <= REPRESENTATION.band_db, moved
+
+
+def test_a_span_averaged_surface_too_fine_to_synthesise_is_refused_by_its_tail_key():
+    from roughvib.scene import SceneError
+
+    with pytest.raises(SceneError, match=r"^roughness.shortest_wavelength must be >= "
+                                         r"1.8\de-05 m with roughness.reduce_3d = true"):
+        scene_input(roughvib.load_scene("paper", {"roughness.reduce_3d": True,
+                                                  "roughness.shortest_wavelength": 5e-6}))

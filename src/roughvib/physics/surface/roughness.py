@@ -353,10 +353,11 @@ def _contact_filtered(z: np.ndarray, dx: float, spot_radius: float | None, *,
 
 def section_band(r: Roughness) -> InputBand:
     """The band of a ``[roughness]`` section on its own, without a scene to resolve ``"auto"``
-    from: its numbers, ``"auto"`` read as the paper's 50 um band on its 10 um grid."""
+    from: its numbers, ``"auto"`` read as the paper's 50 um band and its 10 um grid (or half
+    a shorter given band)."""
     lam = (PAPER_SHORTEST_WAVELENGTH if isinstance(r.shortest_wavelength, str)
            else float(r.shortest_wavelength))
-    dx = PAPER_SPACING if isinstance(r.spacing, str) else float(r.spacing)
+    dx = min(PAPER_SPACING, lam / 2.0) if isinstance(r.spacing, str) else float(r.spacing)
     return InputBand(shortest_wavelength=lam, spacing=dx, shortest_source="scene",
                      spacing_source="scene", speed=0.0, top_frequency=math.inf)
 
@@ -645,6 +646,11 @@ def contact_filtered_profile(profile: Profile, spot_radius: float | None) -> Pro
     return replace(profile, z=np.ascontiguousarray(z), stats=stats)
 
 
+#: most Fourier modes of the 2-D surface that ``reduce_3d`` synthesises (its cost grows with
+#: the square of the shortest wavelength's inverse: 8e6 at 50 um, 5e7 at 20 um)
+MAX_AREAL_MODES = 6e7
+
+
 def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
     """Span average of the 2-D surface over the block width, traces at the profile spacing.
 
@@ -656,6 +662,15 @@ def _reduce_3d(r: Roughness, block: Block, stats: dict) -> np.ndarray:
     same surface are reported in ``stats``.
     """
     width = block.width
+    period_y = 2.0 * max(width, r.longest_wavelength)
+    modes = 0.5 * math.pi * (r.trace_length / r.shortest_wavelength) \
+        * (period_y / r.shortest_wavelength)
+    if modes > MAX_AREAL_MODES:
+        lam = math.sqrt(0.5 * math.pi * r.trace_length * period_y / MAX_AREAL_MODES)
+        raise SceneError(f"roughness.shortest_wavelength must be >= {lam:.3g} m with "
+                         f"roughness.reduce_3d = true (the 2-D surface then holds "
+                         f"{modes:.3g} Fourier modes, more than {MAX_AREAL_MODES:.0e}), got "
+                         f"{r.shortest_wavelength} m")
     if r.raw_rms == 0.0:
         stats.update(raw_rms=0.0, reduced_rms=0.0, reduction_db=float("nan"))
         return np.zeros(_n_points(r))
