@@ -790,14 +790,21 @@ def verify_result(result: Result, scene: Scene, *, progress: bool | None = None)
 
 def representation_scene(scene: Scene, system: System | None) -> Scene | None:
     """The scene on a refined input: half the grid spacing and half the tail limit of the
-    run's synthetic surface (as resolved), or None where the input has no such parameters
-    (the other kinds, or no system to read the resolved values from)."""
+    run's synthetic surface (as resolved), half the tail limit of a measured one with a
+    fitted tail (its grid follows), or None where the input has no such parameters (the
+    other kinds, a file's own band, or no system to read the resolved values from)."""
     r = scene.roughness
     band = (system.contact.get("input") if system is not None else None) or {}
-    if r.kind != "synthetic" or r.reduce_3d or not band:
+    if not band or r.reduce_3d:
         return None
-    return replace_section(scene, "roughness", spacing=0.5 * float(system.profile.dx),
-                           shortest_wavelength=0.5 * float(band["shortest_wavelength"]))
+    if r.kind == "synthetic":
+        return replace_section(scene, "roughness", spacing=0.5 * float(system.profile.dx),
+                               shortest_wavelength=0.5 * float(band["shortest_wavelength"]))
+    if r.kind == "file" and system.profile.stats.get("tail") == "fitted":
+        # the grid of a file's field follows its tail limit ("auto" spacing is the file's)
+        return replace_section(scene, "roughness", shortest_wavelength=0.5 * float(
+            system.profile.stats["shortest_wavelength"]))
+    return None
 
 
 def _check_representation(result: Result, scene: Scene, rscene: Scene,
