@@ -114,7 +114,7 @@ def _levels(result, period: float, transient: float) -> dict[str, np.ndarray]:
     ds = result.dataset
     t = ds["time"].values
     win = analysis_window(t, period, transient)
-    fs = 1.0 / (t[1] - t[0])
+    fs = 1.0 / float(np.mean(np.diff(t)))
     out = {}
     for name, var in SIGNALS.items():
         bl = band_levels(ds[var].values[win], fs, fmin=20.0, method="fft")

@@ -41,7 +41,7 @@ def sources_figure(bands, path: Path, title: str = "") -> Path:
 
     fig = Figure(figsize=(8.0, 7.0), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(2, 1, sharex=True)
+    top, bottom = axes = fig.subplots(2, 1, sharex=True)
     variants = [v for v in dict.fromkeys(bands["variant"]) if v != "as is"]
     for ax, sig in zip(axes, ("block", "plate"), strict=True):
         sub = bands[bands["signal"] == sig]
@@ -53,7 +53,7 @@ def sources_figure(bands, path: Path, title: str = "") -> Path:
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_ylabel(f"{sig}: level change [dB]")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(loc="best", fontsize=8)
-    axes[0].set_title(title or "band levels with one source changed, against the run as it is")
-    axes[1].set_xlabel("third-octave band [Hz]")
+    top.legend(loc="best", fontsize=8)
+    top.set_title(title or "band levels with one source changed, against the run as it is")
+    bottom.set_xlabel("third-octave band [Hz]")
     return write_file(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))

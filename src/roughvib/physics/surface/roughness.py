@@ -328,7 +328,8 @@ def synthetic_field(roughness: Roughness, block_length: float, shortest: float,
                          f"longer than the profile's shortest wavelengths), got block.length "
                          f"{block_length:g} m")
     spec = spec.with_gain(r.rms / math.sqrt(var))
-    surface_slope = math.sqrt(spec.moments()[1])
+    _, m2, _ = spec.moments()
+    surface_slope = math.sqrt(m2)
     if spot_radius is not None:
         spec = spec.with_gain(hertz_filter(k * spot_radius))
     stats = {"seed": r.seed, "target_rms": r.rms, "shortest_wavelength": float(shortest),
@@ -538,10 +539,11 @@ def fit_tail_hurst(c: np.ndarray, k: np.ndarray, dx: float) -> tuple[float, floa
         return math.nan, math.nan, "too few bins to fit a tail"
     slope, icept = np.polyfit(np.log(k[sel]), np.log(np.abs(c[sel]) ** 2), 1)
     hurst = (-slope - 1.0) / 2.0
-    if not TAIL_HURST_RANGE[0] <= hurst <= TAIL_HURST_RANGE[1]:
+    h_lo, h_hi = TAIL_HURST_RANGE
+    if not h_lo <= hurst <= h_hi:
         return float(hurst), math.nan, (f"the fitted spectral slope {slope:.3g} is no "
                                          f"self-affine tail (Hurst exponent {hurst:.3g} outside "
-                                         f"{TAIL_HURST_RANGE[0]}..{TAIL_HURST_RANGE[1]})")
+                                         f"{h_lo}..{h_hi})")
     return float(hurst), float(math.exp(icept + slope * math.log(hi))), ""
 
 
@@ -597,7 +599,8 @@ def measured_field(profile: Profile, shortest: float, spacing: float, seed: int,
     if tail and not why and shortest < 2.0 * dx:
         j_max = min(int(math.floor(period / shortest * (1.0 + 1e-12))), MAX_BINS)
         kj = 2.0 * np.pi / period * np.arange(c.size, j_max + 1)
-        k_ref = 2.0 * np.pi / (TAIL_FIT_SAMPLES[1] * dx)
+        _, shortest_fitted = TAIL_FIT_SAMPLES
+        k_ref = 2.0 * np.pi / (shortest_fitted * dx)
         amp = np.sqrt(level * (kj / k_ref) ** (-(1.0 + 2.0 * hurst)))
         u = np.random.default_rng(seed).random(kj.size)
         c = np.concatenate([c, amp * np.exp(2j * np.pi * u)])
