@@ -34,6 +34,7 @@ SINGLE = {
     "acceleration-100mms.png": ("paper-100", "acceleration"),
 }
 NOISE_RMS = 1e-3  # simulated accelerometer floor on the block [m/s^2 rms], docs/theory.md
+VELOCITY_TICKS = (10, 20, 40, 100)  # nominal rms velocities of the velocity sweep [mm/s]
 
 
 def _cases(root: Path, ensemble: str) -> list[Path]:
@@ -99,10 +100,24 @@ def main(argv: list[str] | None = None) -> int:
                          fontsize=9)
         save(fig, "wavenumber.png")
 
-    sweep = [load(c) for e in ("paper-10", "paper-20", "paper-40", "paper-100")
-             for c in _cases(runs, e)]
-    if sweep and all(sweep):
-        save(plots.plot_velocity_sweep(sweep).figure, "velocity-sweep.png")
+    sweeps = {tag: [load(c) for e in (f"{prefix}-10", f"{prefix}-20", f"{prefix}-40",
+                                      f"{prefix}-100") for c in _cases(runs, e)]
+              for tag, prefix in (("(a) physical input (the scenes)", "paper"),
+                                  ("(b) the paper's procedure (50 µm band, linear)",
+                                   "procedure"))}
+    sweeps = {k: v for k, v in sweeps.items() if v and all(v)}
+    if sweeps:
+        fig, axes = plt.subplots(1, len(sweeps), figsize=(5.5 * len(sweeps), 4), sharey=True,
+                                 squeeze=False)
+        for ax, (tag, results) in zip(axes[0], sweeps.items(), strict=True):
+            plots.plot_velocity_sweep(results, ax=ax)
+            # one tick per nominal speed (each run's own v_rms would crowd the axis)
+            ax.set_xticks(VELOCITY_TICKS)
+            ax.set_xticklabels([f"{v:g}" for v in VELOCITY_TICKS])
+            ax.set_title(f"{tag}; paper: 9-12 dB per doubling", fontsize=9)
+        for ax in axes[0][1:]:
+            ax.set_ylabel("")
+        save(fig, "velocity-sweep.png")
 
     for tag, names in (("10mms", ("paper-10", "heavy-10", "rough-10")),
                        ("100mms", ("paper-100", "heavy-100", "rough-100"))):
