@@ -107,16 +107,17 @@ def main(argv: list[str] | None = None) -> int:
                                    "procedure"))}
     sweeps = {k: v for k, v in sweeps.items() if v and all(v)}
     if sweeps:
-        fig, axes = plt.subplots(1, len(sweeps), figsize=(5.5 * len(sweeps), 4), sharey=True,
+        # stacked: the page shows figures about 600 px wide
+        fig, axes = plt.subplots(len(sweeps), 1, figsize=(6, 3.6 * len(sweeps)), sharey=True,
                                  squeeze=False)
-        for ax, (tag, results) in zip(axes[0], sweeps.items(), strict=True):
+        for ax, (tag, results) in zip(axes[:, 0], sweeps.items(), strict=True):
             plots.plot_velocity_sweep(results, ax=ax)
             # one tick per nominal speed (each run's own v_rms would crowd the axis)
             ax.set_xticks(VELOCITY_TICKS)
             ax.set_xticklabels([f"{v:g}" for v in VELOCITY_TICKS])
             ax.set_title(f"{tag}; paper: 9-12 dB per doubling", fontsize=9)
-        for ax in axes[0][1:]:
-            ax.set_ylabel("")
+            ax.set_ylabel("overall level [dB re 1e-6 m/s²]")
+        fig.tight_layout()
         save(fig, "velocity-sweep.png")
 
     for tag, names in (("10mms", ("paper-10", "heavy-10", "rough-10")),
