@@ -371,7 +371,7 @@ class ModelPSD:
         """m0, m2, m4 [m^2, -, 1/m^2] of a profile of the surface averaged over Hertz spots of
         ``radius`` [m] (0: unfiltered): the PSD weighted by ``H(k a)^2``, integrated by
         Simpson's rule in log k between the PSD's kinks (``breaks``), with
-        :data:`_POINTS_PER_DECADE` points (1e-12 relative on the smooth pieces). For
+        ``_POINTS_PER_DECADE`` points (1e-12 relative on the smooth pieces). For
         ``areal``, a profile along x through the isotropic surface filtered by the
         two-dimensional H(``|k|`` a): m_n = c_n integral S2 H^2 k^(n+1) dk with c_0, c_2, c_4 =
         2 pi, pi, 3 pi / 4."""

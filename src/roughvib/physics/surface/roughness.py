@@ -1,4 +1,4 @@
-"""Roughness profiles (the kinematic input), their spectra, and the choice of contact points.
+"""The kinematic input profile of a scene, and the choice of contact points.
 
 This module owns the roughness input (docs/theory.md): everything between the ``[roughness]``
 scene section and the uniform-grid height profile z(s) (positive up) the solver interpolates.
@@ -8,27 +8,21 @@ scene section and the uniform-grid height profile z(s) (positive up) the solver 
 * ``none``: a flat profile (zeros);
 * ``sinusoid``: z = amplitude cos(2 pi (s - s_centre) / wavelength), a crest under the block
   centre (not filtered);
-* ``synthetic``: seeded spectral synthesis (random phases, amplitudes from the target PSD, one
-  real inverse FFT) of a profile with the band-limited self-affine PSD
-  :func:`band_psd`, functionally filtered and then rescaled to ``rms`` exactly;
-* ``synthetic`` with ``reduce_3d``: an isotropic 2-D surface of rms ``raw_rms`` with the areal
-  PSD :func:`areal_psd`, span-averaged across the block width (docs/theory.md,
-  :func:`synthesize_span_averages`); the reduction (about -23 dB over 40 mm) is the physics,
-  so the result is not rescaled;
-* ``file``: a measured profile (:func:`read_measured`): a text file (:func:`read_profile_file`:
-  one column of heights, two columns (x, z) or a matrix of parallel traces) or an instrument
-  file (SDF, X3P, .sur, .datx, ... through the optional SurfaceTopography package); a matrix
-  of traces or a map is span-averaged like the synthetic surface.
+* ``synthetic``: the field of :func:`synthetic_field` (seeded Fourier bins of the
+  self-affine PSD, carried to the scene's tail limit, functionally filtered, scaled to
+  ``rms`` exactly, seen through the contact filter), sampled on the scene's grid;
+* ``synthetic`` with ``reduce_3d``: an isotropic 2-D surface of rms ``raw_rms``,
+  span-averaged across the block width
+  (:func:`~roughvib.physics.surface.synthesis.synthesize_span_averages`); the reduction (about
+  -23 dB over 40 mm) is the physics, so the result is not rescaled;
+* ``file``: a measured profile (:mod:`roughvib.physics.surface.measured`), a matrix of traces
+  or a map span-averaged like the synthetic surface; :func:`measured_field` then reads it as
+  a field (its own Fourier bins, a fitted tail, the contact filter).
 
 The functional filter over the block length (docs/theory.md, :func:`functional_filter`) is
 ``highpass`` 1 - sinc(kL/2) (reading 2, default), ``block-lowpass`` sinc(kL/2) (reading 1,
-with a warning) or ``none``. It is applied to ``synthetic`` and ``file`` profiles.
-
-Spectral conventions: wavenumbers k are angular [rad/m]; a one-sided profile PSD G(k)
-[m^2/(rad/m)] integrates to the variance, ``integral_0^inf G dk = rms^2``; an isotropic areal
-PSD S2(``|k|``) [m^2/(rad/m)^2] integrates over the plane to the variance. Profile spectral
-moments are ``m_n = integral k^n G(k) dk``: m0 = rms^2, m2 = (rms slope)^2, m4 = (rms
-curvature)^2.
+with a warning) or ``none``. It is applied to ``synthetic`` and ``file`` profiles. The model
+spectra are in :mod:`roughvib.physics.surface.spectra`, with their conventions.
 """
 
 from __future__ import annotations
@@ -284,7 +278,8 @@ def synthetic_field(roughness: Roughness, block_length: float, shortest: float,
     """The synthetic input surface as a field (docs/theory.md, "The input field").
 
     The bins of :func:`~roughvib.physics.surface.field.synthetic_spectrum` with the PSD
-    :func:`band_psd` carried down to ``shortest``, over the period ``trace_length``;
+    :func:`~roughvib.physics.surface.spectra.band_psd` carried down to ``shortest``, over the
+    period ``trace_length``;
     functionally filtered (:func:`functional_gain`); scaled so that its rms is
     ``roughness.rms`` exactly; then, with ``spot_radius``, seen through the contact filter.
 
@@ -512,7 +507,7 @@ TAIL_HURST_RANGE = (0.05, 1.0)
 def fit_tail_hurst(c: np.ndarray, k: np.ndarray, dx: float) -> tuple[float, float, str]:
     """Hurst exponent of a measured spectrum's shortest resolved decade.
 
-    A least-squares line through log |c_j|^2 against log k_j over the wavelengths of
+    A least-squares line through log ``|c_j|^2`` against log k_j over the wavelengths of
     :data:`TAIL_FIT_SAMPLES` samples; a self-affine profile has the slope -(1 + 2H).
 
     Parameters
@@ -529,7 +524,7 @@ def fit_tail_hurst(c: np.ndarray, k: np.ndarray, dx: float) -> tuple[float, floa
     hurst : float
         H [-] (NaN when no fit).
     level : float
-        The fitted |c|^2 at the decade's short end [m^2] (NaN when no fit).
+        The fitted ``|c|^2`` at the decade's short end [m^2] (NaN when no fit).
     note : str
         Why there is no tail ("" when the fit holds).
     """

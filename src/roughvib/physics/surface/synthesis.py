@@ -42,7 +42,8 @@ def _synthesize_raw(r: Roughness) -> np.ndarray:
 
 
 def synthesize_profile(roughness: Roughness, rms: float | None = None) -> np.ndarray:
-    """Seeded random-phase synthesis of a profile with the PSD :func:`band_psd` (no filter).
+    """Seeded random-phase synthesis of a profile with the PSD
+    :func:`~roughvib.physics.surface.spectra.band_psd` on a grid (no filter).
 
     Amplitudes sqrt(G(k_j)) on the FFT bins k_j = 2 pi j / (n dx) of the band, phases uniform
     from ``numpy.random.default_rng(roughness.seed)``, one real inverse FFT.
@@ -209,8 +210,9 @@ def synthesize_span_averages(roughness: Roughness,
     The surface is the random-phase sum z(s, y) = sum a(k) cos(kx s + ky y + phi) over the
     half-plane kx > 0 of a periodic grid: kx the FFT bins of the trace (period n dx), ky a grid
     of period P_y = 2 max(span of the layouts, longest wavelength) (so two traces of a layout
-    never see each other's periodic image), a^2 proportional to :func:`areal_psd`, normalised
-    so that the surface variance is exactly ``rms**2``.
+    never see each other's periodic image), a^2 proportional to
+    :func:`~roughvib.physics.surface.spectra.areal_psd`, normalised so that the surface
+    variance is exactly ``rms**2``.
 
     Why not a 2-D FFT: the default surface is 16001 x (0.08 m / 25 um) = 5e7 complex values
     (0.8 GB) although only averages across the block are needed. Averaging is linear, so each
