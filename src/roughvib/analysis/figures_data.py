@@ -506,7 +506,7 @@ def acceleration_spectra(result: Result, *, resolution: float = 25.0,
     :func:`roughvib.analysis.bands.band_levels`. With ``band_method="filter"`` (default) the
     IEC 61260-1 class 1 filter bank runs over the record from its first sample to the end of
     the window and averages its outputs over the window only, so that the run-in settles the
-    filters (started at the window, the bands' onset ringing would add up to 35 dB to the
+    filters (started at the window, the bands' onset ringing would add up to 22 dB to the
     quiet bands of the ``paper`` scene); ``"fft"`` gives the Hann-tapered FFT band sums of the
     window (:func:`tapered_band_levels`). Narrow band:
     :func:`roughvib.analysis.spectra.narrowband_psd` (Welch, periodic Hann segments of

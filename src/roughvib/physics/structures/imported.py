@@ -32,7 +32,7 @@ __all__ = ["EXPORT_FACTOR", "ImportedModes", "NEIGHBOURS"]
 #: by the scene that imports the file but give its residual compliance. For a thin plate the
 #: sum over the modes to N times the cut holds 1 - 1/N of the exact residual (the modal density
 #: is constant, the terms fall as 1/omega^2); 2 halves the event-time error of the paper run
-#: that no residual leaves (1.07e-6 s to 5.5e-7 s, docs/structures.md) for twice the file.
+#: that no residual leaves (7.0e-6 s to 3.6e-6 s, docs/structures.md) for twice the file.
 EXPORT_FACTOR = 2.0
 
 #: nodes in each local fit (a full cubic in x, y has 10 coefficients)
