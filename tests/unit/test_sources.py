@@ -58,3 +58,31 @@ def test_a_study_holds_the_run_as_it_is_and_its_variants(tmp_path, capsys):
     assert len(pd.read_csv(out / "sources_runs.csv")) == 4
     assert main(["sources", "paper", "--out", str(out), "--no-progress", *sets]) == 2
     assert "--overwrite" in capsys.readouterr().err
+
+
+@pytest.mark.short_run
+def test_a_study_of_a_run_directory_lands_beside_it_and_in_its_report(tmp_path, capsys):
+    """``roughvib sources DIR`` reruns DIR's scene.toml into DIR; the report of DIR then has a
+    source section whose run as it is reproduces the run's overall levels (the same scene,
+    deterministic), and says so when a study of another scene lies there."""
+    from roughvib.views.report import write_report
+
+    run = tmp_path / "run"
+    sets = [x for k, v in CHEAP.items() if k != "output.progress"
+            for x in ("--set", f"{k}={v}")]
+    assert main(["run", "paper", "--out", str(run), "--no-progress", *sets]) == 0
+    assert main(["sources", str(run), "--no-progress"]) == 0
+    html = write_report(run).read_text()
+    section = html[html.index("Where the band energy comes from"):]
+    assert "fig-sources" in section and "made for another scene" not in section
+    # a study of another scene (a heavier block) in the same directory is flagged
+    assert main(["sources", str(run), "--no-progress", "--overwrite",
+                 "--set", "block.mass=1.0"]) == 0
+    html = write_report(run, overwrite=True).read_text()
+    assert "made for another scene" in html
+    # a scene without --out, and a directory that is not a run, are refused in one line
+    assert main(["sources", "paper", "--no-progress"]) == 2
+    (tmp_path / "empty").mkdir()
+    assert main(["sources", str(tmp_path / "empty"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "--out is required" in err[-2] and "without scene.toml" in err[-1]

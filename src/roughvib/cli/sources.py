@@ -13,13 +13,24 @@ SOURCE_FILES = ("sources.csv", "sources_runs.csv", "sources.png")
 
 
 def cmd_sources(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from roughvib.cli.args import InputError
     from roughvib.rundir import claim_files, output_folder, write_file
     from roughvib.scene import load_scene
     from roughvib.studies.sources import source_study
     from roughvib.views.sources import sources_figure
 
-    scene = load_scene(args.scene, parse_sets(args.set))
-    out = out_path(args.out)
+    source, out = args.scene, out_path(args.out)
+    if Path(source).is_dir():  # a run's directory: its resolved scene, the study beside it
+        if not (Path(source) / "scene.toml").is_file():
+            raise InputError(f"{source}: a directory without scene.toml is not a run "
+                             f"directory (give a scene name, a .toml file or a run directory)")
+        source, out = str(Path(source) / "scene.toml"), out or Path(source)
+    elif out is None:
+        raise InputError(f"--out is required for a scene ({args.scene}); it defaults to the "
+                         f"run directory only when SCENE is one")
+    scene = load_scene(source, parse_sets(args.set))
     claim_files([out / n for n in SOURCE_FILES], overwrite=args.overwrite)
     output_folder(out, "--out")
     bands, runs = source_study(scene, progress=None if args.no_progress else print)
@@ -49,14 +60,21 @@ def add_parsers(sub) -> None:
                     "the same rms velocity, the friction moment toggled (each where it "
                     "applies; every other value as the scene ran). Writes sources.csv (the "
                     "band levels of each run and their change), sources_runs.csv (the runs: "
-                    "overall levels, lift-offs, stick fraction) and sources.png into --out.",
+                    "overall levels, lift-offs, stick fraction) and sources.png into --out. "
+                    "SCENE may be a run's directory: the study then reruns its scene.toml "
+                    "and writes beside the run (--out defaults to it), and 'roughvib report "
+                    "DIR' shows the study.",
         epilog="examples:\n  roughvib sources paper --out runs/sources-paper\n"
+               "  roughvib run paper --out runs/paper && roughvib sources runs/paper && "
+               "roughvib report runs/paper\n"
                "  roughvib sources paper-100mms --out runs/sources-100 --set "
                "roughness.seed=3\n")
-    c.add_argument("scene", nargs="?", default="paper", help="scene name or .toml file")
-    c.add_argument("--out", required=True, metavar="DIR",
+    c.add_argument("scene", nargs="?", default="paper",
+                   help="scene name, .toml file or a run directory")
+    c.add_argument("--out", metavar="DIR",
                    help="output directory (its sources.* files are not replaced without "
-                        "--overwrite)")
+                        "--overwrite); required unless SCENE is a run directory, which is "
+                        "the default then")
     c.add_argument("--overwrite", action="store_true",
                    help="replace the sources.* files of an earlier study in --out")
     c.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

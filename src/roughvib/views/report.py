@@ -508,6 +508,12 @@ def build_report(result, *, title: str | None = None, dpi: int = 90,
         val = _safe(validation_section, run_dir)
         if val:
             sections.append(("validation", "Validation against measurements", val))
+    if run_dir is not None and ok:  # roughvib sources DIR: the band energy's sources
+        from roughvib.views.sources import sources_section
+
+        src = _safe(lambda: sources_section(run_dir, s, dpi=dpi))
+        if src:
+            sections.append(("sources", "Where the band energy comes from", src))
     sections.append(("scene", "Scene (resolved, repeatable)",
                      f"<pre>{esc(result.scene_toml or '(no scene.toml)')}</pre>"))
     created = result.dataset.attrs.get("created", "")
