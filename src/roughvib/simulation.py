@@ -556,7 +556,7 @@ def _scale_atol_acceleration(system: System) -> tuple[System, dict]:
     """The system with ``atol_acceleration`` = relative x the level a pilot solve measures.
 
     The pilot solves the first ``PILOT_DURATION`` (at most a quarter of the run) with
-    adaptive-modal (IDA where it cannot run) at the draft tolerances, and takes the larger
+    adaptive-modal (IDA where it cannot run) at the draft tolerances, and takes the smaller
     rms vertical acceleration of block and plate that is above ``PILOT_LEVEL_FLOOR`` (the
     contract judges each signal against its own strongest band, so the quieter one sets the
     tolerance: with a 0.1 g block the plate is 40 dB quieter than the block, and a tolerance
