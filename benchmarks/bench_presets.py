@@ -5,6 +5,8 @@ Run on demand, not by the tests:
     python benchmarks/bench_presets.py paper --out runs/presets
     python benchmarks/bench_presets.py paper-100mms --out runs/presets \
         --methods ida,adaptive-modal
+    python benchmarks/bench_presets.py paper --out runs/presets --methods adaptive-modal \
+        --trapezoidal --extra "rtol 1e-6, no pilot;solver.rtol=1e-6,solver.atol_acceleration=1e-8"
 
 For one built-in scene at its default length it
 
@@ -13,10 +15,16 @@ For one built-in scene at its default length it
    one against the other by the accuracy contract;
 2. solves every ``--methods`` x ``--levels`` preset, each in its own process (so every run pays
    its own fixed cost, as a user's run does), saving the result to ``OUT/SCENE/METHOD-LEVEL``;
-3. prints a Markdown table: wall and CPU time of the ``simulate`` call (pilot, calibration and
-   assembly included), the largest band deviation per signal with its band, the event-time and
-   velocity deviations, the run's energy audit and the verdict against the tight
-   ``adaptive-modal`` run (:func:`roughvib.analysis.accuracy.measure_accuracy`).
+   with ``--trapezoidal`` also ``adaptive-modal`` at each level with its second-order
+   trapezoidal step (the step of the scenes the Hermite step does not cover), and each
+   ``--extra "LABEL;KEY=VALUE,..."`` as one more row (``adaptive-modal`` unless it sets
+   ``solver.method``; a key ``trapezoidal=1`` selects that step);
+3. prints a Markdown table (one row per run, the scene first): wall and CPU time of the
+   ``simulate`` call (pilot, calibration and assembly included) and the CPU time of the
+   solve alone (``summary["solver"]["cpu_time"]``), the largest band deviation
+   per signal with its band, the event-time and velocity deviations, the run's energy audit
+   and the verdict against the tight ``adaptive-modal`` run
+   (:func:`roughvib.analysis.accuracy.measure_accuracy`).
 
 Runs that exist in ``OUT`` (a ``timing.json`` next to the result) are not solved again.
 """
@@ -36,9 +44,17 @@ FIXED = ("exact-modal", "newmark", "paper", "moreau")
 
 
 def solve_one(scene_name: str, out: Path, overrides: dict) -> None:
-    """Solve a scene with ``overrides``; save the result and timing.json to ``out``."""
+    """Solve a scene with ``overrides``; save the result and timing.json to ``out``.
+
+    ``overrides["trapezoidal"]`` (not a scene key) makes ``adaptive-modal`` take its
+    trapezoidal step where the Hermite step would apply."""
     import roughvib
 
+    overrides = dict(overrides)
+    if overrides.pop("trapezoidal", False):
+        from roughvib.solvers import adaptive_modal
+
+        adaptive_modal.hermite_applies = lambda system: False
     over = {"output.progress": False, **overrides}
     scene = roughvib.load_scene(scene_name, over)
     t0, c0 = time.perf_counter(), time.process_time()
@@ -72,6 +88,24 @@ def _g(x) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.2g}"
 
 
+def _s(seconds: float) -> str:
+    """A time [s] to two digits, whole seconds from 10 s."""
+    return f"{seconds:.0f}" if seconds >= 10 else f"{seconds:.2g}"
+
+
+def _number(text: str):
+    """A value of ``--extra``: an int, a float, true/false, or the text itself."""
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text.strip()
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("scene", nargs="?", default="paper", help="built-in scene (default: paper)")
@@ -79,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--methods", default="adaptive-modal,ida,exact-modal,newmark,paper")
     p.add_argument("--levels", default="reference,standard,draft")
     p.add_argument("--no-pair", action="store_true", help="do not solve the converged pair")
+    p.add_argument("--trapezoidal", action="store_true",
+                   help="also adaptive-modal at each level with its trapezoidal step")
+    p.add_argument("--extra", action="append", default=[], metavar="LABEL;KEY=VALUE,...",
+                   help="one more run (adaptive-modal unless solver.method is given)")
     p.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.child:
@@ -104,11 +142,27 @@ def main(argv: list[str] | None = None) -> int:
         for level in args.levels.split(","):
             d = base / f"{method}-{level}"
             _run(args.scene, d, {"solver.method": method, "solver.accuracy": level})
-            rows.append((method, level, d))
+            rows.append((method, f"`{level}`", d))
+    if args.trapezoidal:
+        for level in args.levels.split(","):
+            d = base / f"adaptive-modal-{level}-trapezoidal"
+            _run(args.scene, d, {"solver.method": "adaptive-modal", "solver.accuracy": level,
+                                 "trapezoidal": 1})
+            rows.append(("adaptive-modal", f"`{level}`, trapezoidal step", d))
+    for extra in args.extra:
+        label, _, spec = extra.partition(";")
+        over = {"solver.method": "adaptive-modal"}
+        for item in filter(None, spec.split(",")):
+            key, _, value = item.partition("=")
+            over[key.strip()] = (json.loads(value) if value[:1] and value[:1] in "[{\"" else
+                                _number(value))
+        d = base / ("extra-" + "".join(c if c.isalnum() or c in "-." else "_" for c in label))
+        _run(args.scene, d, over)
+        rows.append((over["solver.method"], label, d))
     print(f"\n{args.scene}: against {ref_dir}\n")
-    print("| method | preset | as run | wall [s] | CPU [s] | block | plate | event dt [s] | "
-          "v rel. rms | energy audit | verdict |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| scene | method | preset | as run | wall [s] | CPU [s] | solve CPU [s] | block | "
+          "plate | event dt [s] | v rel. rms | energy audit | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for method, level, d in rows:
         t = json.loads((d / "timing.json").read_text())
         s = t["solver"]
@@ -117,7 +171,9 @@ def main(argv: list[str] | None = None) -> int:
                   else f"rtol {s['rtol']:g}, aa {s['atol_acceleration']:.2g}")
         e = acc["events"]
         ev = _g(e["max_dt"]) + (f" ({e['unmatched']} unmatched)" if e["unmatched"] else "")
-        print(f"| `{method}` | `{level}` | {as_run} | {t['wall']:.0f} | {t['cpu']:.1f} | "
+        solve_cpu = s.get("cpu_time")
+        print(f"| `{args.scene}` | `{method}` | {level} | {as_run} | {_s(t['wall'])} | "
+              f"{_s(t['cpu'])} | {'–' if solve_cpu is None else _s(solve_cpu)} | "
               f"{_fmt_band(acc['bands']['block'])} | {_fmt_band(acc['bands']['plate'])} | "
               f"{ev} | {_g(acc['velocity_rel_rms'])} | {_g(acc['energy_rel_residual'])} | "
               f"**{acc['verdict']}** |")
