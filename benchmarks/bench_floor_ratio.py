@@ -37,13 +37,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy is imported
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
-from machine import describe  # noqa: E402  (this folder's; the script's directory is on sys.path)
+from machine import describe, measurements, ratio_line  # noqa: E402  (this folder's; the script's directory is on sys.path)
 
 from roughvib import simulation  # noqa: E402
 from roughvib.model.system import assemble  # noqa: E402
@@ -104,25 +101,14 @@ def main() -> None:
           "ratio |")
     print("|---|---|---|---|---|---|---|")
     ratios = {}
-    for name in args.scenes:
-        for _ in range(max(args.processes, 1)):
-            if args.processes:
-                out = subprocess.run([sys.executable, __file__, name, "--repeat",
-                                      str(args.repeat), "--json-line"], check=True,
-                                     capture_output=True, text=True).stdout
-                r = json.loads(out.strip().splitlines()[-1])
-            else:
-                r = measure(name, args.repeat)
-            ratios.setdefault(name, []).append(r["ratio"])
-            print(f"| `{name}` | {r['default_steps']:,} | {r['default_propagations']:,} | "
-                  f"{r['default_cpu']:.3f} | {r['floor_steps']:,} | {r['floor_cpu']:.3f} | "
-                  f"{r['ratio']:.2f} |", flush=True)
+    for name, r in measurements(__file__, args.scenes, args.repeat, args.processes, measure):
+        ratios.setdefault(name, []).append(r["ratio"])
+        print(f"| `{name}` | {r['default_steps']:,} | {r['default_propagations']:,} | "
+              f"{r['default_cpu']:.3f} | {r['floor_steps']:,} | {r['floor_cpu']:.3f} | "
+              f"{r['ratio']:.2f} |", flush=True)
     if args.processes:
         for name, rs in ratios.items():
-            print(f"{name}: ratio median {statistics.median(rs):.2f}, range {min(rs):.2f}-"
-                  f"{max(rs):.2f}, {sum(x <= TARGET_RATIO for x in rs)} of {len(rs)} processes "
-                  f"at or below {TARGET_RATIO}")
-
+            print(ratio_line(name, rs, TARGET_RATIO))
 
 if __name__ == "__main__":
     main()

@@ -28,15 +28,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy is imported
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import statistics  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 import tomllib  # noqa: E402
 import warnings  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
-from machine import describe  # noqa: E402  (this folder's; the script's directory is on sys.path)
+from machine import describe, measurements, ratio_line  # noqa: E402  (this folder's; the script's directory is on sys.path)
 
 from roughvib import simulation  # noqa: E402
 from roughvib.model.system import assemble  # noqa: E402
@@ -112,26 +109,15 @@ def main() -> None:
           "ratio |")
     print("|---|---|---|---|---|---|---|---|---|")
     ratios: dict[str, list[float]] = {}
-    for name in args.scenes:
-        for _ in range(max(args.processes, 1)):
-            if args.processes:
-                out = subprocess.run([sys.executable, __file__, name, "--repeat",
-                                      str(args.repeat), "--json-line"], check=True,
-                                     capture_output=True, text=True).stdout
-                r = json.loads(out.strip().splitlines()[-1])
-            else:
-                r = measure(name, args.repeat)
-            ratios.setdefault(name, []).append(r["ratio"])
-            for key, label in (("physical", "physical"), ("band", "paper's band")):
-                x = r[key]
-                print(f"| `{name}` | {r['points']} | {label} | {x['cpu']:.3f} | "
-                      f"{x['steps']:,} | {x['evaluations']:,} | {x['events']} | "
-                      f"{x['restarts']} | {r['ratio']:.2f} |", flush=True)
+    for name, r in measurements(__file__, args.scenes, args.repeat, args.processes, measure):
+        ratios.setdefault(name, []).append(r["ratio"])
+        for key, label in (("physical", "physical"), ("band", "paper's band")):
+            x = r[key]
+            print(f"| `{name}` | {r['points']} | {label} | {x['cpu']:.3f} | "
+                  f"{x['steps']:,} | {x['evaluations']:,} | {x['events']} | "
+                  f"{x['restarts']} | {r['ratio']:.2f} |", flush=True)
     for name, rs in ratios.items():
-        print(f"{name}: ratio physical / paper's band median {statistics.median(rs):.2f}, "
-              f"range {min(rs):.2f}-{max(rs):.2f}, {sum(x <= TARGET_RATIO for x in rs)} of "
-              f"{len(rs)} at or below {TARGET_RATIO}")
-
+        print(ratio_line(name, rs, TARGET_RATIO, "ratio physical / paper's band"))
 
 if __name__ == "__main__":
     main()

@@ -98,3 +98,29 @@ def timed_python(argv: list[str], env: dict) -> dict:
 
 if __name__ == "__main__":
     print(describe())
+
+
+def measurements(script: str, scenes, repeat: int, processes: int, measure):
+    """Yield ``(scene, row)`` for each scene: ``measure(scene, repeat)`` in this process, or,
+    with ``processes`` > 0, that many times in fresh processes of ``script`` run with
+    ``SCENE --repeat N --json-line`` (each prints its row as one JSON line last)."""
+    import json
+
+    for name in scenes:
+        for _ in range(max(processes, 1)):
+            if not processes:
+                yield name, measure(name, repeat)
+                continue
+            out = subprocess.run([sys.executable, script, name, "--repeat", str(repeat),
+                                  "--json-line"], check=True, capture_output=True,
+                                 text=True).stdout
+            yield name, json.loads(out.strip().splitlines()[-1])
+
+
+def ratio_line(name: str, ratios, target: float, what: str = "ratio") -> str:
+    """One line: the median and range of ``ratios`` and how many are at or below ``target``."""
+    import statistics
+
+    return (f"{name}: {what} median {statistics.median(ratios):.2f}, range {min(ratios):.2f}-"
+            f"{max(ratios):.2f}, {sum(x <= target for x in ratios)} of {len(ratios)} at or "
+            f"below {target}")
