@@ -3,12 +3,12 @@
 ``write_report(DIR)`` reads a result directory written by ``roughvib run`` and writes
 ``DIR/report.html``: the scene, the summary tables (levels, calibration, model, contact
 resonance, third-octave band levels), the solver statistics, the energy audit, the accuracy
-section of a verified run (``roughvib run --verify``), the per-cycle
-event phase table, every figure of :data:`roughvib.views.figures.FIGURES`, embedded as
-base64 PNG data URIs, and the validations and source study written into the run directory
-(``roughvib validate``, ``roughvib sources DIR``). The report of a failed run opens with a banner and shows what the run
-recorded up to the failure (``partial.nc`` and the event log). The page needs no server, no
-network and no script; it opens from disk in any browser.
+section of a verified run (``roughvib run --verify``), the per-cycle event phase table, every
+figure of :data:`roughvib.views.figures.FIGURES`, embedded as base64 PNG data URIs, and the
+validations and source study written into the run directory (``roughvib validate``,
+``roughvib sources DIR``). The report of a failed run opens with a banner and shows what the
+run recorded up to the failure (``partial.nc`` and the event log). The page needs no server,
+no network and no script; it opens from disk in any browser.
 
 ``roughvib report DIR`` (:mod:`roughvib.cli.report`) calls :func:`write_report`.
 """
