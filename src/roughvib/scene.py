@@ -927,8 +927,10 @@ class Solver:
         average-acceleration Newmark on the modal model; ``paper`` the paper's scheme:
         backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
         convolution of its impulse response (explicit in the plate, O(N^2) cost); ``moreau``
-        Moreau-Jean time-stepping of the set-valued Coulomb law (``friction.law =
-        "coulomb"``) with the exact-modal plate.
+        Moreau-Jean time-stepping of the set-valued laws (``friction.law = "coulomb"`` or
+        ``"table"``) with the exact-modal plate. What each method runs is the solver
+        registry's (:mod:`roughvib.solvers.registry`): a method that cannot run the scene is
+        refused when the scene is built.
     accuracy : {"reference", "standard", "draft"}
         Accuracy preset: the tolerances (``rtol``, ``atol``, ``atol_acceleration``) or the step
         each method uses unless they are given explicitly (:data:`ACCURACY_PRESETS`).
