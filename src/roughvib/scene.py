@@ -5,8 +5,10 @@ paper scene (docs/theory.md), so an empty TOML file is the paper scene. A bad va
 :class:`SceneError` (a ``ValueError``) whose message names the field path, the rule, the unit
 and the value, e.g. ``plate.thickness must be > 0 m, got -0.003``.
 
-Nothing in here knows about solvers; later pipeline stages read these objects and turn them
-into flat arrays once.
+Nothing in here knows how a solver works; what each one runs is asked of the solver registry
+(:mod:`roughvib.solvers.registry`, which imports nothing from roughvib), so that a scene a
+solver cannot run is refused when it is loaded. Later pipeline stages read these objects and
+turn them into flat arrays once.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from dataclasses import dataclass, field, fields, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+from roughvib.solvers import registry as _registry
 
 __all__ = [
     "Block",
@@ -820,6 +824,11 @@ class Friction:
         """epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s]."""
         return max(self.latch_velocity, self.hysteresis_velocity)
 
+    @property
+    def set_valued(self) -> bool:
+        """Whether the law is set-valued (stick held at v = 0, :data:`SET_VALUED_LAWS`)."""
+        return self.law in SET_VALUED_LAWS
+
 
 @dataclass(frozen=True)
 class Excitation:
@@ -880,63 +889,24 @@ class Excitation:
         return 2.0 * math.pi * self.frequency
 
 
-#: every solver (``solver.method`` may also be ``"auto"``; validated here, offered by
-#: ``roughvib compare``)
-SOLVER_METHODS = ("ida", "adaptive-modal", "exact-modal", "newmark", "paper", "moreau")
+#: every solver (``solver.method`` may also be ``"auto"``), as registered in
+#: :mod:`roughvib.solvers.registry`, which says what each one runs
+SOLVER_METHODS = _registry.names()
 #: the methods driven by a fixed step (``solver.step``); the others by tolerances
-FIXED_STEP_METHODS = ("exact-modal", "newmark", "paper", "moreau")
+FIXED_STEP_METHODS = _registry.names(_registry.STEP)
 
 #: the accuracy presets, from the most accurate to the cheapest (docs/accuracy.md)
 ACCURACY_LEVELS = ("reference", "standard", "draft")
 
-#: tolerances of each accuracy preset per method: what ``solver.accuracy`` stands for when
-#: ``solver.rtol``, ``solver.atol``, ``solver.atol_acceleration`` and ``solver.step`` are not
-#: given. ``atol_acceleration_relative`` scales the plate modes' tolerance with the run's own
-#: acceleration level, measured by a short pilot solve (docs/accuracy.md);
-#: ``atol_acceleration`` is the absolute value used when no level can be measured. The
-#: measured cost and error of every entry are in docs/accuracy.md. ``reference`` meets the
-#: accuracy contract on both built-in paper scenes for ``ida`` and ``adaptive-modal``, and on
-#: ``paper`` for ``exact-modal`` and ``newmark``; on ``paper-100mms`` (lift-offs) the fixed-step
-#: methods miss the contract's event-time limit (about 1.5 steps), and the paper's scheme keeps
-#: no energy audit, so it never meets the contract.
+#: tolerances of each accuracy preset per method (``{method: {level: {key: value}}}``): what
+#: ``solver.accuracy`` stands for when ``solver.rtol``, ``solver.atol``,
+#: ``solver.atol_acceleration`` and ``solver.step`` are not given. Each solver's entry in
+#: :mod:`roughvib.solvers.registry` holds its presets (and says how they were measured);
+#: docs/accuracy.md lists them with their measured cost and error.
 ACCURACY_PRESETS: dict[str, dict[str, dict[str, float]]] = {
-    # adaptive-modal: the Hermite step is fourth order and the trapezoidal step's kept states
-    # are extrapolated to third order, so the reference's plate-mode tolerance is a decade
-    # looser than the rtol. Measured over the default length against tight runs: Hermite step
-    # (the built-in scenes) worst plate band 0.0018 dB (paper), 0.0099 dB (paper-100mms),
-    # events <= 1.2e-9 s (docs/solvers.md); trapezoidal step +0.0057 dB and -0.011 dB, events
-    # <= 3.3e-10 s, and with the friction moment the 40 kHz band comes within the contract's
-    # 80 dB and reads -0.098 dB (docs/accuracy.md)
-    "adaptive-modal": {
-        "reference": {"rtol": 1e-5, "atol": 1e-12, "atol_acceleration": 1e-6,
-                      "atol_acceleration_relative": 1e-4},
-        "standard": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
-                     "atol_acceleration_relative": 1e-4},
-        "draft": {"rtol": 1e-3, "atol": 1e-11, "atol_acceleration": 1e-5,
-                  "atol_acceleration_relative": 1e-3},
-    },
-    "ida": {
-        "reference": {"rtol": 1e-7, "atol": 1e-12, "atol_acceleration": 1e-10,
-                      "atol_acceleration_relative": 1e-8},
-        "standard": {"rtol": 1e-6, "atol": 1e-12, "atol_acceleration": 1e-8,
-                     "atol_acceleration_relative": 1e-6},
-        "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
-                  "atol_acceleration_relative": 1e-4},
-    },
-    # fixed steps divide the default 1e-5 s output step: 1e-5 s is the coarsest that runs
-    "exact-modal": {"reference": {"step": 2.5e-6}, "standard": {"step": 5e-6},
-                    "draft": {"step": 1e-5}},
-    "newmark": {"reference": {"step": 1e-6}, "standard": {"step": 5e-6},
-                "draft": {"step": 1e-5}},
-    # the paper's scheme is defined by its 1e-5 s step; no preset changes it
-    "paper": {"reference": {"step": 1e-5}, "standard": {"step": 1e-5}, "draft": {"step": 1e-5}},
-    "moreau": {"reference": {"step": 1e-6}, "standard": {"step": 5e-6}, "draft": {"step": 1e-5}},
-}
+    m.name: {level: dict(values) for level, values in m.presets.items()}
+    for m in _registry.methods()}
 _TOLERANCE_KEYS = ("rtol", "atol", "atol_acceleration", "atol_acceleration_relative", "step")
-#: the methods that write checkpoints (``output.checkpoint_interval``)
-CHECKPOINTED = ("ida", "adaptive-modal")
-#: the methods that integrate the friction force's moment on the plate (contact.friction_moment)
-FRICTION_MOMENT_METHODS = ("ida", "adaptive-modal")
 
 
 @dataclass(frozen=True)
@@ -957,8 +927,10 @@ class Solver:
         average-acceleration Newmark on the modal model; ``paper`` the paper's scheme:
         backward Euler, Newton-Raphson with the Heaviside inside, plate by discrete
         convolution of its impulse response (explicit in the plate, O(N^2) cost); ``moreau``
-        Moreau-Jean time-stepping of the set-valued Coulomb law (``friction.law =
-        "coulomb"``) with the exact-modal plate.
+        Moreau-Jean time-stepping of the set-valued laws (``friction.law = "coulomb"`` or
+        ``"table"``) with the exact-modal plate. What each method runs is the solver
+        registry's (:mod:`roughvib.solvers.registry`): a method that cannot run the scene is
+        refused when the scene is built.
     accuracy : {"reference", "standard", "draft"}
         Accuracy preset: the tolerances (``rtol``, ``atol``, ``atol_acceleration``) or the step
         each method uses unless they are given explicitly (:data:`ACCURACY_PRESETS`).
@@ -1023,7 +995,8 @@ class Solver:
 
     def __post_init__(self) -> None:
         p = "solver"
-        _set(self, "method", _choice(f"{p}.method", self.method, ("auto",) + SOLVER_METHODS))
+        _set(self, "method", _choice(f"{p}.method", self.method,
+                                     ("auto",) + _registry.names()))
         _set(self, "accuracy", _choice(f"{p}.accuracy", self.accuracy, ACCURACY_LEVELS))
         if self.step is not None:
             _set(self, "step", _positive(f"{p}.step", self.step, "s"))
@@ -1068,13 +1041,14 @@ class Solver:
             (:func:`roughvib.simulation.simulate`).
         """
         m = self.method if self.method != "auto" else method
-        if m not in SOLVER_METHODS:
+        if m not in _registry.names():
             raise ValueError(f"Solver.resolved needs a concrete method, got {m!r}")
-        preset = {"step": 1e-5, **ACCURACY_PRESETS["ida"][self.accuracy],
-                  **ACCURACY_PRESETS[m][self.accuracy]}
+        solver = _registry.get(m)
+        preset = {"step": 1e-5, **_registry.get("ida").presets[self.accuracy],
+                  **solver.presets[self.accuracy]}
         values = {k: getattr(self, k) if getattr(self, k) is not None else preset[k]
                   for k in _TOLERANCE_KEYS}
-        if m in FIXED_STEP_METHODS:
+        if solver.kind == _registry.STEP:
             values["atol_acceleration_relative"] = None
         return replace(self, method=m, **values)
 
@@ -1224,21 +1198,15 @@ class Scene:
                 by + hw >= self.plate.width:
             raise SceneError(f"plate.block_position must keep the block ({self.block.length} x "
                              f"{self.block.width} m) on the plate, got {[bx, by]} m")
-        if (self.output.checkpoint_interval > 0
-                and self.solver.method not in CHECKPOINTED + ("auto",)):
-            raise SceneError(f"output.checkpoint_interval needs solver.method = 'ida' or "
-                             f"'adaptive-modal' (or 'auto', which picks one of them: the "
-                             f"event-driven solvers are checkpointed), got "
-                             f"{self.solver.method!r}")
-        if self.contact.friction_moment:
-            if self.excitation.kind != "force":
-                raise SceneError(f"contact.friction_moment = true needs excitation.kind = "
-                                 f"'force' (a prescribed motion has no friction force), got "
-                                 f"{self.excitation.kind!r}")
-            method = self.resolved_solver().method
-            if method not in FRICTION_MOMENT_METHODS:
-                raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' "
-                                 f"or 'adaptive-modal', got {self.solver.method!r}")
+        if self.contact.friction_moment and self.excitation.kind != "force":
+            raise SceneError(f"contact.friction_moment = true needs excitation.kind = "
+                             f"'force' (a prescribed motion has no friction force), got "
+                             f"{self.excitation.kind!r}")
+        # what the solver runs (friction law, friction moment, checkpoints, structure): the
+        # solver registry's rules, in one line naming solver.method and what would run it
+        refused = _registry.refusal_line(self)
+        if refused is not None:
+            raise SceneError(refused)
         if self.output.radiation and self.plate.kind != "modal":
             raise SceneError(f"output.radiation needs the simply supported plate (plate.kind = "
                              f"'modal'), got plate.kind = {self.plate.kind!r}")
@@ -1254,7 +1222,7 @@ class Scene:
                              f"{r.trace_length} m / {r.spacing} m = "
                              f"{r.trace_length / r.spacing:.3g}")
         method = self.resolved_solver()
-        if method.method in FIXED_STEP_METHODS and \
+        if _registry.get(method.method).kind == _registry.STEP and \
                 self.output.duration / method.step > MAX_FIXED_STEPS:
             raise SceneError(f"output.duration / solver.step must be at most "
                              f"{MAX_FIXED_STEPS:.0e} steps of solver.method = "
@@ -1282,13 +1250,17 @@ class Scene:
         ``auto`` is ``adaptive-modal`` (the fastest method that meets the accuracy contract,
         docs/accuracy.md; every friction law, with or without the friction moment) unless the
         scene needs what only ``ida`` offers: overdamped plate modes
-        (``plate.loss_factor >= 2``).
+        (``plate.loss_factor >= 2``). The solver registry decides
+        (:func:`roughvib.solvers.registry.resolve_auto`: the first of ``AUTO`` that supports
+        the scene).
         """
         s = self.solver
         if s.method != "auto":
             return s.resolved()
-        needs_ida = self.plate.kind == "modal" and self.plate.loss_factor >= 2.0
-        return s.resolved("ida" if needs_ida else "adaptive-modal")
+        method = _registry.resolve_auto(self)
+        if method is None:  # validation refuses such a scene: this guards a half-built one
+            raise SceneError(_registry.refusal_line(self))
+        return s.resolved(method)
 
     @property
     def period(self) -> float:

@@ -27,7 +27,6 @@ from roughvib.model.layout import ENERGY_TERMS
 from roughvib.model.system import System, assemble, check_stroke, estimate_travel
 from roughvib.results import FORMAT_VERSION, VARIABLES, Result, RunData, events_frame
 from roughvib.scene import (
-    FIXED_STEP_METHODS,
     Scene,
     SceneError,
     Solver,
@@ -35,6 +34,7 @@ from roughvib.scene import (
     scene_from_dict,
     scene_to_toml,
 )
+from roughvib.solvers import registry
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
 
 if TYPE_CHECKING:
@@ -638,26 +638,10 @@ def _check_scaled_atol(system: System, given: Solver, pilot: dict) -> None:
 
 
 def _solve(system: System, *, progress, checkpoint_dir=None, resume=None) -> RawSolution:
-    """Run the system's solver (``system.scene.solver.method``)."""
-    method = system.scene.solver.method
-    # each solver is imported when it runs: IDA brings scikit-sundae and scipy.sparse
-    if method == "ida":
-        from roughvib.solvers.ida import solve_ida
-
-        return solve_ida(system, progress=progress, checkpoint_dir=checkpoint_dir,
-                         resume=resume)
-    if method == "adaptive-modal":
-        from roughvib.solvers.adaptive_modal import solve_adaptive_modal
-
-        return solve_adaptive_modal(system, progress=progress, checkpoint_dir=checkpoint_dir,
-                                    resume=resume)
-    if method == "paper":
-        from roughvib.solvers.paper_scheme import solve_paper_scheme
-
-        return solve_paper_scheme(system, progress=progress)
-    from roughvib.solvers.fixed_step import solve_fixed_step
-
-    return solve_fixed_step(system, progress=progress)
+    """Run the system's solver (``system.scene.solver.method``) through the solver registry,
+    which imports its module when it runs (IDA brings scikit-sundae and scipy.sparse)."""
+    return registry.get(system.scene.solver.method).run(
+        system, progress=progress, checkpoint_dir=checkpoint_dir, resume=resume)
 
 
 def check_verifiable(scene: Scene) -> None:
@@ -671,11 +655,12 @@ def check_verifiable(scene: Scene) -> None:
     SceneError
         One line naming the method.
     """
-    if scene.resolved_solver().method == "paper":
-        raise SceneError("--verify (verify=True) judges a run by the accuracy contract, which "
-                         "includes the energy audit; solver.method = 'paper' keeps none, so it "
-                         "cannot pass: verify a run of another method, or compare the paper "
-                         "scheme with 'roughvib compare'")
+    method = scene.resolved_solver().method
+    if not registry.get(method).energy_audit:
+        raise SceneError(f"--verify (verify=True) judges a run by the accuracy contract, which "
+                         f"includes the energy audit; solver.method = {method!r} keeps none, so "
+                         f"it cannot pass: verify a run of another method, or compare the "
+                         f"{method} scheme with 'roughvib compare'")
 
 
 def verification_scene(scene: Scene) -> tuple[Scene, str]:
@@ -725,7 +710,7 @@ def _open_atol(solver: Solver) -> Solver:
 
 
 def _tol_text(s: Solver) -> str:
-    if s.method in FIXED_STEP_METHODS:
+    if registry.get(s.method).kind == registry.STEP:
         return f"step {s.step:g} s"
     return f"rtol {s.rtol:g}, atol {s.atol:g} m, atol_acceleration {s.atol_acceleration:g} m/s^2"
 

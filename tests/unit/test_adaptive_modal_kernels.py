@@ -115,23 +115,36 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
 
 
 @pytest.mark.short_run
-def test_a_law_that_does_not_name_the_solver_is_refused_in_one_line(monkeypatch):
-    """Every built-in law runs with adaptive-modal; a law whose registry entry does not name it
-    (here the Coulomb law with adaptive-modal struck out) is refused before anything runs."""
+def test_a_law_the_registry_does_not_give_the_solver_is_refused_in_one_line(monkeypatch):
+    """Every built-in law runs with adaptive-modal; where the solver registry says it does not
+    run a law (here its entry struck down to single-valued laws), the scene is refused when it
+    is loaded, and a system assembled before still is when the solver is called directly
+    (its own guard reads the laws' solvers from the same registry)."""
     from dataclasses import replace
 
+    from roughvib.model.system import assemble
     from roughvib.physics.friction import LAWS
+    from roughvib.solvers import registry
+    from roughvib.solvers.adaptive_modal import solve_adaptive_modal
 
     assert all("adaptive-modal" in law.solvers for law in LAWS.values())
-    monkeypatch.setitem(LAWS, "coulomb", replace(LAWS["coulomb"], solvers=("ida", "moreau")))
     over = {"solver.method": "adaptive-modal", "friction.law": "coulomb",
             "output.duration": 1e-3, "output.progress": False}
-    with pytest.raises(SceneError, match=r"^solver.method = 'adaptive-modal' supports "
-                                         r"friction.law = 'feldmann' or 'table' only "
-                                         r"\(friction.law = 'coulomb' needs one of 'ida', "
-                                         r"'moreau'\), got 'coulomb'$") as info:
-        simulate(roughvib.load_scene("paper-handset", over))
+    system = assemble(roughvib.load_scene("paper-handset", over))
+    monkeypatch.setitem(registry._METHODS, "adaptive-modal",
+                        replace(registry.get("adaptive-modal"), friction="single-valued"))
+    assert LAWS["coulomb"].solvers == ("ida", "moreau")
+    with pytest.raises(SceneError, match=r"^solver.method = 'adaptive-modal' cannot run this "
+                                         r"scene: friction.law = 'coulomb' is set-valued "
+                                         r"\(stick held at v = 0\), and adaptive-modal runs "
+                                         r"single-valued laws only; use ida or moreau$") as info:
+        roughvib.load_scene("paper-handset", over)
     assert "\n" not in str(info.value)
+    with pytest.raises(SceneError, match=r"^solver.method = 'adaptive-modal' supports "
+                                         r"friction.law = 'feldmann' only \(friction.law = "
+                                         r"'coulomb' needs one of 'ida', 'moreau'\), got "
+                                         r"'coulomb'$"):
+        solve_adaptive_modal(system, progress=False)
 
 
 @pytest.mark.short_run

@@ -26,6 +26,10 @@ STAGES = {
     "api": 9, "cli": 9,  # entry points
     "__init__": 10, "_compat": 10, "__main__": 10,
 }
+#: modules whose stage is not their folder's: the solver registry lives beside the solvers but
+#: is read by scene validation, so it is stage 0 (it names the solve functions as strings and
+#: imports them only when a run calls one, docs/architecture.md)
+MODULE_STAGES = {"solvers.registry": 0}
 
 
 def _module_name(path: Path) -> str:
@@ -42,7 +46,7 @@ def _stage(module: str) -> int:
     assert parts[0] == "roughvib", module
     if len(parts) == 1:
         return STAGES["__init__"]
-    return STAGES[parts[1]]
+    return MODULE_STAGES.get(".".join(parts[1:]), STAGES[parts[1]])
 
 
 def _imports(path: Path):
@@ -70,7 +74,7 @@ def test_imports_only_point_down_the_pipeline():
     bad = []
     for path in SRC.rglob("*.py"):
         rel = path.relative_to(SRC).with_suffix("")
-        own = STAGES[rel.parts[0]]
+        own = _stage(_module_name(path))
         for target in _imports(path):
             if _stage(target) > own:
                 bad.append(f"{rel} (stage {own}) imports {target} (stage {_stage(target)})")

@@ -84,7 +84,9 @@ def test_checkpoint_errors_are_one_line(tmp_path, capsys):
     assert main(["run", "--out", str(tmp_path), "--set", "output.checkpoint_interval=0.01"]) == 2
     assert "--resume" in capsys.readouterr().err
     assert main(["run", "paper", "--resume", str(tmp_path)]) == 2
-    with pytest.raises(SceneError, match="needs solver.method = 'ida'"):
+    with pytest.raises(SceneError, match=r"^solver.method = 'newmark' cannot run this scene: "
+                                         r"output.checkpoint_interval = 0.01 s, and newmark "
+                                         r"writes no checkpoints; use ida or adaptive-modal$"):
         roughvib.load_scene("paper", {"output.checkpoint_interval": 0.01,
                                       "solver.method": "newmark"})
     with pytest.raises(SceneError, match="checkpoint_interval must be 0 .off. or >= output.step"):

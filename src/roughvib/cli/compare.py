@@ -6,13 +6,14 @@ import argparse
 import sys
 
 from roughvib.cli.args import EXIT_OK, EXIT_SOLVER, InputError, out_path, parse_sets
+from roughvib.solvers import registry
 
 __all__ = ["add_parsers", "cmd_compare"]
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from roughvib.rundir import claim_files, output_folder
-    from roughvib.scene import SOLVER_METHODS, load_scene
+    from roughvib.scene import load_scene
     from roughvib.studies.compare import (
         DEFAULT_RTOLS,
         DEFAULT_STEPS,
@@ -23,11 +24,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     )
 
     scene = load_scene(args.scene, parse_sets(args.set))
-    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    for m in methods:
-        if m not in SOLVER_METHODS:
-            raise InputError(f"--methods must be a comma list of {', '.join(SOLVER_METHODS)}, "
-                             f"got {m!r}")
+    methods = None  # every solver that runs the scene (the registry's)
+    if args.methods is not None:
+        methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+        known = registry.names()
+        for m in methods:
+            if m not in known:
+                raise InputError(f"--methods must be a comma list of {', '.join(known)}, "
+                                 f"got {m!r}")
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 s, got {args.budget}")
     out = out_path(args.out)  # an empty --out is refused
@@ -62,9 +66,10 @@ def add_parsers(sub) -> None:
     c = sub.add_parser(
         "compare", formatter_class=fmt,
         help="work-precision study: every solver's cost and error, and its accuracy presets",
-        description="Run a reference (adaptive-modal or IDA at rtol 1e-10), then IDA and "
-                    "adaptive-modal over a ladder of rtol, each fixed-step scheme over a "
-                    "ladder of steps and every method at its accuracy presets (reference, "
+        description="Run a reference (adaptive-modal or IDA at rtol 1e-10), then every "
+                    "solver that runs the scene: IDA and adaptive-modal over a ladder of "
+                    "rtol, each fixed-step scheme over a ladder of steps, and every method at "
+                    "its accuracy presets (reference, "
                     "standard, draft), cheap runs first; measure each run against the "
                     "reference with the accuracy contract's metrics (the code of 'roughvib "
                     "run --verify'); write work_precision.csv/.md/.png into --out. The "
@@ -84,15 +89,17 @@ def add_parsers(sub) -> None:
                    help="wall-time budget of the whole command in seconds, reference "
                         "included (default 900)")
     c.add_argument("--reference", metavar="DIR", help="use this result directory as reference")
-    c.add_argument("--reference-method", choices=("auto", "ida", "adaptive-modal"),
+    c.add_argument("--reference-method", choices=("auto", *registry.names(registry.TOLERANCE)),
                    default="auto",
                    help="solver of the reference (default auto: adaptive-modal where it can "
                         "run, else ida)")
     c.add_argument("--reference-rtol", type=float, default=1e-10,
                    help="rtol of the reference (atol_acceleration = 1e-2 x rtol m/s^2; "
                         "default 1e-10)")
-    c.add_argument("--methods", default="ida,adaptive-modal,exact-modal,newmark,paper",
-                   help="comma list (default: ida,adaptive-modal,exact-modal,newmark,paper)")
+    c.add_argument("--methods",
+                   help="comma list of solvers (default: every solver that runs the scene, "
+                        "in the order " + ",".join(registry.names()) + "; the paper scene: "
+                        "all but moreau, a set-valued friction law: ida,adaptive-modal,moreau)")
     c.add_argument("--rtols", help="comma list of rtols of the tolerance-driven solvers "
                                    "(default 1e-3 ... 1e-9)")
     c.add_argument("--steps", help="comma list of fixed steps in s (default 1e-4 ... 1e-7)")

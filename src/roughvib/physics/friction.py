@@ -31,6 +31,7 @@ from numba import njit
 
 from roughvib._cache import cached_values, code_fingerprint
 from roughvib.scene import SANE_BOUNDS, Friction, SceneError
+from roughvib.solvers import registry
 
 __all__ = [
     "LAWS",
@@ -106,27 +107,27 @@ class FrictionLaw:
         (the Feldmann law with its branch and latch regimes).
     calibration : {"feldmann", "set-valued"}
         The tangential model in which T0 is calibrated to ``excitation.target_rms_velocity``.
-    solvers : tuple of str
-        The solver methods that integrate it.
     """
 
     name: str
     law_id: int
     set_valued: bool
     calibration: str
-    solvers: tuple[str, ...]
+
+    @property
+    def solvers(self) -> tuple[str, ...]:
+        """The solver methods that integrate it with a force-driven block, as the solver
+        registry says (:meth:`roughvib.solvers.registry.Method.runs_law`)."""
+        return tuple(m.name for m in registry.methods() if m.runs_law(self.set_valued))
 
 
 #: the friction laws by the name a scene uses (``friction.law``)
 LAWS = {
-    "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, False, "feldmann",
-                            ("ida", "adaptive-modal", "exact-modal", "newmark", "paper")),
+    "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, False, "feldmann"),
     # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
     # mu_slip / mu_stick), so that its runs stay bit-identical
-    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, True, "feldmann",
-                           ("ida", "adaptive-modal", "moreau")),
-    "table": FrictionLaw("table", LAW_TABLE, True, "set-valued",
-                         ("ida", "adaptive-modal", "moreau")),
+    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, True, "feldmann"),
+    "table": FrictionLaw("table", LAW_TABLE, True, "set-valued"),
 }
 
 

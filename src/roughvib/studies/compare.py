@@ -1,9 +1,11 @@
 """Work-precision study: every solver over a ladder of settings and at its accuracy presets,
 measured against a reference run of the same scene by the accuracy contract's metrics.
 
-The tolerance-driven solvers (IDA, adaptive-modal) run a ladder of rtol (with
-``atol_acceleration`` = rtol x 1e-2 m/s^2, so that one knob traces the whole trade), the
-fixed-step schemes a ladder of steps, and each method also runs its three accuracy presets
+The methods are those of the solver registry (:mod:`roughvib.solvers.registry`) that run the
+scene, or those named; each runs the ladder of its kind: the tolerance-driven solvers (IDA,
+adaptive-modal) a ladder of rtol (with ``atol_acceleration`` = rtol x 1e-2 m/s^2, so that one
+knob traces the whole trade), the fixed-step schemes a ladder of steps; and each method also
+runs its three accuracy presets
 (``solver.accuracy``; :data:`roughvib.scene.ACCURACY_PRESETS`). Every run is measured against
 the reference with :func:`roughvib.analysis.accuracy.measure_accuracy`, the code that
 ``roughvib run --verify`` uses: the largest band deviation of block and plate (the contract's
@@ -35,16 +37,21 @@ import pandas as pd
 from roughvib.analysis.accuracy import CONTRACT, contract_ratio, measure_accuracy
 from roughvib.results import Result, load_result
 from roughvib.rundir import output_folder, writing
-from roughvib.scene import ACCURACY_LEVELS, FIXED_STEP_METHODS, Scene, user_stacklevel
+from roughvib.scene import ACCURACY_LEVELS, Scene, SceneError, user_stacklevel
 from roughvib.simulation import simulate
+from roughvib.solvers import registry
 
 __all__ = ["DEFAULT_RTOLS", "DEFAULT_STEPS", "FIXED_METHODS", "TOLERANCE_METHODS",
-           "BudgetExceeded", "crossings", "errors_against", "outcome_line", "run_study"]
+           "BudgetExceeded", "crossings", "errors_against", "outcome_line", "run_study",
+           "study_methods"]
 
 DEFAULT_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
 DEFAULT_STEPS = (1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2.5e-6, 1e-6, 5e-7, 2e-7, 1e-7)
-TOLERANCE_METHODS = ("ida", "adaptive-modal")  # driven by rtol, the others by their step
-FIXED_METHODS = ("exact-modal", "newmark", "paper")  # moreau: coulomb scenes only
+#: the registered solvers driven by rtol (their ladder: ``rtols``)
+TOLERANCE_METHODS = registry.names(registry.TOLERANCE)
+#: the registered solvers driven by a fixed step (their ladder: ``steps``); a study runs those
+#: of them that run its scene (:func:`study_methods`)
+FIXED_METHODS = registry.names(registry.STEP)
 METRICS = ("block_band_db", "plate_band_db", "velocity_rel_rms", "event_dt_max",
            "events_unmatched", "energy_rel_residual", "contract_ratio")
 
@@ -61,8 +68,45 @@ class _Run:
     preset: str = ""
 
 
+def _fixed(method: str) -> bool:
+    """Whether ``method`` runs a ladder of steps (else one of rtol)."""
+    return registry.get(method).kind == registry.STEP
+
+
+def study_methods(scene: Scene, methods=None) -> tuple[str, ...]:
+    """The methods a study of ``scene`` runs.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (its solver section is not looked at; checkpoints off, as the study runs).
+    methods : sequence of str, optional
+        The methods to run; default: every registered solver that runs the scene, in the
+        registry's order.
+
+    Returns
+    -------
+    tuple of str
+
+    Raises
+    ------
+    SceneError
+        A named method that cannot run the scene: one line naming it, the rule and what
+        would run the scene (the refusal of scene validation).
+    ValueError
+        A name that is no registered solver.
+    """
+    if methods is None:
+        return registry.supporting(scene)
+    for m in methods:
+        reason = registry.get(m).supports(scene)
+        if reason is not None:
+            raise SceneError(f"solver.method = {m!r} cannot run this scene: {reason}")
+    return tuple(methods)
+
+
 def _overrides(method: str, value: float, out_step: float) -> dict:
-    if method not in FIXED_STEP_METHODS:
+    if not _fixed(method):
         return {"solver.method": method, "solver.rtol": value,
                 "solver.atol_acceleration": value * 1e-2}
     step_out = out_step if value <= out_step else value
@@ -73,7 +117,7 @@ def _preset_run(scene: Scene, method: str, level: str) -> _Run:
     over = {"solver.method": method, "solver.accuracy": level, "solver.rtol": None,
             "solver.atol": None, "solver.atol_acceleration": None, "solver.step": None}
     s = scene.with_overrides(over).resolved_solver()
-    if method in FIXED_STEP_METHODS:
+    if _fixed(method):
         if s.step > scene.output.step:
             over["output.step"] = s.step
         return _Run(method, s.step, over, level)
@@ -84,7 +128,7 @@ def _key(scene: Scene, run: _Run) -> tuple:
     """What a run computes: its resolved solver settings and output step."""
     sc = scene.with_overrides(run.overrides)
     s = sc.resolved_solver()
-    if s.method in FIXED_STEP_METHODS:
+    if _fixed(s.method):
         return (s.method, s.step, sc.output.step)
     return (s.method, s.rtol, s.atol, s.atol_acceleration)
 
@@ -287,7 +331,7 @@ def _reference_scene(base: Scene, method: str, rtol: float) -> Scene:
 
 def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
               reference: str | Path | None = None,
-              methods=TOLERANCE_METHODS + FIXED_METHODS,
+              methods=None,
               rtols=DEFAULT_RTOLS, steps=DEFAULT_STEPS, reference_rtol: float = 1e-10,
               reference_method: str = "auto", presets: bool = True,
               progress: bool = True, started: float | None = None) -> pd.DataFrame:
@@ -305,8 +349,11 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
         when the budget is spent.
     reference : path, optional
         A result directory to use as reference instead of computing one.
-    methods, rtols, steps
-        What to run.
+    methods : sequence of str, optional
+        The solvers to run; default: every registered solver that runs the scene
+        (:func:`study_methods`). A named one that cannot run it is refused before any run.
+    rtols, steps
+        The ladders of the tolerance-driven and of the fixed-step solvers.
     reference_rtol : float
         rtol of the reference (``atol_acceleration`` = 1e-2 x rtol m/s^2, ``atol`` =
         min(1e-12, 1e-2 x rtol) m).
@@ -327,6 +374,8 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
 
     Raises
     ------
+    SceneError
+        A named method that cannot run the scene (one line, before any run).
     BudgetExceeded
         If the reference does not finish within the budget.
     RuntimeError
@@ -339,8 +388,9 @@ def run_study(scene: Scene, out_dir: str | Path, *, budget: float = 900.0,
         complete or not at all.
     """
     t_start = time.perf_counter() if started is None else float(started)
-    out = output_folder(out_dir)
     base = scene.with_overrides({"output.progress": False, "output.checkpoint_interval": 0.0})
+    methods = study_methods(base, methods)
+    out = output_folder(out_dir)
     clock = _Deadlines(t_start, budget)
     worker = _Worker()
     try:
@@ -415,7 +465,7 @@ def _study(scene, base, out, worker, budget, clock, reference, methods, rtols, s
     queue = _queue(base, methods, rtols, steps, presets)
     # warm-up: compile (or load) every method's numba kernels before anything is timed
     for m in methods:
-        tiny = {**_overrides(m, rtols[0] if m not in FIXED_STEP_METHODS else base.output.step,
+        tiny = {**_overrides(m, base.output.step if _fixed(m) else rtols[0],
                              base.output.step),
                 "output.duration": 20 * base.output.step}
         # a failure shows later; the warnings are those of its 20 steps, not of the study
@@ -426,9 +476,8 @@ def _study(scene, base, out, worker, budget, clock, reference, methods, rtols, s
     bar = progress_bar(len(queue), desc="work-precision runs", disable=not progress, unit="run")
     for run in queue:
         row = {"method": run.method, "setting": run.setting, "preset": run.preset,
-               "setting_name": "step [s]" if run.method in FIXED_STEP_METHODS else "rtol"}
-        predicted = last_cost.get(run.method, 0.0) * (
-            2.5 if run.method in FIXED_STEP_METHODS else 3.0)
+               "setting_name": "step [s]" if _fixed(run.method) else "rtol"}
+        predicted = last_cost.get(run.method, 0.0) * (2.5 if _fixed(run.method) else 3.0)
         left = clock.left_for_runs()
         if predicted > left or left <= 0:
             row.update(status="skipped",
@@ -495,7 +544,7 @@ def _queue(base: Scene, methods, rtols, steps, presets: bool) -> list[_Run]:
     per: dict[str, list[_Run]] = {}
     for m in methods:
         ladder = [_Run(m, v, _overrides(m, v, base.output.step))
-                  for v in (steps if m in FIXED_STEP_METHODS else rtols)]
+                  for v in (steps if _fixed(m) else rtols)]
         runs: dict[tuple, _Run] = {}
         for r in ladder:
             runs[_key(base, r)] = r

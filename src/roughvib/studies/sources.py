@@ -32,8 +32,9 @@ import pandas as pd
 
 from roughvib.analysis.accuracy import SIGNALS, analysis_window
 from roughvib.analysis.bands import band_levels
-from roughvib.scene import FRICTION_MOMENT_METHODS, Scene, scene_from_dict
+from roughvib.scene import Scene, scene_from_dict
 from roughvib.simulation import simulate
+from roughvib.solvers import registry
 
 __all__ = ["SOURCES", "Variant", "source_variants", "source_study"]
 
@@ -102,7 +103,7 @@ def source_variants(scene: Scene, v_rms: float | None = None) -> list[Variant]:
                                   "excitation.target_rms_velocity": "none"}),
             "sinusoidal sliding, no stick-slip"))
     if (exc.kind == "force" and scene.plate.kind != "rigid"
-            and scene.resolved_solver().method in FRICTION_MOMENT_METHODS):
+            and registry.get(scene.resolved_solver().method).friction_moment):
         on = not c.friction_moment
         out.append(Variant("friction moment", f"contact.friction_moment = {str(on).lower()}",
                            scene.with_overrides({"contact.friction_moment": on}),
