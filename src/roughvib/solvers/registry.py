@@ -308,10 +308,10 @@ _COMMON_RULES: tuple[Rule, ...] = (_friction_law, _friction_moment, _checkpoints
 # run's own acceleration level, measured by a short pilot solve (docs/accuracy.md);
 # ``atol_acceleration`` is the absolute value used when no level can be measured. The measured
 # cost and error of every entry are in docs/accuracy.md. ``reference`` meets the accuracy
-# contract on both built-in paper scenes for ``ida`` and ``adaptive-modal``, and on ``paper``
-# for ``exact-modal`` and ``newmark``; on ``paper-100mms`` (lift-offs) the fixed-step methods
-# miss the contract's event-time limit (about 1.5 steps), and the paper's scheme keeps no
-# energy audit, so it never meets the contract.
+# contract on both built-in paper scenes for ``ida``, ``adaptive-modal`` and ``newmark``, and
+# on ``paper-100mms`` for ``exact-modal``; on ``paper`` exact-modal's stick/slip events, found
+# from sign changes between steps, miss the event-time limit (about half a step). The paper's
+# scheme keeps no energy audit, so it never meets the contract.
 
 register(Method(
     "ida", TOLERANCE,
@@ -327,11 +327,9 @@ register(Method(
 
 # adaptive-modal: the Hermite step is fourth order and the trapezoidal step's kept states are
 # extrapolated to third order, so the reference's plate-mode tolerance is a decade looser than
-# the rtol. Measured over the default length against tight runs: Hermite step (the built-in
-# scenes) worst plate band 0.0018 dB (paper), 0.0099 dB (paper-100mms), events <= 1.2e-9 s
-# (docs/solvers.md); trapezoidal step +0.0057 dB and -0.011 dB, events <= 3.3e-10 s, and with
-# the friction moment the 40 kHz band comes within the contract's 80 dB and reads -0.098 dB
-# (docs/accuracy.md)
+# the rtol. Measured over the default length against tight runs (docs/accuracy.md): Hermite
+# step (the built-in scenes) worst plate band -0.30 dB (paper) and -0.25 dB (paper-100mms), at
+# 40 kHz, events <= 1.1e-9 s; trapezoidal step -0.19 and -0.019 dB, events <= 1.1e-9 s
 register(Method(
     "adaptive-modal", TOLERANCE,
     "exact per-mode propagation, error-controlled dyadic steps, located events",
