@@ -30,7 +30,7 @@ What this module adds to the fixed-step scheme, to make it a reference-grade sol
   state kept is the two half steps with that estimate removed (local extrapolation, third
   order: ``_extrapolate``). The estimate is weighted by IDA's tolerances (``solver.rtol``,
   ``solver.atol``, ``solver.atol_acceleration``:
-  ``roughvib.solvers.ida._atol_vector``): RMS over the modes as in IDA, max over the
+  ``roughvib.solvers.base.atol_vector``): RMS over the modes as in IDA, max over the
   block, contact and energy states (see ``_err_norm``). Step sizes are
   dyadic fractions of the output step, so the propagators of each size are computed once and
   cached, and every output time is a step boundary (no interpolation of the modes).
@@ -76,6 +76,13 @@ from roughvib.physics.friction import LAWS, feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers import hermite as hm
+from roughvib.solvers.base import (
+    RawSolution,
+    atol_vector,
+    check_tolerances,
+    output_grid,
+    progress_bar,
+)
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -83,13 +90,6 @@ from roughvib.solvers.checkpoint import (
     write_checkpoint,
 )
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
-from roughvib.solvers.ida import (
-    RawSolution,
-    _atol_vector,
-    check_tolerances,
-    output_grid,
-    progress_bar,
-)
 
 __all__ = ["solve_adaptive_modal", "step_maps"]
 
@@ -1712,7 +1712,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     armed = np.zeros(n_ev, dtype=np.int64)
     fired = np.zeros(n_ev, dtype=np.int64)
     phiT = np.ascontiguousarray(phi.T)
-    atol = _atol_vector(system)
+    atol = atol_vector(system)
     ist = np.zeros(N_IST, dtype=np.int64)
     if hermite is None:
         hermite = hermite_applies(system)

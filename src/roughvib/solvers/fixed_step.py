@@ -33,8 +33,8 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu_law, kinetic_coefficient, latch_update
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
-from roughvib.solvers.events import initial_phase_events
-from roughvib.solvers.ida import EventRecord, RawSolution
+from roughvib.solvers.base import RawSolution
+from roughvib.solvers.events import EventRecord, initial_phase_events
 
 __all__ = ["modal_propagators", "solve_fixed_step"]
 

@@ -25,10 +25,8 @@ import copy
 import ctypes
 import glob
 import os
-import sys
 import time
 import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -38,7 +36,15 @@ from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
 from roughvib.model.system import System
-from roughvib.scene import SceneError, scene_to_toml
+from roughvib.scene import scene_to_toml
+from roughvib.solvers.base import (
+    RawSolution,
+    atol_vector,
+    check_tolerances,
+    output_grid,
+    progress_bar,
+    tolerance_floors,
+)
 from roughvib.solvers.checkpoint import (
     Checkpoint,
     input_fingerprint,
@@ -56,10 +62,12 @@ from roughvib.solvers.events import (
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-# scikit-sundae and scipy.sparse are imported where IDA runs: the other solvers import this
-# module for RawSolution, the tolerances and the output grid, and need neither
+# scikit-sundae and scipy.sparse are imported where IDA runs. RawSolution, EventRecord and
+# tolerance_floors live in solvers/base.py and solvers/events.py; this module still answers
+# for them (simulation.py imports them from here). check_tolerances is called through this
+# module's name, so that a caller can replace it here (the tests do).
 
-__all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
+__all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida", "tolerance_floors"]
 
 # A root that fires within REFIRE_DT of the latest restart, for functions switched at that
 # instant, is round-off: contacts in phase reach their margins together, IDA places their roots
@@ -87,22 +95,6 @@ JACOBIANS_PER_STEP_BUDGET = 40
 
 class _JacobianBudget(Exception):
     """Raised inside the Jacobian callback to abort a stalled IDASolve call."""
-
-
-@dataclass
-class RawSolution:
-    """What a solver hands to :class:`roughvib.results.Result` (one contract for all)."""
-
-    time: np.ndarray                 # (n,) [s]
-    outputs: np.ndarray              # (n, kernels.n_output_columns(K))
-    events: list[EventRecord]
-    stats: dict
-    status: str
-    message: str
-    y_initial: np.ndarray
-    y_final: np.ndarray
-    t_final: float
-    extra: dict = field(default_factory=dict)
 
 
 #: the scikit-sundae versions whose private layout ``_IdaCounters`` was checked against (the
@@ -272,104 +264,6 @@ class _IdaCounters:
         return self._get(name) if self.ok else None
 
 
-def _atol_vector(system: System) -> np.ndarray:
-    """Per-component absolute tolerances scaled from solver.atol (a displacement, m).
-
-    A mode's tolerances are those of the structure's largest displacement in it, converted to
-    the modal coordinate by ``system.mode_scale`` (mass-normalised shapes: q in m sqrt(kg)).
-    """
-    lay = system.layout
-    a = system.scene.solver.atol
-    atol = np.full(lay.size, np.nan)
-    if system.n_modes:
-        omega = np.sqrt(system.omega2)
-        acc = system.scene.solver.atol_acceleration
-        atol[lay.slice("plate.q")] = np.minimum(a, acc / system.omega2) / system.mode_scale
-        atol[lay.slice("plate.dq")] = np.minimum(a * omega, acc / omega) / system.mode_scale
-    atol[lay.index("block.z")] = a
-    atol[lay.index("block.vz")] = a * 2 * np.pi * 1e3
-    if lay.tangential:
-        atol[lay.index("block.x")] = a
-        atol[lay.index("block.vx")] = a * 1e3
-    atol[lay.slice("contact.force")] = a * system.stiff
-    if lay.has("friction.force"):
-        atol[lay.index("friction.force")] = a * float(np.mean(system.stiff))
-    for name in lay.names:
-        if name.startswith("energy."):
-            atol[lay.index(name)] = a * 1e-2
-    if np.isnan(atol).any():  # every state needs a tolerance: never leave one undefined
-        missing = [n for n in lay.names if np.isnan(atol[lay.slice(n)]).any()]
-        raise AssertionError(f"no absolute tolerance for states {missing}")
-    return atol
-
-
-#: solver.atol must be at least this many unit round-offs of the contact compression's terms
-#: (docs/robustness.md): near a lift-off or touch-down a contact force is known only to
-#: s_k eps L. Measured on the one-contact lift-off scene of docs/robustness.md (rtol 1e-10,
-#: 0.02 s): IDA ran through at 100, 10 and 2.3 eps L and stalled at 1 eps L and below, so
-#: the floor keeps a margin of 40 over the lowest atol that ran (adaptive-modal ran far lower).
-ATOL_FLOOR_ULPS = 100.0
-
-
-def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Round-off floors of the absolute tolerances at state ``y`` (the static equilibrium).
-
-    Returns ``{field: (floor, scale)}`` for ``atol`` [m] and, with plate modes,
-    ``atol_acceleration`` [m/s^2]; ``scale`` is the magnitude whose round-off sets the floor.
-
-    * ``atol``: the contact compression z - w_k + h is a difference of terms as large as
-      ``L = |z| + max |w_k| + max |h|`` [m] (block position, plate displacement at the contacts,
-      roughness height), so it is known to eps L, and a closing contact's force only to
-      s_k eps L, while its tolerance weight tends to atol s_k. The floor is
-      ``ATOL_FLOOR_ULPS`` eps L.
-    * ``atol_acceleration``: each mode balances w_r^2 q_r against its modal force per unit
-      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to ``eps max |u_r|``.
-      Below that floor both event-driven solvers slow down (1.6x at the floor, 4x at 4x the
-      floor, 100x and more for block.mass >= 1e9 kg) and finally stall.
-    """
-    eps = float(np.finfo(float).eps)
-    lay = system.layout
-    F = np.asarray(y[lay.slice("contact.force")], dtype=float)
-    w = system.cres @ F
-    if system.n_modes:
-        w = w + system.phi.T @ np.asarray(y[lay.slice("plate.q")], dtype=float)
-    L = (abs(float(y[lay.index("block.z")])) + float(np.max(np.abs(w), initial=0.0))
-         + float(np.max(np.abs(system.profile.z), initial=0.0)))
-    floors = {"atol": (ATOL_FLOOR_ULPS * eps * L, L)}
-    if system.n_modes:
-        # modal force per unit modal mass, as the structure's largest acceleration [m/s^2]
-        u = float(np.max(np.abs((system.phi @ F) * system.mode_scale)))
-        floors["atol_acceleration"] = (eps * u, u)
-    return floors
-
-
-def check_tolerances(system: System, y: np.ndarray) -> None:
-    """Refuse absolute tolerances below their round-off floors (:func:`tolerance_floors`).
-
-    Raises
-    ------
-    SceneError
-        One line naming each field below its floor, the rule, the unit and the value.
-    """
-    scfg = system.scene.solver
-    floors = tolerance_floors(system, y)
-    bad = []
-    floor, L = floors["atol"]
-    if scfg.atol < floor:
-        bad.append(f"solver.atol must be >= {floor:.2g} m for this scene ({ATOL_FLOOR_ULPS:g} "
-                   f"round-offs of the contact compression, whose terms reach {L:.3g} m), "
-                   f"got {scfg.atol:g} m")
-    if "atol_acceleration" in floors:
-        floor, u = floors["atol_acceleration"]
-        if scfg.atol_acceleration < floor:
-            bad.append(f"solver.atol_acceleration must be >= {floor:.2g} m/s^2 for this scene "
-                       f"(the round-off of the plate modes' force balance, whose modal forces "
-                       f"per modal mass reach {u:.3g} m/s^2 under block.mass = "
-                       f"{system.scene.block.mass:g} kg), got {scfg.atol_acceleration:g} m/s^2")
-    if bad:
-        raise SceneError("; ".join(bad))
-
-
 def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     import scipy.sparse as sp
 
@@ -435,38 +329,6 @@ def _krylov_options(system: System, args: tuple) -> dict:
 
     return dict(linsolver="gmres", krylov_dim=1, precond=sun.ida.IDAPrecond(None, psolve),
                 jactimes=sun.ida.IDAJacTimes(None, jv))
-
-
-def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
-    """The uniform output grid of a run and its output rows, NaN until written.
-
-    Returns
-    -------
-    grid : ndarray, shape (n,)
-        0, output.step, ..., output.duration [s].
-    outs : ndarray, shape (n, kernels.n_output_columns(K))
-    """
-    out_cfg = system.scene.output
-    n = int(round(out_cfg.duration / out_cfg.step)) + 1
-    return np.arange(n) * out_cfg.step, np.full((n, kn.n_output_columns(system.n_contacts)),
-                                                  np.nan)
-
-
-def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
-    """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
-
-    ``progress`` None means the scene's ``output.progress``. When stderr is not a terminal
-    (a log file), a few whole lines instead (``roughvib._progress``).
-    """
-    from roughvib._progress import progress_bar as bar
-
-    scene = system.scene
-    if progress is None:
-        progress = scene.output.progress
-    return bar(float(scene.output.duration), initial=initial, unit="s sim",
-               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
-               value_format=".4f", unit_scale=False, leave=False,
-               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
 
 
 def solve_ida(system: System, *, progress: bool | None = None,
@@ -549,7 +411,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
     eventsfn.terminal = [True] * n_ev
 
     options = dict(
-        rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
+        rtol=scfg.rtol, atol=atol_vector(system), algebraic_idx=lay.algebraic_indices,
         eventsfn=eventsfn, num_events=n_ev, max_num_steps=budget, max_step=scfg.max_step,
         max_order=scfg.max_order,
     )
