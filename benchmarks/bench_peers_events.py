@@ -145,7 +145,7 @@ class ScipyEvents:
         self.full = np.zeros(lay.size)
         self.zero = np.zeros(lay.size)
         self.res = np.zeros(lay.size)
-        self.ev = np.zeros(self.K + 3)
+        self.ev = np.zeros(self.K + kn.N_LAW_ROOTS)
         self.ainv = np.zeros((self.K, self.K))
         self.nfev = 0
         self.deadline = math.inf

@@ -191,7 +191,7 @@ def measure(name: str, reps: int) -> dict:
     c["assemble"] = _per_call(_loop_assemble, reps, t + h, y1.copy(), d1.copy(), u1.copy(),
                               lev, prop, off, fp, cdamp, phiT, spos, prof, reg,
                               np.zeros(2 * R + 5 * K + 3))
-    g = np.zeros(K + 3)
+    g = np.zeros(K + kn.N_LAW_ROOTS)
     c["events"] = _per_call(_loop_events, reps, t + h, yb, g, off, fp, phi, cres, spos, prof,
                             reg, rf, work)
     outs = np.zeros((64, raw.outputs.shape[1]))

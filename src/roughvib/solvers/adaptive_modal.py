@@ -77,6 +77,9 @@ from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError, scene_to_toml
 from roughvib.solvers import hermite as hm
 from roughvib.solvers.base import (
+    FIRST_ROW,
+    MODE_DQ,
+    MODE_Q,
     RawSolution,
     atol_vector,
     check_tolerances,
@@ -105,10 +108,17 @@ N_SERIES = 22        # terms: 1 / 22! < 1e-21
 _INV_N1 = 1.0 / np.arange(1.0, N_SERIES + 1.0)                          # 1 / (n + 1)
 _INV_N12 = 1.0 / (np.arange(1.0, N_SERIES + 1.0) * np.arange(2.0, N_SERIES + 2.0))  # 1/((n+1)(n+2))
 ROOT_TOL = 1e-13     # s, width of the bracket that locates an event
+#: trials of one root search at most (a search that converges takes a few: 25 were a sign of
+#: bisection, see _illinois_trial; 200 bisections halve any step below ROOT_TOL)
+ROOT_MAX_TRIALS = 200
 NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights ...
 NEWTON_ULPS = 8.0    # ... or within this many round-offs of its equation's terms
+NEWTON_MAX_ITER = 25  # Newton iterations before the step is given up (retried smaller)
 EPS = 2.220446049250313e-16  # double-precision unit round-off (numpy.finfo(float).eps)
-SAFETY = 0.9
+SAFETY = 0.9  # the step-size controller's safety factor on the optimal step
+#: what _err_norm returns for an estimate that is NaN or infinite (and the threshold the loops
+#: test it against): the step is rejected as non-finite
+ERR_NONFINITE = 1e300
 
 # codes of _advance
 ADV_CHUNK = 0
@@ -150,7 +160,8 @@ N_IST = 13
 Propagators = collections.namedtuple("Propagators",
                                      ["Phi", "G0", "G1", "G1c", "hslot", "Hm", "hmslot", "P"])
 #: the step loop's buffers: ``Y`` (N_YBUF, n) states, ``D`` (N_DBUF, N_D) derivatives, ``U``
-#: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + 3) margins, ``armed`` / ``fired`` (K + 3,) int64
+#: (N_DBUF, R) modal forces, ``G`` (N_GBUF, K + N_LAW_ROOTS) margins, ``armed`` / ``fired``
+#: (K + N_LAW_ROOTS,) int64
 Buffers = collections.namedtuple("Buffers", ["Y", "D", "U", "G", "armed", "fired"])
 #: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 3 R + 6 K + 3),
 #: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
@@ -172,9 +183,8 @@ def new_scratch(work: np.ndarray, R: int, K: int) -> Scratch:
     return Scratch(work, np.zeros(3 * R + 6 * K + 3), np.zeros((K + 1, K + 1)),
                    np.zeros(K + 1, dtype=np.int64))
 
-# components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
-MODE_Q = 0
-MODE_DQ = 1
+# components of a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2):
+# MODE_Q, MODE_DQ (solvers/base.py)
 # rows of the propagators' mode-contiguous copy P (Propagators.P): Phi's four entries, G0, G1
 MAP_QQ = 0
 MAP_QD = 1
@@ -209,7 +219,6 @@ G_TRIAL = 3
 G_LOW = 4     # the Hermite loop: at the last point accepted (a root search's lower bracket)
 N_GBUF = 5
 T_NOW = 0      # the one entry of the time box ``tt``
-FIRST_ROW = 0  # the output row of t = 0
 
 
 @njit(cache=True)
@@ -633,7 +642,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     v1 = v0 + h * d0[D_AX] if sliding else 0.0
     texc1 = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) if sliding else 0.0
     ok = False
-    for _it in range(25):
+    for _it in range(NEWTON_MAX_ITER):
         ist[I_NEWTON] += 1
         S1 = 0.0
         for a in range(nc):
@@ -757,13 +766,13 @@ def _err_norm(ya, yb, y0, atol, rtol, n_modal, div):
     n = ya.size
     worst = 0.0
     acc = _modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div)
-    if not acc < 1e300:  # NaN or inf in a mode: the step is rejected as non-finite
-        return 1e300
+    if not acc < ERR_NONFINITE:  # NaN or inf in a mode: the step is rejected as non-finite
+        return ERR_NONFINITE
     for i in range(n_modal, n):
         w = rtol * max(abs(y0[i]), abs(yb[i])) + atol[i]
         e = abs(ya[i] - yb[i]) / (div * w)
-        if not e < 1e300:  # NaN or inf anywhere: the step is rejected as non-finite
-            return 1e300
+        if not e < ERR_NONFINITE:  # NaN or inf anywhere: the step is rejected as non-finite
+            return ERR_NONFINITE
         if e > worst:
             worst = e
     if n_modal > 0:
@@ -983,8 +992,9 @@ def _trapezoidal_loop(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs,
     Buffers (``buf``, ``Buffers``; rows are views): ``Y`` (7, n) states y, ya (one full
     step), ym, yb (the two half steps), yt (root-search trial), ybest (state at the root), wts
     (tolerance weights); ``D`` (6, 8) and ``U`` (6, R) the derivatives (:func:`derivatives`)
-    and modal forces (:func:`modal_force`) of the first six; ``G`` (4, K + 3) the margins at
-    the step start, half step, end, and of the latest trial; ``armed``, ``fired`` the roots.
+    and modal forces (:func:`modal_force`) of the first six; ``G`` (4, K + N_LAW_ROOTS) the
+    margins at the step start, half step, end, and of the latest trial; ``armed``, ``fired``
+    the roots.
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch``.
     """
     Y, D, U, G, armed, fired = buf
@@ -1058,7 +1068,7 @@ def _trapezoidal_loop(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs,
             fac = SAFETY * err ** (-1.0 / 3.0)
             drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
             ist[I_LEV] = lev + max(1, drop)
-            if err >= 1e300:
+            if err >= ERR_NONFINITE:
                 tt[T_NOW] = t
                 return ADV_NONFINITE
             continue
@@ -1106,7 +1116,7 @@ def _trapezoidal_loop(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs,
                 lo = 0.0
                 glo = gb0[i]
                 side = 0
-                for _it in range(200):
+                for _it in range(ROOT_MAX_TRIALS):
                     if (hi - lo) * L <= ROOT_TOL:
                         break
                     th = _illinois_trial(lo, hi, glo, ghi, L)
@@ -1225,6 +1235,7 @@ HermiteScratch = collections.namedtuple("HermiteScratch",
 #: order of the Hermite step: the step-doubling estimate is (ya - yb) / (2^4 - 1)
 HERMITE_ORDER = 4
 HERMITE_FIRST_LEVEL = 10  # the first full step: h_top / 2^10 (4e-5 s / 1024 at 1e-5 s output)
+TRAPEZOIDAL_FIRST_LEVEL = 8  # the trapezoidal loop's first step: h_max / 2^8
 NEWTON_KEPT = 0  # the scratch row (Newton matrix) of the kept steps and root trials ...
 NEWTON_FULL = 1  # ... and of the full step of a block
 N_NEWTON = 2
@@ -1372,7 +1383,7 @@ def _hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye,
         lo = th_lo
         glo = glo_at[i]
         side = 0
-        for _it in range(200):
+        for _it in range(ROOT_MAX_TRIALS):
             if (hi - lo) * L <= ROOT_TOL:
                 break
             th = _illinois_trial(lo, hi, glo, ghi, L)
@@ -1581,7 +1592,7 @@ def _hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, 
             # a non-finite estimate within an output interval ends the run; over a block of
             # several intervals it is the long full step's (its Newton can run away where the
             # kept steps do not): one level down
-            if err >= 1e300:
+            if err >= ERR_NONFINITE:
                 if rows == 0:
                     tt[T_NOW] = t
                     return ADV_NONFINITE
@@ -1702,7 +1713,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
 
     nst = lay.size
-    n_ev = K + 3
+    n_ev = K + kn.N_LAW_ROOTS
     Y = np.zeros((N_YBUF, nst))
     Y[B_NOW] = y
     y = Y[B_NOW]  # the current state, updated in place by _advance
@@ -1749,7 +1760,7 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         kn.outputs(0.0, y, outs[FIRST_ROW], *args)
         ist[I_K] = 1
         # the first step h_max / 256 (the Hermite loop: its first full step about as long)
-        ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else 8
+        ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else TRAPEZOIDAL_FIRST_LEVEL
         book = EventBook(system, regime, reg, rf)
         book.log_initial_phase(0.0, y)
         fresh = True

@@ -5,10 +5,12 @@ The solvers (:mod:`.ida`, :mod:`.adaptive_modal`, :mod:`.fixed_step`,
 :mod:`.paper_scheme`) import these from here and not from each other:
 
 * :class:`RawSolution`, what a solver hands to :class:`roughvib.results.Result`;
-* :func:`output_grid`, the uniform output grid and its rows;
+* :func:`output_grid`, the uniform output grid and its rows, and :data:`FIRST_ROW`;
 * :func:`atol_vector`, the per-state absolute tolerances, and :func:`tolerance_floors` /
   :func:`check_tolerances`, their round-off floors;
-* :func:`progress_bar`, the progress bar in simulated seconds.
+* :func:`progress_bar`, the progress bar in simulated seconds;
+* :data:`MODE_Q`, :data:`MODE_DQ`, a mode's components in the per-mode step maps of the
+  modal solvers.
 
 The drivers call :func:`check_tolerances` through their own module
 (``adaptive_modal.check_tolerances``), so that a caller can replace it there (the tests do).
@@ -29,8 +31,15 @@ from roughvib.solvers.events import EventRecord
 if TYPE_CHECKING:
     from roughvib.model.system import System
 
-__all__ = ["ATOL_FLOOR_ULPS", "RawSolution", "atol_vector", "check_tolerances", "output_grid",
-           "progress_bar", "tolerance_floors"]
+__all__ = ["ATOL_FLOOR_ULPS", "FIRST_ROW", "MODE_DQ", "MODE_Q", "RawSolution", "atol_vector",
+           "check_tolerances", "output_grid", "progress_bar", "tolerance_floors"]
+
+FIRST_ROW = 0  #: the output row of t = 0
+#: a mode's state [q, q'] in the per-mode step maps of the modal solvers: ``Phi[r, i, j]``
+#: (R, 2, 2) and ``G0[r, i]``, ``G1[r, i]`` (R, 2) of adaptive-modal and the fixed-step
+#: schemes, the last axis of the Hermite step's maps
+MODE_Q = 0   #: the modal coordinate q [m sqrt(kg)]
+MODE_DQ = 1  #: its rate q' [m sqrt(kg) / s]
 
 @dataclass
 class RawSolution:

@@ -38,6 +38,7 @@ from roughvib.model.krylov import krylov_workspace
 from roughvib.model.system import System
 from roughvib.scene import scene_to_toml
 from roughvib.solvers.base import (
+    FIRST_ROW,
     RawSolution,
     atol_vector,
     check_tolerances,
@@ -77,7 +78,6 @@ __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida", "toleranc
 # plate.max_frequency (2e-5 s at 50 kHz), far beyond 1e-12 s, so such a refire is ignored once.
 REFIRE_DT = 1e-12  # s
 JAC_COUNT = 0  # the one entry of the Jacobian counter box
-FIRST_ROW = 0  # the output row of t = 0
 # IDA restarts at order 1; its default first step (~1e-3 of the distance to the next output
 # time, 1e-8 s here) takes ~10 step doublings and as many Jacobian factorizations to grow back.
 # Starting at 1e-2 of the last step cut that by a third at unchanged accuracy on the paper
@@ -296,7 +296,7 @@ def _closest_contact(t: float, y: np.ndarray, n_contacts: int, ev_args: tuple) -
     """'; contact k closest to switching' from the contact margins at the failure."""
     if n_contacts == 0:
         return ""
-    buf = np.empty(n_contacts + 3)
+    buf = np.empty(n_contacts + kn.N_LAW_ROOTS)
     try:
         kn.events(t, np.asarray(y, dtype=float), buf, *ev_args)
     except Exception:  # noqa: BLE001 - diagnostics only, never mask the failure itself
@@ -406,7 +406,7 @@ def solve_ida(system: System, *, progress: bool | None = None,
     def eventsfn(t, yy, yyp, ev):
         events_k(t, yy, ev, *ev_args)
 
-    n_ev = K + 3
+    n_ev = K + kn.N_LAW_ROOTS
     eventsfn.direction = [-1] * n_ev
     eventsfn.terminal = [True] * n_ev
 

@@ -35,10 +35,9 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu_law
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
-from roughvib.solvers.base import RawSolution
+from roughvib.solvers.base import FIRST_ROW, RawSolution
 from roughvib.solvers.events import initial_phase_events
 from roughvib.solvers.fixed_step import (
-    FIRST_ROW,
     N_TANG,
     TG_LATCH,
     TG_STICK,
