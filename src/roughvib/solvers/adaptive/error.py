@@ -19,12 +19,32 @@ from numba import njit
 
 from roughvib.model import kernels as kn
 
-__all__ = ["ERR_NONFINITE", "SAFETY", "err_norm", "extrapolate", "modal_err_sq"]
+__all__ = ["ERR_NONFINITE", "SAFETY", "err_norm", "extrapolate", "levels_down",
+           "modal_err_sq", "tolerance_weights"]
 
 SAFETY = 0.9  # the step-size controller's safety factor on the optimal step
 #: what :func:`err_norm` returns for an estimate that is NaN or infinite (and the threshold
 #: the loops test it against): the step is rejected as non-finite
 ERR_NONFINITE = 1e300
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def tolerance_weights(y, atol, rtol, wts):
+    """The error weights ``wts_i = rtol |y_i| + atol_i`` of the state y (the Newton tests'
+    units; ``atol`` and ``wts`` shape (n_states,), in each state's unit)."""
+    for i in range(y.size):
+        wts[i] = rtol * abs(y[i]) + atol[i]
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def levels_down(err, exponent):
+    """How many dyadic levels a step rejected with the weighted error ``err`` (> 1) retries
+    below its own: ``SAFETY err^exponent`` (``exponent = -1 / (p + 1)`` for an estimate of
+    order p + 1) is the step's optimal fraction, rounded down to a power of two, and at least
+    one level."""
+    fac = SAFETY * err ** exponent
+    drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
+    return max(1, drop)
 
 
 @njit(cache=True)

@@ -26,6 +26,8 @@ from roughvib.solvers.adaptive.error import (
     ERR_NONFINITE,
     SAFETY,
     err_norm,
+    levels_down,
+    tolerance_weights,
 )
 from roughvib.solvers.adaptive.layout import (
     ADV_DONE,
@@ -46,7 +48,6 @@ from roughvib.solvers.adaptive.layout import (
     G_START,
     G_TRIAL,
     I_BLOCKS,
-    I_IVL,
     I_JACS,
     I_K,
     I_LEV,
@@ -67,8 +68,8 @@ from roughvib.solvers.adaptive.loop_common import (
     enter_loop,
     interval_target,
     is_multiple,
-    latch_and_output,
     loop_guard,
+    write_row,
 )
 from roughvib.solvers.adaptive.roots import (
     ROOT_MAX_TRIALS,
@@ -223,8 +224,7 @@ def hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye, 
     nstate = y.size
     # run-time ints: a literal compiles hstep (the whole step inlined) once more per value
     slot_root, kept = kn.runtime_int(SLOT_ROOT), kn.runtime_int(NEWTON_KEPT)
-    for i in range(nstate):
-        wts[i] = rtol * abs(yb0[i]) + atol[i]
+    tolerance_weights(yb0, atol, rtol, wts)
     theta_best = th_hi
     have_best = False
     for i in range(ghi_at.size):
@@ -277,25 +277,17 @@ def hermite_root(tb, L, th_lo, th_hi, t_end, yb0, fb0, cb0, glo_at, ghi_at, ye, 
 
 @njit(cache=True)
 def accept_point(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres,
-                  spos, prof, reg, rf, work, track_latch, ist, output):
+                 spos, prof, reg, rf, work, track_latch, ist, output):
     """Arm the margins g (of the state y at time t) that are positive and, at an output time
-    (``output``), write the next output row and update the latch and its margin in g."""
+    (``output``), write the next output row and update the latch and its margin in g
+    (:func:`.loop_common.write_row`)."""
     for i in range(g.size):
         if g[i] > 0.0:
             armed[i] = 1
     if not output:
         return
-    k = ist[I_K]
-    latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
-                      prof, reg, rf, work, track_latch)
-    ist[I_K] = k + 1
-    ist[I_IVL] = 0
-    if track_latch:
-        # the Feldmann latch's margin depends on the extremum just updated
-        il = off[kn.OFF_K] + kn.ROOT_LATCH
-        g[il] = kn.latch_margin(y, off, fp, reg, rf)
-        if g[il] > 0.0:
-            armed[il] = 1
+    write_row(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+              prof, reg, rf, work, track_latch, ist)
 
 
 @njit(cache=True, inline="always")
@@ -329,12 +321,12 @@ def advance_hermite(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off
 
 @njit(cache=True)
 def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, fp, omega2,
-                  cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
-                  track_latch, fresh, max_steps):
-    """``advance`` with the Hermite step (:mod:`roughvib.solvers.hermite`): the same
-    arguments and return codes, with ``h_top`` the top level's full step
-    (:func:`hermite_top_pair`) instead of the largest step, ``buf`` a ``HermiteBuffers``,
-    ``hp`` a ``HermiteMaps`` and ``hs`` a ``HermiteScratch``.
+                 cdamp, phi, phiT, phi_obs, stiff, cres, spos, prof, reg, rf, hs,
+                 track_latch, fresh, max_steps):
+    """:func:`.trapezoidal_loop.trapezoidal_loop` with the Hermite step
+    (:mod:`roughvib.solvers.hermite`): the same arguments and return codes, with ``h_top``
+    the top level's full step (:func:`hermite_top_pair`) instead of the largest step, ``buf``
+    a ``HermiteBuffers``, ``hp`` a ``HermiteMaps`` and ``hs`` a ``HermiteScratch``.
 
     Step doubling generalised to a block: m kept Hermite steps of length hk against one step
     of m hk over the same span; the kept ones are kept as they are (fourth order: m local
@@ -342,20 +334,20 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
     difference / (m^4 - 1)). At the top level a block spans ``PAIR_ROWS`` output intervals,
     one kept step each, and starts on a row divisible by that number; each level down a block
     spans half as many (four, then two); below, a pair (m = 2) lies within one output
-    interval, aligned to dyadic fractions of it as in ``advance``. Every output time is a
-    kept step's end. The margins are checked at each kept step's end in turn, each end
-    accepted (armed, written, latch updated) before the next is looked at, and a crossing is
-    located by Hermite steps re-taken from the start of its kept step (``hermite_root``).
+    interval, aligned to dyadic fractions of it as in the trapezoidal loop
+    (:func:`_block_rows`, :func:`_block_slots`). Every output time is a kept step's end. The
+    kept steps and the full step are taken by :func:`_take_block`; the margins are checked at
+    each kept step's end in turn, each end accepted (armed, written, latch updated) before the
+    next is looked at (:func:`_accept_block`), and a crossing is located by Hermite steps
+    re-taken from the start of its kept step (:func:`hermite_root`).
     """
     Y, DF, C, G, armed, fired = buf
-    hslot = hp.hslot
     work = hs.work
     y, ya, wts = Y[B_NOW], Y[B_FULL], Y[B_WTS]
-    f, fa = DF[B_NOW], DF[B_FULL]
-    c, ca = C[B_NOW], C[B_FULL]
-    g0, gm, gl = G[G_START], G[G_HALF], G[G_LOW]
+    f = DF[B_NOW]
+    c = C[B_NOW]
+    g0, gl = G[G_START], G[G_LOW]
     n = grid.size
-    M = fp[kn.FP_MMODAL]
     n_ev = g0.size
     t = tt[T_NOW]
     model = (off, fp, omega2, cdamp, phiT, stiff, spos, prof, reg, hs, ist)
@@ -363,13 +355,14 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
                  prof, reg, rf, hs)
     point_args = (outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
                   work, track_latch, ist)
+    events = (off, fp, phi, cres, spos, prof, reg, rf, work)
     if fresh:
         force_rates(y, f, off, fp, phiT, stiff, cres, spos, prof, reg, hs)
         hm.carried(t, y, f, c, off, fp, omega2, cdamp, phiT, spos, prof, reg)
         for mat in range(N_NEWTON):
             hs.iws[mat, hm.IWS_JAC_VALID] = 0
     if enter_loop(t, y, g0, armed, fresh, grid, outs, ist, off, fp, omega2, cdamp, phi, phi_obs,
-              stiff, cres, spos, prof, reg, rf, work, track_latch):
+                  stiff, cres, spos, prof, reg, rf, work, track_latch):
         return ADV_DONE
     nstate = y.size
     # run-time ints: a literal compiles each callee (hstep: the whole step inlined) once more
@@ -381,72 +374,28 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
         if code != ADV_GO:
             return code
         k = ist[I_K]
-        lev = ist[I_LEV]
         base = grid[k - 1]
         rel = t - base
         span = grid[k] - base
-        hl = h_top / 2.0 ** lev
-        # a block over several output intervals starts on a row divisible by their number
-        # (so that the rows it steps over do not depend on where the loop stopped: chunks,
-        # checkpoints, events) and ends within the grid; otherwise one level down
-        rows = 0
-        while hl > span * (1.0 + 1e-9):
-            r_ = int(round(hl / span))
-            if rel <= 1e-9 * span and (k - 1) % r_ == 0 and k - 1 + r_ < n:
-                rows = r_
-                break
-            lev += 1
-            hl *= 0.5
-        s_full = lev
-        if rows > 0:  # m kept steps of one output interval each
-            m = rows
-            s_kept = lev + int(round(math.log2(rows)))
-            last = True
-        else:         # a pair within one output interval
-            m = 2
-            s_kept = lev + 1
-            target, last = interval_target(rel, hl, span)
-            if abs(target - rel - hl) > 1e-7 * hl:
-                s_full = slot_fly
-                s_kept = slot_fly2
-                hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
-                hermite_fill(s_kept, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp,
-                              ist)
-        if s_full < SLOT_FLY:
-            if hslot[s_full] <= 0.0:
-                hermite_fill(s_full, hl, omega2, cdamp, phi, cres, M, hp, ist)
-            if hslot[s_kept] <= 0.0:
-                hermite_fill(s_kept, hl / m, omega2, cdamp, phi, cres, M, hp, ist)
-        h = hslot[s_full]
-        hk = hslot[s_kept]
-        for i in range(nstate):
-            wts[i] = rtol * abs(y[i]) + atol[i]
-        # the m kept steps, then the full step (for the error estimate)
-        ok = True
-        ts = t
-        ys_, fs_, cs_ = y, f, c
-        for j in range(m):
-            row = chain_row(j, m)
-            ok = hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts,
-                        *model, kept)
-            if not ok:
-                break
-            ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
-            ys_, fs_, cs_ = Y[row], DF[row], C[row]
-        ok = ok and hstep(t, h, y, f, c, ya, fa, ca, s_full, hp, wts, *model, full)
-        if not ok:
+        rows, lev, hl = _block_rows(rel, span, h_top, ist[I_LEV], k, n)
+        m, s_full, s_kept, target, last = _block_slots(rows, lev, rel, hl, span, slot_fly,
+                                                       slot_fly2, hp, omega2, cdamp, phi, cres,
+                                                       fp, ist)
+        h = hp.hslot[s_full]
+        hk = hp.hslot[s_kept]
+        tolerance_weights(y, atol, rtol, wts)
+        if not _take_block(t, k, rows, m, h, hk, s_full, s_kept, grid, buf, hp, wts, model,
+                           kept, full):
             ist[I_NEWTON_FAIL] += 1
             ist[I_REJECT] += 1
             ist[I_LEV] = lev + 1
             continue
         yb = Y[B_END]
         err = err_norm(ya, yb, y, atol, rtol, 2 * off[kn.OFF_R],
-                        float(m) ** HERMITE_ORDER - 1.0)
+                       float(m) ** HERMITE_ORDER - 1.0)
         if err > 1.0:
             ist[I_REJECT] += 1
-            fac = SAFETY * err ** (-1.0 / (HERMITE_ORDER + 1.0))
-            drop = int(math.ceil(-math.log2(fac))) if fac < 1.0 else 1
-            ist[I_LEV] = lev + max(1, drop)
+            ist[I_LEV] = lev + levels_down(err, -1.0 / (HERMITE_ORDER + 1.0))
             # a non-finite estimate within an output interval ends the run; over a block of
             # several intervals it is the long full step's (its Newton can run away where the
             # kept steps do not): one level down
@@ -459,32 +408,10 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
         ist[I_STEPS] += m
         ist[I_BLOCKS] += 1
         ist[I_LEV] = lev
-        # the kept steps' ends in time order: each checked for crossings, then accepted
-        for i in range(n_ev):
-            gl[i] = g0[i]
-        ts = t
-        ys_, fs_, cs_ = y, f, c
-        t_new = t
-        for j in range(m):
-            row = chain_row(j, m)
-            if rows > 0:
-                te = grid[k - 1 + j + 1]
-            elif j == m - 1:
-                te = base + target if not last else grid[k]
-            else:
-                te = t + (j + 1) * hk
-            ye = Y[row]
-            kn.events(te, ye, gm, off, fp, phi, cres, spos, prof, reg, rf, work)
-            if crossed(armed, gm):
-                return hermite_root(ts, hk, 0.0, 1.0, te, ys_, fs_, cs_, gl, gm, ye, buf,
-                                     *root_args)
-            at_output = rows > 0 or (j == m - 1 and last)
-            accept_point(te, ye, gm, armed, *point_args, at_output)
-            for i in range(n_ev):
-                gl[i] = gm[i]
-            ts = te
-            ys_, fs_, cs_ = ye, DF[row], C[row]
-            t_new = te
+        code, t_new = _accept_block(t, k, rows, m, hk, base, target, last, grid, buf,
+                                    root_args, point_args, events)
+        if code != ADV_GO:
+            return code
         fb, cb = DF[B_END], C[B_END]
         for j in range(nstate):
             y[j] = yb[j]
@@ -501,3 +428,119 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
             up = h_top / 2.0 ** (lev - 1)
             if up > span * (1.0 + 1e-9) or is_multiple(t - grid[ist[I_K] - 1], up) or last:
                 ist[I_LEV] = lev - 1
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _block_rows(rel, span, h_top, lev, k, n):
+    """The level of the next block from level ``lev`` and its output rows: ``(rows, lev,
+    hl)`` with hl [s] the level's full step. A block over several output intervals (``rows``
+    of them) starts on a row divisible by their number (so that the rows it steps over do not
+    depend on where the loop stopped: chunks, checkpoints, events) and ends within the grid;
+    otherwise one level down, until the full step fits in the output interval of length
+    ``span`` [s] (``rows`` 0: a pair within it, ``rel`` [s] into it). ``k``: the next output
+    row, ``n`` the grid's size."""
+    hl = h_top / 2.0 ** lev
+    rows = 0
+    while hl > span * (1.0 + 1e-9):
+        r_ = int(round(hl / span))
+        if rel <= 1e-9 * span and (k - 1) % r_ == 0 and k - 1 + r_ < n:
+            rows = r_
+            break
+        lev += 1
+        hl *= 0.5
+    return rows, lev, hl
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _block_slots(rows, lev, rel, hl, span, slot_fly, slot_fly2, hp, omega2, cdamp, phi, cres,
+                 fp, ist):
+    """The block's kept steps and the cache slots of its full and kept steps, filled when
+    empty: ``(m, s_full, s_kept, target, last)``. With ``rows`` output intervals, m = rows
+    kept steps of one interval each (``last``: the block ends on an output time); with none, a
+    pair (m = 2) to ``target`` [s] into the interval (:func:`.loop_common.interval_target`),
+    in ``slot_fly`` and ``slot_fly2`` when it is not the level's full step."""
+    M = fp[kn.FP_MMODAL]
+    hslot = hp.hslot
+    s_full = lev
+    target = 0.0  # (only a pair's end is a target within the interval)
+    if rows > 0:  # m kept steps of one output interval each
+        m = rows
+        s_kept = lev + int(round(math.log2(rows)))
+        last = True
+    else:         # a pair within one output interval
+        m = 2
+        s_kept = lev + 1
+        target, last = interval_target(rel, hl, span)
+        if abs(target - rel - hl) > 1e-7 * hl:
+            s_full = slot_fly
+            s_kept = slot_fly2
+            hermite_fill(s_full, target - rel, omega2, cdamp, phi, cres, M, hp, ist)
+            hermite_fill(s_kept, 0.5 * (target - rel), omega2, cdamp, phi, cres, M, hp, ist)
+    if s_full < SLOT_FLY:
+        if hslot[s_full] <= 0.0:
+            hermite_fill(s_full, hl, omega2, cdamp, phi, cres, M, hp, ist)
+        if hslot[s_kept] <= 0.0:
+            hermite_fill(s_kept, hl / m, omega2, cdamp, phi, cres, M, hp, ist)
+    return m, s_full, s_kept, target, last
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _take_block(t, k, rows, m, h, hk, s_full, s_kept, grid, buf, hp, wts, model, kept, full):
+    """The block's m kept steps of length hk [s] (each from the end of the one before, into
+    the buffer rows of :func:`chain_row`), then its full step of length h [s] from t (into
+    ``B_FULL``), with the maps of the slots ``s_kept`` and ``s_full`` and the Newton matrices
+    of the scratch rows ``kept`` and ``full``. Returns False when a step's Newton fails.
+    ``model``: the argument tail of :func:`hstep` before its scratch row."""
+    Y, DF, C = buf.Y, buf.DF, buf.C
+    y, f, c = Y[B_NOW], DF[B_NOW], C[B_NOW]
+    ok = True
+    ts = t
+    ys_, fs_, cs_ = y, f, c
+    for j in range(m):
+        row = chain_row(j, m)
+        ok = hstep(ts, hk, ys_, fs_, cs_, Y[row], DF[row], C[row], s_kept, hp, wts, *model, kept)
+        if not ok:
+            break
+        ts = grid[k - 1 + j + 1] if rows > 0 else t + (j + 1) * hk
+        ys_, fs_, cs_ = Y[row], DF[row], C[row]
+    return ok and hstep(t, h, y, f, c, Y[B_FULL], DF[B_FULL], C[B_FULL], s_full, hp, wts,
+                        *model, full)
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _accept_block(t, k, rows, m, hk, base, target, last, grid, buf, root_args, point_args,
+                  events):
+    """The ends of an accepted block's m kept steps (of length hk [s]) in time order: each
+    checked for crossings of the armed margins and, if none, accepted (:func:`accept_point`).
+    Returns ``(code, t_new)``: ``ADV_GO`` and the block's end time [s] (the margins there in
+    ``G[G_LOW]``), or the code of :func:`hermite_root` at the first crossing. ``root_args``,
+    ``point_args`` and ``events``: the argument tails of :func:`hermite_root`,
+    :func:`accept_point` and :func:`roughvib.model.kernels.events`."""
+    Y, DF, C, G, armed, _fired = buf
+    g0, gm, gl = G[G_START], G[G_HALF], G[G_LOW]
+    for i in range(gl.size):
+        gl[i] = g0[i]
+    ts = t
+    ys_, fs_, cs_ = Y[B_NOW], DF[B_NOW], C[B_NOW]
+    t_new = t
+    for j in range(m):
+        row = chain_row(j, m)
+        if rows > 0:
+            te = grid[k - 1 + j + 1]
+        elif j == m - 1:
+            te = base + target if not last else grid[k]
+        else:
+            te = t + (j + 1) * hk
+        ye = Y[row]
+        kn.events(te, ye, gm, *events)
+        if crossed(armed, gm):
+            return hermite_root(ts, hk, 0.0, 1.0, te, ys_, fs_, cs_, gl, gm, ye, buf,
+                                *root_args), t_new
+        at_output = rows > 0 or (j == m - 1 and last)
+        accept_point(te, ye, gm, armed, *point_args, at_output)
+        for i in range(gl.size):
+            gl[i] = gm[i]
+        ts = te
+        ys_, fs_, cs_ = ye, DF[row], C[row]
+        t_new = te
+    return ADV_GO, t_new

@@ -24,7 +24,8 @@ from roughvib.solvers.adaptive.layout import (
     T_NOW,
 )
 
-__all__ = ["enter_loop", "interval_target", "is_multiple", "latch_and_output", "loop_guard"]
+__all__ = ["enter_loop", "interval_target", "is_multiple", "latch_and_output", "loop_guard",
+           "write_row"]
 
 
 @njit(cache=True)
@@ -105,3 +106,23 @@ def interval_target(rel, hl, span):
     if last:
         target = span
     return target, last
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def write_row(t, y, g, armed, outs, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+              prof, reg, rf, work, track_latch, ist):
+    """Write the next output row (``ist[I_K]``) of the accepted state y at the output time t
+    [s], update the latch's running extremum, and move on to the next row (the stall count
+    starts anew). The Feldmann latch's margin depends on the extremum just updated: it is
+    recomputed in the margins g and armed when positive (the other margins, those of a
+    set-valued law included, do not)."""
+    k = ist[I_K]
+    latch_and_output(t, y, outs, k, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
+                     prof, reg, rf, work, track_latch)
+    ist[I_K] = k + 1
+    ist[I_IVL] = 0
+    if track_latch and not kn.set_valued(off):
+        il = off[kn.OFF_K] + kn.ROOT_LATCH
+        g[il] = kn.latch_margin(y, off, fp, reg, rf)
+        if g[il] > 0.0:
+            armed[il] = 1

@@ -231,12 +231,132 @@ def forced_response(P, sq, sdq, u1, q1, dq1):
         dq1[r] = sdq[r] + g1d[r] * u1[r]
 
 
+@njit(cache=True, inline="always")  # a part of implicit_step, as fast as if written there
+def _moment_displacements(Hm, F, wm):
+    """wm_k = sum_j Hm_kj F_j: the friction moment's displacement at the contacts per unit
+    share c [m] (``Hm`` of the step's slot, :func:`.propagators.moment_map`)."""
+    K = wm.size
+    for k in range(K):
+        acc = 0.0
+        for j in range(K):
+            acc += Hm[k, j] * F[j]
+        wm[k] = acc
+
+
+@njit(cache=True, inline="always")  # a part of implicit_step, as fast as if written there
+def _contact_rows(h, x1, S1, mu1, dmu1, dmus, nc, idx, F, zc, beta, wfree, wm, G1c, slot, Hm,
+                  stiff, spos, prof, fp, moment, sliding, jac, rhs, noise):
+    """The Newton rows of the closed contacts ``idx[:nc]`` at the iterate (F, v1 -> x1):
+    the contact relation ``F_k / s_k = z1 - w_k(t1) + h(s_k + x1)`` with the block's
+    trapezoidal z1 = zc - beta S1 and the plate's forced response ``G1c F`` (and, with the
+    friction moment, its share ``mu1 Hm F``). Fills ``jac[:nc]`` (with the column of the
+    velocity when ``sliding``), the residuals ``rhs[:nc]`` (negated) and their round-off
+    levels ``noise[:nc]`` (see :func:`implicit_step`)."""
+    for a in range(nc):
+        k = int(idx[a])
+        hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+        acc = 0.0
+        for c in range(nc):
+            j = int(idx[c])
+            acc += G1c[slot, k, j] * F[j]
+            jac[a, c] = G1c[slot, k, j] + beta
+            if moment:
+                jac[a, c] += mu1 * Hm[k, j] + dmus * wm[k]
+        jac[a, a] += 1.0 / stiff[k]
+        if moment:
+            acc += mu1 * wm[k]
+        rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
+        noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
+                                        + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
+        if sliding:
+            jac[a, nc] = -dh * 0.5 * h
+            if moment:
+                jac[a, nc] += dmu1 * wm[k]
+
+
+@njit(cache=True, inline="always")  # a part of implicit_step, as fast as if written there
+def _velocity_row(t1, h, y0, d0, v0, v1, S1, nc, texc1, off, fp, reg, jac, rhs, noise):
+    """The Newton row of the tangential velocity v1 (row ``nc``) of a sliding block: the
+    trapezoidal rule ``m (v1 - v0) / h = (m a0 + T_exc(t1) - fric(v1, S1) - r2 v1) / 2``.
+    Fills ``jac[nc, :nc + 1]``, ``rhs[nc]`` and ``noise[nc]`` (see :func:`implicit_step`)."""
+    m = fp[kn.FP_MASS]
+    r2 = fp[kn.FP_R2]
+    fric, dfric_dv, dfric_dfn = friction_force(t1, y0, v1, S1, off, fp, reg)
+    rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[D_AX]
+                - 0.5 * (texc1 - fric - r2 * v1))
+    for c in range(nc):
+        jac[nc, c] = 0.5 * dfric_dfn
+    jac[nc, nc] = m / h + 0.5 * (dfric_dv + r2)
+    noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[D_AX])
+                                     + 0.5 * (abs(texc1) + abs(fric) + abs(r2 * v1))
+                                     ) / abs(jac[nc, nc])
+
+
+@njit(cache=True, inline="always")  # a part of implicit_step, as fast as if written there
+def _newton_update(nc, idx, F, v1, sliding, rhs, noise, wts, iF, ivx):
+    """Add the solved Newton update ``rhs`` to the forces ``F`` of ``idx[:nc]`` and (when
+    ``sliding``) to v1. Returns ``(v1, worst)``: the new velocity [m/s] and the largest update
+    in units of its tolerance weight, or of its round-off level / ``NEWTON_TOL`` where that is
+    larger."""
+    worst = 0.0
+    for a in range(nc):
+        k = int(idx[a])
+        F[k] += rhs[a]
+        e = abs(rhs[a]) / max(wts[iF + k], noise[a] / NEWTON_TOL)
+        if e > worst:
+            worst = e
+    if sliding:
+        v1 += rhs[nc]
+        e = abs(rhs[nc]) / max(wts[ivx], noise[nc] / NEWTON_TOL)
+        if e > worst:
+            worst = e
+    return v1, worst
+
+
+@njit(cache=True, inline="always")  # a part of implicit_step, as fast as if written there
+def _end_state(t1, h, y0, d0, y1, d1, u1, F, v1, x0, v0, av, cz, zc, beta, sq, sdq, um, P,
+               phiT, moment, sliding, force_driven, off, fp, cdamp, spos, prof, reg):
+    """The state (y1, d1, u1) at the end t1 of a converged step from the contact forces F
+    [N] and the velocity v1 [m/s]: the modes' forced response, the block's trapezoidal rule
+    (``av``, ``cz``, ``zc``, ``beta`` of :func:`implicit_step`), the algebraic friction force
+    of a set-valued law, the derivatives and the energy integrals (trapezoidal)."""
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
+    m = fp[kn.FP_MASS]
+    M = fp[kn.FP_MMODAL]
+    S1 = 0.0
+    for k in range(K):
+        S1 += F[k]
+        y1[iF + k] = F[k]
+    modal_force(F, u1, phiT, M)
+    if moment:
+        mu1, _, _ = moment_coefficient(t1, v1, S1, off, fp, reg)
+        moment_force(F, mu1, M, off, fp, um)
+        for r in range(R):
+            u1[r] += um[r]
+    forced_response(P, sq, sdq, u1, y1[iq:iq + R], y1[idq:idq + R])
+    vz1 = (av - 0.5 * h * S1 / m) / cz
+    y1[ivz] = vz1
+    y1[iz] = zc - beta * S1
+    if sliding:
+        y1[ix] = x0 + 0.5 * h * (v0 + v1)
+        y1[ivx] = v1
+    elif force_driven:  # held in stick
+        y1[ix] = x0
+        y1[ivx] = 0.0
+    if kn.set_valued(off) and force_driven:
+        # the algebraic friction force of the new state (kernels.residual's row of it)
+        y1[off[kn.OFF_IL]] = kn.coulomb_friction(t1, y1, off, fp, reg)
+    derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
+    for i in range(kn.N_ENERGY):
+        y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[D_POWER + i] + d1[D_POWER + i])
+
+
 @njit(cache=True)
 def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp, phi, phiT,
                   stiff, spos, prof, reg, scratch, ist):
     """One step of length h (propagators in ``slot``) from the consistent (y0, d0) to (y1, d1).
 
-    ``u0`` is :func:`modal_force` of y0; ``u1`` receives that of y1.
+    ``u0`` is :func:`.propagators.modal_force` of y0; ``u1`` receives that of y1.
 
     Unknowns: the forces of the closed contacts and, for a force-driven block that slides, the
     tangential velocity at t0 + h, with the friction force of :func:`friction_force` (the
@@ -247,7 +367,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     ``NEWTON_ULPS`` times the round-off of its equation (unit round-off times the sum of the
     magnitudes of the equation's terms, divided by the diagonal of the Newton matrix): an
     update at that level is noise, which no further iteration removes. Returns False when
-    Newton does not converge (the caller takes a smaller step).
+    Newton does not converge within ``NEWTON_MAX_ITER`` iterations (the caller takes a
+    smaller step).
 
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
     >= 3 R + 6 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
@@ -256,9 +377,7 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     m = fp[kn.FP_MASS]
-    M = fp[kn.FP_MMODAL]
     r1 = fp[kn.FP_R1]
-    r2 = fp[kn.FP_R2]
     t1 = t0 + h
     sq = ws[0:R]
     sdq = ws[R:2 * R]
@@ -325,90 +444,24 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
         dmus = 0.0
         if moment:
             mu1, dmu1, dmus = moment_coefficient(t1, v1, S1, off, fp, reg)
-            for k in range(K):
-                acc = 0.0
-                for j in range(K):
-                    acc += Hm[k, j] * F[j]
-                wm[k] = acc
-        for a in range(nc):
-            k = int(idx[a])
-            hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
-            acc = 0.0
-            for c in range(nc):
-                j = int(idx[c])
-                acc += G1c[slot, k, j] * F[j]
-                jac[a, c] = G1c[slot, k, j] + beta
-                if moment:
-                    jac[a, c] += mu1 * Hm[k, j] + dmus * wm[k]
-            jac[a, a] += 1.0 / stiff[k]
-            if moment:
-                acc += mu1 * wm[k]
-            rhs[a] = -(F[k] / stiff[k] - (zc - beta * S1 - wfree[k] - acc + hh))
-            noise[a] = NEWTON_ULPS * EPS * (abs(F[k]) / stiff[k] + abs(zc) + abs(beta * S1)
-                                            + abs(wfree[k]) + abs(acc) + abs(hh)) / jac[a, a]
-            if sliding:
-                jac[a, nc] = -dh * 0.5 * h
-                if moment:
-                    jac[a, nc] += dmu1 * wm[k]
+            _moment_displacements(Hm, F, wm)
+        _contact_rows(h, x1, S1, mu1, dmu1, dmus, nc, idx, F, zc, beta, wfree, wm, G1c, slot,
+                      Hm, stiff, spos, prof, fp, moment, sliding, jac, rhs, noise)
         if sliding:
-            fric, dfric_dv, dfric_dfn = friction_force(t1, y0, v1, S1, off, fp, reg)
-            rhs[nc] = -(m * (v1 - v0) / h - 0.5 * m * d0[D_AX]
-                        - 0.5 * (texc1 - fric - r2 * v1))
-            for c in range(nc):
-                jac[nc, c] = 0.5 * dfric_dfn
-            jac[nc, nc] = m / h + 0.5 * (dfric_dv + r2)
-            noise[nc] = NEWTON_ULPS * EPS * (m * (abs(v1) + abs(v0)) / h + 0.5 * m * abs(d0[D_AX])
-                                             + 0.5 * (abs(texc1) + abs(fric) + abs(r2 * v1))
-                                             ) / abs(jac[nc, nc])
+            _velocity_row(t1, h, y0, d0, v0, v1, S1, nc, texc1, off, fp, reg, jac, rhs, noise)
         if nu == 0:
             ok = True
             break
         piv = ipiv[:nu]
         lu_factor(jac[:nu, :nu], piv)
         lu_solve(jac[:nu, :nu], piv, rhs[:nu])
-        worst = 0.0
-        for a in range(nc):
-            k = int(idx[a])
-            F[k] += rhs[a]
-            e = abs(rhs[a]) / max(wts[iF + k], noise[a] / NEWTON_TOL)
-            if e > worst:
-                worst = e
-        if sliding:
-            v1 += rhs[nc]
-            e = abs(rhs[nc]) / max(wts[ivx], noise[nc] / NEWTON_TOL)
-            if e > worst:
-                worst = e
+        v1, worst = _newton_update(nc, idx, F, v1, sliding, rhs, noise, wts, iF, ivx)
         if not worst <= NEWTON_TOL:
             continue
         ok = True
         break
     if not ok:
         return False
-    # assemble the new state
-    S1 = 0.0
-    for k in range(K):
-        S1 += F[k]
-        y1[iF + k] = F[k]
-    modal_force(F, u1, phiT, M)
-    if moment:
-        mu1, _, _ = moment_coefficient(t1, v1, S1, off, fp, reg)
-        moment_force(F, mu1, M, off, fp, um)
-        for r in range(R):
-            u1[r] += um[r]
-    forced_response(P, sq, sdq, u1, y1[iq:iq + R], y1[idq:idq + R])
-    vz1 = (av - 0.5 * h * S1 / m) / cz
-    y1[ivz] = vz1
-    y1[iz] = zc - beta * S1
-    if sliding:
-        y1[ix] = x0 + 0.5 * h * (v0 + v1)
-        y1[ivx] = v1
-    elif force_driven:  # held in stick
-        y1[ix] = x0
-        y1[ivx] = 0.0
-    if kn.set_valued(off) and force_driven:
-        # the algebraic friction force of the new state (kernels.residual's row of it)
-        y1[off[kn.OFF_IL]] = kn.coulomb_friction(t1, y1, off, fp, reg)
-    derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
-    for i in range(kn.N_ENERGY):
-        y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[D_POWER + i] + d1[D_POWER + i])
+    _end_state(t1, h, y0, d0, y1, d1, u1, F, v1, x0, v0, av, cz, zc, beta, sq, sdq, um, P,
+               phiT, moment, sliding, force_driven, off, fp, cdamp, spos, prof, reg)
     return True
