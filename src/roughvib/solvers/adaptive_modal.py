@@ -68,17 +68,14 @@ Limits: underdamped modes (plate loss factor < 2).
 from __future__ import annotations
 
 import collections
-import copy
 import os
-import time
-from pathlib import Path
 
 import numpy as np
 
 from roughvib.model import kernels as kn
 from roughvib.model.system import System
 from roughvib.physics.friction import LAWS
-from roughvib.scene import SceneError, scene_to_toml
+from roughvib.scene import SceneError
 from roughvib.solvers import hermite as hm
 from roughvib.solvers.adaptive.error import err_norm, extrapolate
 from roughvib.solvers.adaptive.hermite_loop import (
@@ -149,17 +146,16 @@ from roughvib.solvers.adaptive.trapezoidal_loop import (
 from roughvib.solvers.base import (
     FIRST_ROW,
     RawSolution,
+    RunProgress,
     atol_vector,
     check_tolerances,
+    checkpoint_scene,
+    checkpoint_stride,
+    make_checkpoint,
     output_grid,
-    progress_bar,
+    resumed_statistics,
 )
-from roughvib.solvers.checkpoint import (
-    Checkpoint,
-    input_fingerprint,
-    start_state,
-    write_checkpoint,
-)
+from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
 from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
 
 # The solver's compiled parts stay importable from here under the names the tests,
@@ -220,9 +216,10 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
     resume : Checkpoint, optional
         Continue from this checkpoint (of the same scene) instead of starting at t = 0.
     hermite : bool, optional
-        Step with the fourth-order Hermite step (``advance_hermite``) or the second-order
-        trapezoidal one (``advance``); default: the Hermite step where it applies
-        (:func:`hermite_applies`). True where it does not apply is an error.
+        Step with the fourth-order Hermite step (:func:`.adaptive.hermite_loop.advance_hermite`)
+        or the second-order trapezoidal one (:func:`.adaptive.trapezoidal_loop.advance`);
+        default: the Hermite step where it applies (:func:`hermite_applies`). True where it
+        does not apply is an error.
 
     Returns
     -------
@@ -231,208 +228,241 @@ def solve_adaptive_modal(system: System, *, progress: bool | None = None,
         statistics; ``status`` is ``"success"`` or the failure cause.
     """
     _check_scene(system)
-    scene = system.scene
-    out_cfg = scene.output
-    scfg = scene.solver
-    K = system.n_contacts
-    R = system.n_modes
-    lay = system.layout
-    grid, outs = output_grid(system)
-    n, n_out = outs.shape
-    # largest step: the output step, halved until it is within solver.max_step
-    h_max = out_cfg.step
-    if scfg.max_step > 0:
-        while h_max > scfg.max_step * (1 + 1e-12):
+    return _AdaptiveRun(system, progress, checkpoint_dir, resume, hermite).run()
+
+
+def _largest_step(output_step: float, max_step: float) -> float:
+    """The trapezoidal loop's largest step [s]: the output step, halved until it is within
+    ``solver.max_step`` (0: no limit)."""
+    h_max = output_step
+    if max_step > 0:
+        while h_max > max_step * (1 + 1e-12):
             h_max *= 0.5
+    return h_max
 
-    h_top = hermite_top_pair(out_cfg.step, scfg.max_step)
-    reg, rf = system.new_regime_arrays()
-    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
-    check_tolerances(system, y_initial)
-    args = system.kernel_args(reg, rf)
-    (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
 
-    nst = lay.size
-    n_ev = K + kn.N_LAW_ROOTS
-    Y = np.zeros((N_YBUF, nst))
-    Y[B_NOW] = y
-    y = Y[B_NOW]  # the current state, updated in place by advance
-    D = np.zeros((N_DBUF, N_D))
-    U = np.zeros((N_DBUF, R))
-    G = np.zeros((N_GBUF, n_ev))
-    armed = np.zeros(n_ev, dtype=np.int64)
-    fired = np.zeros(n_ev, dtype=np.int64)
-    phiT = np.ascontiguousarray(phi.T)
-    atol = atol_vector(system)
-    ist = np.zeros(N_IST, dtype=np.int64)
-    if hermite is None:
-        hermite = hermite_applies(system)
-    elif hermite and not hermite_applies(system):
-        raise ValueError("the Hermite step covers the Feldmann law with a force-driven block "
-                         "and no friction moment only")
-    if hermite:  # the fourth-order Hermite step (advance_hermite)
+class _AdaptiveRun:
+    """One run of :func:`solve_adaptive_modal`: the loop's arrays and the Python side of it.
+
+    The compiled loop (:func:`.adaptive.hermite_loop.advance_hermite` or
+    :func:`.adaptive.trapezoidal_loop.advance`) returns every ``chunk`` output rows, at a
+    checkpoint row, at an event and at the end (:meth:`run`); this switches the regime at
+    events, writes checkpoints, shows the progress and turns a failure code into a
+    :class:`SolverFailure` (:meth:`_fail`).
+    """
+
+    def __init__(self, system: System, progress: bool | None,
+                 checkpoint_dir: str | os.PathLike | None, resume: Checkpoint | None,
+                 hermite: bool | None) -> None:
+        self.system = system
+        self.checkpoint_dir = checkpoint_dir
+        scene = system.scene
+        out_cfg = scene.output
+        self.grid, self.outs = output_grid(system)
+        self.n, n_out = self.outs.shape
+        self.h_max = _largest_step(out_cfg.step, scene.solver.max_step)
+        self.h_top = hermite_top_pair(out_cfg.step, scene.solver.max_step)
+        self.reg, self.rf = system.new_regime_arrays()
+        self.regime, y, self.y_initial = start_state(system, self.reg, self.rf, resume, self.n,
+                                                     n_out)
+        check_tolerances(system, self.y_initial)
+        self.args = system.kernel_args(self.reg, self.rf)
+        if hermite is None:
+            hermite = hermite_applies(system)
+        elif hermite and not hermite_applies(system):
+            raise ValueError("the Hermite step covers the Feldmann law with a force-driven "
+                             "block and no friction moment only")
+        self.hermite = hermite
+        self._allocate(y)
+        self.atol = atol_vector(system)
+        self.tt = np.zeros(1)
+        self.track_latch = bool(system.layout.tangential)
+        # a checkpoint row ends a block of the Hermite loop
+        self.cp_stride = checkpoint_stride(out_cfg, PAIR_ROWS if hermite else 1)
+        self.scene_toml = checkpoint_scene(scene, self.cp_stride, checkpoint_dir)
+        self.budget = step_budget(out_cfg.step)
+        self._start(resume)
+        self.progress = RunProgress(system, progress, float(self.tt[T_NOW]), 0)
+        self.chunk = max(1, self.n // 50)  # returns to Python (progress, checkpoints): ~0.1 ms
+        self.clock.start()
+
+    def _allocate(self, y0: np.ndarray) -> None:
+        """The loop's buffers, map cache and scratch, the current state y0 in ``Y[B_NOW]``
+        (``self.y``, updated in place by the loop)."""
+        system = self.system
+        K, R, nst = system.n_contacts, system.n_modes, system.layout.size
+        n_ev = K + kn.N_LAW_ROOTS
+        work = self.args[-1]
         # a block's kept steps from B_CHAIN: PAIR_ROWS - 2 beyond B_HALF and B_END
-        n_ybuf = max(N_YBUF, B_CHAIN + PAIR_ROWS - 2)
-        Y = np.zeros((n_ybuf, nst))
-        Y[B_NOW] = y
-        y = Y[B_NOW]
-        DF = np.zeros((n_ybuf, K))
-        C = np.zeros((n_ybuf, hm.carry_size(R, K)))
-        maps = new_hermite_maps(R, K)
-        buf = HermiteBuffers(Y, DF, C, G, armed, fired)
-        scratch = new_hermite_scratch(work, R, K)
-    else:
-        maps = new_propagators(R, K, bool(kn.moment_on(off)))
-        buf = Buffers(Y, D, U, G, armed, fired)
-        scratch = new_scratch(work, R, K)
-    tt = np.zeros(1)
-    track_latch = bool(lay.tangential)
-    cp_interval = out_cfg.checkpoint_interval
-    # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
-    cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
-    if hermite and cp_stride % PAIR_ROWS:  # a checkpoint row ends a block
-        cp_stride += PAIR_ROWS - cp_stride % PAIR_ROWS
-    scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
-    budget = step_budget(out_cfg.step)
-
-    wall_before = cpu_before = 0.0
-    if resume is None:
-        kn.outputs(0.0, y, outs[FIRST_ROW], *args)
-        ist[I_K] = 1
-        # the first step h_max / 256 (the Hermite loop: its first full step about as long)
-        ist[I_LEV] = HERMITE_FIRST_LEVEL if hermite else TRAPEZOIDAL_FIRST_LEVEL
-        book = EventBook(system, regime, reg, rf)
-        book.log_initial_phase(0.0, y)
-        fresh = True
-    else:
-        loop = resume.loop
-        outs[:resume.k] = resume.outputs
-        ist[:] = loop["ist"]
-        tt[T_NOW] = resume.t
-        if hermite:
-            DF[B_NOW] = loop["dF"]
-            C[B_NOW] = loop["c"]
-            scratch.ws[:] = loop["ws"]
-            scratch.iws[:] = loop["iws"]
-            scratch.hjac[:] = loop["hjac"]
+        Y = np.zeros((max(N_YBUF, B_CHAIN + PAIR_ROWS - 2) if self.hermite else N_YBUF, nst))
+        Y[B_NOW] = y0
+        self.y = Y[B_NOW]
+        G = np.zeros((N_GBUF, n_ev))
+        armed = np.zeros(n_ev, dtype=np.int64)
+        fired = np.zeros(n_ev, dtype=np.int64)
+        if self.hermite:  # the fourth-order Hermite step (advance_hermite)
+            DF = np.zeros((Y.shape[0], K))
+            C = np.zeros((Y.shape[0], hm.carry_size(R, K)))
+            self.maps = new_hermite_maps(R, K)
+            self.buf = HermiteBuffers(Y, DF, C, G, armed, fired)
+            self.scratch = new_hermite_scratch(work, R, K)
         else:
-            D[B_NOW] = loop["d"]
-            U[B_NOW] = loop["u"]
-        G[G_START] = loop["g"]
-        armed[:] = loop["armed"]
-        prev = dict(resume.stats)
-        wall_before = float(prev.pop("wall_time", 0.0))
-        cpu_before = float(prev.pop("cpu_time", 0.0))
-        book = EventBook(system, regime, reg, rf, events=list(resume.events),
-                         recent=collections.deque(loop["recent"]),
-                         stats=collections.Counter(prev))
-        book.stats["resumes"] += 1
-        fresh = False  # the loop continues exactly where the checkpointed run was
+            D = np.zeros((N_DBUF, N_D))
+            U = np.zeros((N_DBUF, R))
+            self.maps = new_propagators(R, K, bool(kn.moment_on(system.off)))
+            self.buf = Buffers(Y, D, U, G, armed, fired)
+            self.scratch = new_scratch(work, R, K)
+        self.phiT = np.ascontiguousarray(system.phi.T)
+        self.ist = np.zeros(N_IST, dtype=np.int64)
 
-    status, message = "success", "reached the end of the output grid"
-    bar = progress_bar(system, progress, initial=float(tt[T_NOW]))
-    chunk = max(1, n // 50)  # returns to Python (progress, checkpoints): ~0.1 ms each
-    wall0 = time.perf_counter()
-    cpu0 = time.process_time()
+    def _start(self, resume: Checkpoint | None) -> None:
+        """The loop state at the start, or the checkpoint's; the event book and the clock."""
+        stats, self.clock = resumed_statistics(resume)
+        system, ist, buf = self.system, self.ist, self.buf
+        if resume is None:
+            kn.outputs(0.0, self.y, self.outs[FIRST_ROW], *self.args)
+            ist[I_K] = 1
+            # the first step h_max / 256 (the Hermite loop: its first full step about as long)
+            ist[I_LEV] = HERMITE_FIRST_LEVEL if self.hermite else TRAPEZOIDAL_FIRST_LEVEL
+            self.book = EventBook(system, self.regime, self.reg, self.rf, stats=stats)
+            self.book.log_initial_phase(0.0, self.y)
+            self.fresh = True
+            return
+        loop = resume.loop
+        self.outs[:resume.k] = resume.outputs
+        ist[:] = loop["ist"]
+        self.tt[T_NOW] = resume.t
+        if self.hermite:
+            buf.DF[B_NOW] = loop["dF"]
+            buf.C[B_NOW] = loop["c"]
+            self.scratch.ws[:] = loop["ws"]
+            self.scratch.iws[:] = loop["iws"]
+            self.scratch.hjac[:] = loop["hjac"]
+        else:
+            buf.D[B_NOW] = loop["d"]
+            buf.U[B_NOW] = loop["u"]
+        buf.G[G_START] = loop["g"]
+        buf.armed[:] = loop["armed"]
+        self.book = EventBook(system, self.regime, self.reg, self.rf,
+                              events=list(resume.events),
+                              recent=collections.deque(loop["recent"]), stats=stats)
+        self.fresh = False  # the loop continues exactly where the checkpointed run was
 
-    def loop_state() -> dict:
-        # everything the step loop carries (and the Hermite step's kept Newton matrix), so
-        # that a resumed run is bit-identical
-        state = {"recent": list(book.recent), "ist": ist.copy(), "g": G[G_START].copy(),
-                 "armed": armed.copy()}
-        if hermite:
-            state.update(dF=DF[B_NOW].copy(), c=C[B_NOW].copy(), ws=scratch.ws.copy(),
+    def run(self) -> RawSolution:
+        """Integrate to the end of the grid (or a failure) and return the solution."""
+        ist, n, cp_stride = self.ist, self.n, self.cp_stride
+        status, message = "success", "reached the end of the output grid"
+        try:
+            while True:
+                k_stop = min(n, int(ist[I_K]) + self.chunk)
+                if cp_stride:  # stop at the next checkpoint row (rows j, j % cp_stride == 0)
+                    k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
+                                 + cp_stride + 1)
+                code = self._advance(k_stop)
+                self.fresh = False
+                self.regime.v_ext = float(self.rf[kn.RF_VEXT])
+                self.progress.show(int(ist[I_K]), self.grid[min(int(ist[I_K]), n) - 1])
+                if code == ADV_DONE:
+                    break
+                if code == ADV_CHUNK:
+                    k = int(ist[I_K])
+                    if cp_stride and (k - 1) % cp_stride == 0 and k < n:
+                        self.book.stats["checkpoints"] += 1
+                        if self.scene_toml:
+                            self._write_checkpoint()
+                    continue
+                if code == ADV_EVENT:
+                    te = float(self.tt[T_NOW])
+                    fired = set(np.flatnonzero(self.buf.fired).tolist())
+                    y_new, _ = self.book.apply(te, self.y, fired)
+                    self.y[:] = y_new
+                    self.fresh = True
+                    continue
+                self._fail(code)
+        except SolverFailure as exc:
+            status, message = exc.status, str(exc)
+        finally:
+            self.progress.close()
+        return self._solution(status, message)
+
+    def _advance(self, k_stop: int) -> int:
+        """The compiled loop until output row ``k_stop``; its return code."""
+        scfg = self.system.scene.solver
+        (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf,
+         _work) = self.args
+        reg, rf = self.reg, self.rf
+        if self.hermite:
+            return advance_hermite(self.tt, self.ist, k_stop, self.grid, self.h_top, self.buf,
+                                   self.maps, self.atol, scfg.rtol, self.outs, off, fpa,
+                                   omega2, cdamp, phi, self.phiT, phi_obs, stiff, cres, spos,
+                                   prof, reg, rf, self.scratch, self.track_latch, self.fresh,
+                                   self.budget)
+        return advance(self.tt, self.ist, k_stop, self.grid, self.h_max, self.buf, self.maps,
+                       self.atol, scfg.rtol, self.outs, off, fpa, omega2, cdamp, phi, self.phiT,
+                       phi_obs, stiff, cres, spos, prof, reg, rf, self.scratch,
+                       self.track_latch, self.fresh, self.budget)
+
+    def _fail(self, code: int) -> None:
+        """Raise the :class:`SolverFailure` of a failure code of the loop."""
+        te = float(self.tt[T_NOW])
+        where = f"t = {te:.6g} s (regime {self.regime.describe()})"
+        if code == ADV_MIN_STEP:
+            raise SolverFailure("step_underflow", f"adaptive-modal: step size underflow "
+                                f"at {where}: the error test keeps failing below "
+                                f"{self.h_max / 2**(NLEV - 1):.3g} s. Hint: loosen solver.rtol "
+                                f"or check the scene for a discontinuity no event sees", te)
+        if code == ADV_NEWTON:
+            raise SolverFailure("newton_failure", f"adaptive-modal: Newton failed while "
+                                f"locating an event at {where}", te)
+        if code == ADV_STALL:
+            raise stall_failure("adaptive-modal", te, f"more than {self.budget} step attempts",
+                                self.regime.describe())
+        raise SolverFailure("nonfinite", f"adaptive-modal: the state became non-finite at "
+                            f"{where}", te)
+
+    def _loop_state(self) -> dict:
+        """Everything the step loop carries (and the Hermite step's kept Newton matrix), so
+        that a resumed run is bit-identical."""
+        buf, scratch = self.buf, self.scratch
+        state = {"recent": list(self.book.recent), "ist": self.ist.copy(),
+                 "g": buf.G[G_START].copy(), "armed": buf.armed.copy()}
+        if self.hermite:
+            state.update(dF=buf.DF[B_NOW].copy(), c=buf.C[B_NOW].copy(), ws=scratch.ws.copy(),
                          iws=scratch.iws.copy(), hjac=scratch.hjac.copy())
         else:
-            state.update(d=D[B_NOW].copy(), u=U[B_NOW].copy())
+            state.update(d=buf.D[B_NOW].copy(), u=buf.U[B_NOW].copy())
         return state
 
-    def write_cp() -> None:
-        k = int(ist[I_K])
-        st = dict(book.stats)
-        st["wall_time"] = wall_before + time.perf_counter() - wall0
-        st["cpu_time"] = cpu_before + time.process_time() - cpu0
-        write_checkpoint(checkpoint_dir, Checkpoint(
-            scene_toml=scene_toml, t=float(tt[T_NOW]), k=k, y=y.copy(), y_initial=y_initial,
-            outputs=outs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
-            regime=copy.deepcopy(regime), events=list(book.events), stats=st,
-            loop=loop_state(),
-            force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve()),
-            inputs=input_fingerprint(scene_toml, system.profile.stats)))
+    def _write_checkpoint(self) -> None:
+        st = dict(self.book.stats)
+        st.update(self.clock.times())
+        write_checkpoint(self.checkpoint_dir, make_checkpoint(
+            self.system, self.scene_toml, t=float(self.tt[T_NOW]), k=int(self.ist[I_K]),
+            y=self.y, y_initial=self.y_initial, outputs=self.outs, reg=self.reg, rf=self.rf,
+            regime=self.regime, events=self.book.events, stats=st, loop=self._loop_state()))
 
-    try:
-        while True:
-            k_stop = min(n, int(ist[I_K]) + chunk)
-            if cp_stride:  # stop at the next checkpoint row (rows j with j % cp_stride == 0)
-                k_stop = min(k_stop, (int(ist[I_K]) - 1) // cp_stride * cp_stride
-                             + cp_stride + 1)
-            if hermite:
-                code = advance_hermite(tt, ist, k_stop, grid, h_top, buf, maps, atol,
-                                        scfg.rtol, outs, off, fpa, omega2, cdamp, phi, phiT,
-                                        phi_obs, stiff, cres, spos, prof, reg, rf, scratch,
-                                        track_latch, fresh, budget)
-            else:
-                code = advance(tt, ist, k_stop, grid, h_max, buf, maps, atol, scfg.rtol, outs,
-                                off, fpa, omega2, cdamp, phi, phiT, phi_obs, stiff, cres, spos,
-                                prof, reg, rf, scratch, track_latch, fresh, budget)
-            fresh = False
-            regime.v_ext = float(rf[kn.RF_VEXT])
-            bar.n = float(grid[min(int(ist[I_K]), n) - 1])
-            bar.refresh()
-            if code == ADV_DONE:
-                break
-            if code == ADV_CHUNK:
-                k = int(ist[I_K])
-                if cp_stride and (k - 1) % cp_stride == 0 and k < n:
-                    book.stats["checkpoints"] += 1
-                    if scene_toml:
-                        write_cp()
-                continue
-            te = float(tt[T_NOW])
-            if code == ADV_EVENT:
-                y_new, _ = book.apply(te, y, set(np.flatnonzero(fired).tolist()))
-                y[:] = y_new
-                fresh = True
-                continue
-            where = f"t = {te:.6g} s (regime {regime.describe()})"
-            if code == ADV_MIN_STEP:
-                raise SolverFailure("step_underflow", f"adaptive-modal: step size underflow "
-                                    f"at {where}: the error test keeps failing below "
-                                    f"{h_max / 2**(NLEV - 1):.3g} s. Hint: loosen solver.rtol "
-                                    f"or check the scene for a discontinuity no event sees",
-                                    te)
-            if code == ADV_NEWTON:
-                raise SolverFailure("newton_failure", f"adaptive-modal: Newton failed while "
-                                    f"locating an event at {where}", te)
-            if code == ADV_STALL:
-                raise stall_failure("adaptive-modal", te, f"more than {budget} step attempts",
-                                    regime.describe())
-            raise SolverFailure("nonfinite", f"adaptive-modal: the state became non-finite at "
-                                f"{where}", te)
-    except SolverFailure as exc:
-        status, message = exc.status, str(exc)
-    finally:
-        bar.close()
-
-    stats = dict(book.stats)
-    stats.update({
-        "steps": int(ist[I_STEPS]), "rejected_steps": int(ist[I_REJECT]),
-        "step_evaluations": int(ist[I_STEP_EVALS]), "root_evaluations": int(ist[I_ROOT_EVALS]),
-        "propagator_evaluations": int(ist[I_MAPS]), "nonlinear_iterations": int(ist[I_NEWTON]),
-        "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
-        "extrapolated_steps": int(ist[I_EXTRAP]),
-        "residual_evaluations": None,
-        "jacobian_evaluations": int(ist[I_JACS]) if hermite else None,
-        "blocks": int(ist[I_BLOCKS]) if hermite else None,
-        "restarts": int(book.stats.get("restarts", 0)),
-        "wall_time": wall_before + time.perf_counter() - wall0,
-        "cpu_time": cpu_before + time.process_time() - cpu0,
-        "events_total": len(book.events),
-        "largest_step": h_max,  # the largest kept step, of either loop
-    })
-    k_done = int(ist[I_K])
-    return RawSolution(time=grid, outputs=outs, events=book.events, stats=stats, status=status,
-                       message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
-                       t_final=float(grid[k_done - 1]) if status == "success" else float(tt[T_NOW]),
-                       extra={"rows_filled": k_done})
+    def _solution(self, status: str, message: str) -> RawSolution:
+        ist, book, hermite = self.ist, self.book, self.hermite
+        stats = dict(book.stats)
+        stats.update({
+            "steps": int(ist[I_STEPS]), "rejected_steps": int(ist[I_REJECT]),
+            "step_evaluations": int(ist[I_STEP_EVALS]),
+            "root_evaluations": int(ist[I_ROOT_EVALS]),
+            "propagator_evaluations": int(ist[I_MAPS]),
+            "nonlinear_iterations": int(ist[I_NEWTON]),
+            "nonlinear_convergence_failures": int(ist[I_NEWTON_FAIL]),
+            "extrapolated_steps": int(ist[I_EXTRAP]),
+            "residual_evaluations": None,
+            "jacobian_evaluations": int(ist[I_JACS]) if hermite else None,
+            "blocks": int(ist[I_BLOCKS]) if hermite else None,
+            "restarts": int(book.stats.get("restarts", 0)),
+            **self.clock.times(),
+            "events_total": len(book.events),
+            "largest_step": self.h_max,  # the largest kept step, of either loop
+        })
+        k_done = int(ist[I_K])
+        t_final = float(self.grid[k_done - 1]) if status == "success" else float(self.tt[T_NOW])
+        return RawSolution(time=self.grid, outputs=self.outs, events=book.events, stats=stats,
+                           status=status, message=message, y_initial=self.y_initial,
+                           y_final=np.asarray(self.y, dtype=float), t_final=t_final,
+                           extra={"rows_filled": k_done})

@@ -1,5 +1,5 @@
-"""What every solver shares: the result contract, the output grid, the tolerances and the
-progress bar.
+"""What every solver shares: the result contract, the output grid, the tolerances, the
+progress bar, checkpoint and statistics bookkeeping.
 
 The solvers (:mod:`.ida`, :mod:`.adaptive_modal`, :mod:`.fixed_step`,
 :mod:`.paper_scheme`) import these from here and not from each other:
@@ -8,31 +8,45 @@ The solvers (:mod:`.ida`, :mod:`.adaptive_modal`, :mod:`.fixed_step`,
 * :func:`output_grid`, the uniform output grid and its rows, and :data:`FIRST_ROW`;
 * :func:`atol_vector`, the per-state absolute tolerances, and :func:`tolerance_floors` /
   :func:`check_tolerances`, their round-off floors;
-* :func:`progress_bar`, the progress bar in simulated seconds;
+* :class:`RunProgress` (on :func:`progress_bar`), the progress bar in simulated seconds;
+* :func:`checkpoint_stride`, :func:`checkpoint_scene` and :func:`make_checkpoint`, the
+  event-driven solvers' checkpoint glue (the file itself: :mod:`.checkpoint`);
+* :func:`resumed_statistics` and :class:`RunClock`, the statistics a run starts from and its
+  wall and CPU time across resumed processes;
 * :data:`MODE_Q`, :data:`MODE_DQ`, a mode's components in the per-mode step maps of the
   modal solvers.
 
-The drivers call :func:`check_tolerances` through their own module
-(``adaptive_modal.check_tolerances``), so that a caller can replace it there (the tests do).
+The drivers call :func:`.checkpoint.write_checkpoint` and :func:`check_tolerances` through
+their own module (``ida.write_checkpoint``, ``adaptive_modal.check_tolerances``), so that a
+caller can replace them there (the tests stop a run after its first checkpoint that way).
 """
 
 from __future__ import annotations
 
+import collections
+import copy
 import sys
+import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from roughvib.model import kernels as kn
-from roughvib.scene import SceneError
+from roughvib.scene import SceneError, scene_to_toml
+from roughvib.solvers.checkpoint import Checkpoint, input_fingerprint
 from roughvib.solvers.events import EventRecord
 
 if TYPE_CHECKING:
+    from roughvib.model.regimes import Regime
     from roughvib.model.system import System
+    from roughvib.scene import Output, Scene
 
-__all__ = ["ATOL_FLOOR_ULPS", "FIRST_ROW", "MODE_DQ", "MODE_Q", "RawSolution", "atol_vector",
-           "check_tolerances", "output_grid", "progress_bar", "tolerance_floors"]
+__all__ = ["ATOL_FLOOR_ULPS", "FIRST_ROW", "MODE_DQ", "MODE_Q", "RawSolution", "RunClock",
+           "RunProgress", "atol_vector", "check_tolerances", "checkpoint_scene",
+           "checkpoint_stride", "make_checkpoint", "output_grid", "progress_bar",
+           "resumed_statistics", "tolerance_floors"]
 
 FIRST_ROW = 0  #: the output row of t = 0
 #: a mode's state [q, q'] in the per-mode step maps of the modal solvers: ``Phi[r, i, j]``
@@ -40,6 +54,7 @@ FIRST_ROW = 0  #: the output row of t = 0
 #: schemes, the last axis of the Hermite step's maps
 MODE_Q = 0   #: the modal coordinate q [m sqrt(kg)]
 MODE_DQ = 1  #: its rate q' [m sqrt(kg) / s]
+
 
 @dataclass
 class RawSolution:
@@ -268,3 +283,165 @@ def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
                value_format=".4f", unit_scale=False, leave=False,
                bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
 
+
+class RunProgress:
+    """The progress bar of an event-driven run, shown at output rows at most every
+    ``stride`` rows.
+
+    Parameters
+    ----------
+    system : System
+        As for :func:`progress_bar`.
+    progress : bool or None
+        As for :func:`progress_bar`.
+    initial : float
+        The simulated time the run starts at [s].
+    first_row : int
+        The first output row the run fills.
+    stride : int
+        Output rows between two updates (0: at every :meth:`show`).
+    """
+
+    def __init__(self, system: System, progress: bool | None, initial: float, first_row: int,
+                 stride: int = 0) -> None:
+        self.bar = progress_bar(system, progress, initial=initial)
+        self.stride = stride
+        self._next = first_row
+
+    def show(self, k: int, t: float) -> None:
+        """The run has reached output row ``k`` (never less than before) at time ``t`` [s]:
+        update the bar when ``k`` is at least ``stride`` rows past the previous update."""
+        if k >= self._next:
+            self.bar.n = float(t)
+            self.bar.refresh()
+            self._next = k + self.stride
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+# --- checkpoints and statistics --------------------------------------------------------------
+
+def checkpoint_stride(output: Output, multiple: int = 1) -> int:
+    """Output rows between checkpoints (0: none).
+
+    Parameters
+    ----------
+    output : Output
+        The scene's ``output`` (``checkpoint_interval`` and ``step`` [s]).
+    multiple : int
+        The stride is rounded up to a multiple of this (adaptive-modal's Hermite loop: a
+        checkpoint row ends a block of that many rows).
+
+    Returns
+    -------
+    int
+        A checkpoint is taken at the grid rows j with ``j % stride == 0``: the interval
+        rounded to the grid (at least one row), or 0 when ``checkpoint_interval`` is 0.
+    """
+    interval = output.checkpoint_interval
+    stride = max(1, int(round(interval / output.step))) if interval > 0 else 0
+    if stride % multiple:
+        stride += multiple - stride % multiple
+    return stride
+
+
+def checkpoint_scene(scene: Scene, stride: int, directory) -> str:
+    """The scene's TOML text that checkpoints store, or ``""`` when none are written (no
+    stride or no directory). ``directory`` is the checkpoint directory (path or None)."""
+    return scene_to_toml(scene) if stride and directory is not None else ""
+
+
+def make_checkpoint(system: System, scene_toml: str, *, t: float, k: int, y: np.ndarray,
+                    y_initial: np.ndarray, outputs: np.ndarray, reg: np.ndarray,
+                    rf: np.ndarray, regime: Regime, events: list, stats: dict, loop: dict,
+                    ida: bool = False) -> Checkpoint:
+    """A :class:`~.checkpoint.Checkpoint` of an event-driven run; every array is copied.
+
+    Parameters
+    ----------
+    system : System
+        The assembled model (T0, the scene's base directory, the profile's statistics).
+    scene_toml : str
+        From :func:`checkpoint_scene`.
+    t : float
+        The checkpoint time [s], a grid time.
+    k : int
+        The next output row (``grid[k - 1] == t``).
+    y, y_initial : ndarray, shape (n_states,)
+        The state at ``t`` and at 0.
+    outputs : ndarray, shape (>= k, n_out)
+        The output rows; rows 0 .. k-1 are stored.
+    reg, rf : ndarray
+        The kernels' regime arrays.
+    regime : Regime
+        Deep-copied.
+    events : list of EventRecord
+    stats : dict
+        The statistics so far, with ``wall_time`` and ``cpu_time`` [s] (:class:`RunClock`).
+    loop : dict
+        What the solver's loop carries (see :class:`~.checkpoint.Checkpoint`).
+    ida : bool
+        The run is IDA's (its fingerprint names the SUNDIALS version).
+
+    Returns
+    -------
+    Checkpoint
+    """
+    return Checkpoint(
+        scene_toml=scene_toml, t=t, k=k, y=y.copy(), y_initial=y_initial,
+        outputs=outputs[:k].copy(), reg=reg.copy(), rf=rf.copy(),
+        regime=copy.deepcopy(regime), events=list(events), stats=stats, loop=loop,
+        force_amplitude=float(system.force_amplitude),
+        base_dir=str(Path(system.scene.base_dir).resolve()),
+        inputs=input_fingerprint(scene_toml, system.profile.stats, ida=ida))
+
+
+class RunClock:
+    """Wall and CPU time of a run, including those of the processes it was resumed from.
+
+    Parameters
+    ----------
+    wall_before, cpu_before : float
+        The times of the earlier processes [s] (:func:`resumed_statistics`).
+    """
+
+    def __init__(self, wall_before: float = 0.0, cpu_before: float = 0.0) -> None:
+        self.wall_before = wall_before
+        self.cpu_before = cpu_before
+        self.start()
+
+    def start(self) -> None:
+        """Count from now."""
+        self._wall0 = time.perf_counter()
+        self._cpu0 = time.process_time()
+
+    def times(self) -> dict[str, float]:
+        """``{"wall_time": ..., "cpu_time": ...}`` so far [s]."""
+        return {"wall_time": self.wall_before + time.perf_counter() - self._wall0,
+                "cpu_time": self.cpu_before + time.process_time() - self._cpu0}
+
+
+def resumed_statistics(resume: Checkpoint | None) -> tuple[collections.Counter, RunClock]:
+    """The statistics an event-driven run starts from, and its clock.
+
+    Parameters
+    ----------
+    resume : Checkpoint or None
+        The checkpoint the run continues from.
+
+    Returns
+    -------
+    stats : collections.Counter
+        Empty for a new run; the checkpoint's counts with ``resumes`` one up otherwise.
+    clock : RunClock
+        Started now, carrying the checkpoint's ``wall_time`` and ``cpu_time`` [s].
+    """
+    if resume is None:
+        return collections.Counter(), RunClock()
+    prev = dict(resume.stats)
+    wall_before = float(prev.pop("wall_time", 0.0))
+    cpu_before = float(prev.pop("cpu_time", 0.0))
+    stats = collections.Counter(prev)
+    stats["resumes"] += 1
+    return stats, RunClock(wall_before, cpu_before)
