@@ -430,7 +430,7 @@ def part2(system, repeats: int) -> tuple[dict, tuple]:
     ev_args = system.event_args(reg, rf)
     n = system.layout.size
     res = np.empty(n)
-    ev = np.empty(system.n_contacts + 3)
+    ev = np.empty(system.n_contacts + kn.N_LAW_ROOTS)
     out = np.empty(kn.N_OUT_FIXED + 2 * system.n_contacts)
     rows, cols = kn.jacobian_pattern(system.off)
     from roughvib.solvers.ida import _sparsity

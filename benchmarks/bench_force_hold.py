@@ -75,8 +75,8 @@ from roughvib.physics.surface.interp import profile_eval  # noqa: E402
 from roughvib.results import load_result  # noqa: E402
 from roughvib.scene import load_scene  # noqa: E402
 from roughvib.simulation import simulate  # noqa: E402
+from roughvib.solvers.base import atol_vector  # noqa: E402
 from roughvib.solvers.checkpoint import start_state  # noqa: E402
-from roughvib.solvers.ida import _atol_vector  # noqa: E402
 
 N_PHI = 4           # phi_1 .. phi_4: holds up to cubic
 N_SERIES = 30       # terms of the phi-function series for |z| < 1
@@ -593,7 +593,7 @@ def doubling_estimates(scene, system, vp: Vertical, ds, events) -> None:
                      atol_acceleration=float(base["atol_acceleration"]))
     weights = assemble(replace(scene, solver=solved),
                        force_amplitude=float(ds.attrs["force_amplitude"]))
-    full = _atol_vector(weights)
+    full = atol_vector(weights)
     lay = weights.layout
     atol = np.r_[full[lay.slice("plate.q")], full[lay.slice("plate.dq")],
                  full[lay.index("block.z")], full[lay.index("block.vz")],

@@ -33,8 +33,8 @@ from roughvib.model.system import assemble
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import load_scene
 from roughvib.solvers import hermite as hm
+from roughvib.solvers.base import atol_vector
 from roughvib.solvers.checkpoint import start_state
-from roughvib.solvers.ida import _atol_vector
 
 FORCE_AMPLITUDE = 0.9153599563724701   # the paper scene's calibrated T0 [N]
 MARCH_STEPS = 1000                      # steps of a march (10 ms), then from the start again
@@ -93,7 +93,7 @@ def main():
                      + profile_eval(system.prof, fp[kn.FP_S0], fp[kn.FP_DX],
                                     system.input_s[k] + x)[1] * v for k in range(K)])
     dF0 = np.linalg.solve(np.diag(1 / system.stiff) + system.cres, rate)
-    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    wts = atol_vector(system) + 1e-5 * np.abs(y0)
     n_ws, n_iws = hm.scratch_sizes(R, K)
     c0 = np.zeros(hm.carry_size(R, K))
     rest = (system.off, fp, system.omega2, system.cdamp, phiT)

@@ -34,7 +34,7 @@ from roughvib.analysis.compare import relative_rms_error
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import assemble
-from roughvib.solvers.ida import _atol_vector
+from roughvib.solvers.base import atol_vector
 
 SCENE = {"contact.points": 1, "plate.max_frequency": 50.6e3, "block.mass": 2.0,
          "excitation.kind": "prescribed", "excitation.velocity": 0.01,
@@ -69,7 +69,7 @@ def _scipy(scene, method, rtol, budget):
     alg[lay.algebraic_indices] = True
     diff = np.flatnonzero(~alg)
     full = y0.copy()
-    atol = _atol_vector(system)[diff] * (rtol / scene.solver.rtol)
+    atol = atol_vector(system)[diff] * (rtol / scene.solver.rtol)
     grid = np.arange(int(round(scene.output.duration / scene.output.step)) + 1) * \
         scene.output.step
     deadline = time.perf_counter() + budget

@@ -63,7 +63,8 @@ from roughvib.analysis.compare import relative_rms_error
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime, switch
 from roughvib.model.system import assemble
-from roughvib.solvers.ida import REFIRE_DT, _atol_vector
+from roughvib.solvers.base import atol_vector
+from roughvib.solvers.ida import REFIRE_DT
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_peers import _at_error  # noqa: E402
@@ -144,7 +145,7 @@ class ScipyEvents:
         self.full = np.zeros(lay.size)
         self.zero = np.zeros(lay.size)
         self.res = np.zeros(lay.size)
-        self.ev = np.zeros(self.K + 3)
+        self.ev = np.zeros(self.K + kn.N_LAW_ROOTS)
         self.ainv = np.zeros((self.K, self.K))
         self.nfev = 0
         self.deadline = math.inf
@@ -199,7 +200,7 @@ class ScipyEvents:
         """The absolute tolerances IDA's ladder uses at this rtol (differential states)."""
         sc = self.scene.with_overrides({"solver.rtol": rtol,
                                         "solver.atol_acceleration": rtol * 1e-2})
-        return _atol_vector(dataclasses.replace(self.system, scene=sc))[self.diff]
+        return atol_vector(dataclasses.replace(self.system, scene=sc))[self.diff]
 
     def time_rhs(self, n: int = 5000) -> float:
         """Seconds per right-hand side call (through the Python wrapper scipy calls)."""

@@ -45,8 +45,8 @@ from roughvib.model import kernels as kn  # noqa: E402
 from roughvib.model.system import assemble  # noqa: E402
 from roughvib.scene import load_scene  # noqa: E402
 from roughvib.solvers import adaptive_modal as am  # noqa: E402
+from roughvib.solvers.base import atol_vector  # noqa: E402
 from roughvib.solvers.checkpoint import read_checkpoint  # noqa: E402
-from roughvib.solvers.ida import _atol_vector  # noqa: E402
 
 
 @njit
@@ -168,7 +168,7 @@ def measure(name: str, reps: int) -> dict:
         am._fill_slot(s, h_max / 2.0 ** s, omega2, cdamp, phi, cres, M, prop)
     phiT = np.ascontiguousarray(phi.T)
     scratch = am.new_scratch(work, R, K)
-    atol = _atol_vector(system)
+    atol = atol_vector(system)
     rtol = scene.solver.rtol
     y = np.array(cp.y)
     d = np.array(cp.loop["d"])
@@ -191,7 +191,7 @@ def measure(name: str, reps: int) -> dict:
     c["assemble"] = _per_call(_loop_assemble, reps, t + h, y1.copy(), d1.copy(), u1.copy(),
                               lev, prop, off, fp, cdamp, phiT, spos, prof, reg,
                               np.zeros(2 * R + 5 * K + 3))
-    g = np.zeros(K + 3)
+    g = np.zeros(K + kn.N_LAW_ROOTS)
     c["events"] = _per_call(_loop_events, reps, t + h, yb, g, off, fp, phi, cres, spos, prof,
                             reg, rf, work)
     outs = np.zeros((64, raw.outputs.shape[1]))

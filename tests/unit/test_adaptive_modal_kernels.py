@@ -269,7 +269,7 @@ def test_extrapolation_is_richardsons_and_keeps_the_energy_integrals(law):
     yb = y * (1.0 + 1e-6 * rng.standard_normal(y.size))
     ya = y * (1.0 + 1e-6 * rng.standard_normal(y.size))
     before = yb.copy()
-    ge = np.zeros(system.n_contacts + 3)
+    ge = np.zeros(system.n_contacts + kn.N_LAW_ROOTS)
     armed = np.zeros(ge.size, dtype=np.int64)
     assert _extrapolate(t, ya, yb, np.zeros_like(y), ge, armed, off, fp, phi, cres, spos, prof,
                         reg, rf, work)
@@ -302,7 +302,7 @@ def test_extrapolation_that_would_cross_an_armed_margin_is_not_made():
     off, fp, _o, _c, phi, _po, _s, cres, spos, prof, _r, _f, work = system.kernel_args(reg, rf)
     K = system.n_contacts
     ivx = system.layout.index("block.vx")
-    g = np.zeros(K + 3)
+    g = np.zeros(K + kn.N_LAW_ROOTS)
     kn.events(t, y, g, off, fp, phi, cres, spos, prof, reg, rf, work)
     margin = g[K + kn.ROOT_BRANCH]
     assert margin > 0.0
@@ -310,9 +310,9 @@ def test_extrapolation_that_would_cross_an_armed_margin_is_not_made():
     ya[ivx] = y[ivx] + 4.0 * margin
     for armed_branch, made in ((1, False), (0, True)):
         yb = y.copy()
-        armed = np.zeros(K + 3, dtype=np.int64)
+        armed = np.zeros(K + kn.N_LAW_ROOTS, dtype=np.int64)
         armed[K + kn.ROOT_BRANCH] = armed_branch
-        ge = np.zeros(K + 3)
+        ge = np.zeros(K + kn.N_LAW_ROOTS)
         done = _extrapolate(t, ya, yb, np.zeros_like(y), ge, armed, off, fp, phi, cres, spos,
                             prof, reg, rf, work)
         assert done is made

@@ -11,8 +11,8 @@ from roughvib.model.system import assemble
 from roughvib.scene import load_scene
 from roughvib.solvers import adaptive_modal as am
 from roughvib.solvers import hermite as hm
+from roughvib.solvers.base import atol_vector
 from roughvib.solvers.checkpoint import start_state
-from roughvib.solvers.ida import _atol_vector
 
 FAST = {"plate.max_frequency": 5000.0, "output.progress": False}
 
@@ -48,7 +48,7 @@ def test_force_rates_are_the_contact_forces_time_derivative():
     ist = np.zeros(am.N_IST, dtype=np.int64)
     h = 1e-7
     am._hermite_fill(0, h, omega2, cdamp, phi, cres, fp[kn.FP_MMODAL], hp, ist)
-    wts = _atol_vector(system) * 1e-3 + 1e-12 * np.abs(y)
+    wts = atol_vector(system) * 1e-3 + 1e-12 * np.abs(y)
     ys, dFs = [y], []
     dF = np.zeros(K)
     c = np.zeros(hm.carry_size(R, K))

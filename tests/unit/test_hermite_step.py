@@ -12,8 +12,8 @@ from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import load_scene
 from roughvib.solvers import adaptive_modal as am
 from roughvib.solvers import hermite as hm
+from roughvib.solvers.base import atol_vector
 from roughvib.solvers.checkpoint import start_state
-from roughvib.solvers.ida import _atol_vector
 
 SPAN = 1e-4     # s, from the start: integrated with steps of SPAN / n
 REF_STEPS = 256
@@ -87,7 +87,7 @@ def _integrate(paper, n):
     hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
                     system.fp[kn.FP_MMODAL], Pm, Cc)
     phiT = np.ascontiguousarray(system.phi.T)
-    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    wts = atol_vector(system) + 1e-5 * np.abs(y0)
     y, dF = y0.copy(), _force_rate(system, y0)
     c = np.zeros(hm.carry_size(R, K))
     args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
@@ -160,7 +160,7 @@ def test_the_step_carries_what_carried_gives_of_its_end(scene, request):
     hm.hermite_slot(h, system.omega2, system.cdamp, system.phi, system.cres,
                     system.fp[kn.FP_MMODAL], Pm, Cc)
     phiT = np.ascontiguousarray(system.phi.T)
-    wts = _atol_vector(system) + 1e-5 * np.abs(y0)
+    wts = atol_vector(system) + 1e-5 * np.abs(y0)
     args = (system.off, system.fp, system.omega2, system.cdamp, phiT)
     dF0 = _force_rate(system, y0)
     c0 = np.zeros(hm.carry_size(R, K))

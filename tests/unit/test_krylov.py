@@ -10,7 +10,8 @@ import roughvib
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.system import assemble
-from roughvib.solvers.ida import _atol_vector, _sparsity
+from roughvib.solvers.base import atol_vector
+from roughvib.solvers.ida import _sparsity
 
 #: the scenes here are shorter than the run-in plus one excitation period on purpose
 #: (the marker is in tests/conftest.py)
@@ -105,7 +106,7 @@ def test_preconditioner_inverts_the_jacobian_and_jv_equals_it(overrides):
     work = np.zeros_like(system.work)
     # IDA measures corrections in units of the absolute tolerances (its WRMS norm): so do we.
     # J's condition number is ~1e14 in SI units; in these units round-off stays ~1e-12.
-    w = _atol_vector(system)
+    w = atol_vector(system)
     for trial in range(3):
         y, reg, rf = _states(system, trial, rng)
         t = 0.003 + 1e-3 * trial

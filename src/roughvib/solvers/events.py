@@ -187,7 +187,7 @@ class EventBook:
         args = system.kernel_args(reg, rf)
         ev_args = system.event_args(reg, rf)
         ye = np.array(ye, dtype=float)
-        n_ev = K + 3
+        n_ev = K + kn.N_LAW_ROOTS
         outbuf = np.empty(kn.n_output_columns(K))
         before = regime.describe()
         evbuf = np.empty(n_ev)
@@ -273,7 +273,7 @@ class EventBook:
         """
         K = self.system.n_contacts
         dt = 1e-9 * max(1.0, te)
-        now, ahead = np.empty(K + 3), np.empty(K + 3)
+        now, ahead = np.empty(K + kn.N_LAW_ROOTS), np.empty(K + kn.N_LAW_ROOTS)
         kn.events(te, y, now, *ev_args)
         kn.events(te + dt, y + dt * yp, ahead, *ev_args)
         bad = [c for c in range(K) if now[c] <= 0.0 and ahead[c] < 0.0]

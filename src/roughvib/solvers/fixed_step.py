@@ -33,8 +33,8 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu_law, kinetic_coefficient, latch_update
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
-from roughvib.solvers.events import initial_phase_events
-from roughvib.solvers.ida import EventRecord, RawSolution
+from roughvib.solvers.base import FIRST_ROW, MODE_DQ, MODE_Q, RawSolution
+from roughvib.solvers.events import EventRecord, initial_phase_events
 
 __all__ = ["modal_propagators", "solve_fixed_step"]
 
@@ -54,13 +54,11 @@ ZV_Z = 0
 ZV_VZ = 1
 ZV_AZ = 2
 N_ZV = 3
-# a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2)
-MODE_Q = 0
-MODE_DQ = 1
-# the augmented state [q, q', u, u'] of the exact first-order-hold step (modal_propagators)
+# a mode's state [q, q'] in the propagators Phi (R, 2, 2), G0, G1 (R, 2): MODE_Q, MODE_DQ
+# (solvers/base.py); the augmented state [q, q', u, u'] of the exact first-order-hold step
+# (modal_propagators) adds
 AUG_U = 2
 AUG_DU = 3
-FIRST_ROW = 0  # the output row of t = 0
 
 
 def modal_propagators(omega: np.ndarray, zeta: np.ndarray, h: float, scheme: str

@@ -33,6 +33,7 @@ from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor_checked, lu_solve
 from roughvib.physics.friction import feldmann_mu, feldmann_mu_d2
 from roughvib.physics.surface.interp import profile_eval
+from roughvib.solvers.base import MODE_DQ, MODE_Q
 
 #: the law and the profile inlined (numba IR) into the step's Newton residual, and the
 #: residual and the step into their callers (``inline="always"``): each call of a compiled
@@ -53,9 +54,7 @@ HOLD_DU0 = 1   #: u'(0)
 HOLD_U1 = 2    #: u(h)
 HOLD_DU1 = 3   #: u'(h)
 N_HOLD = 4
-#: positions of a mode's state in the maps' last axis
-MODE_Q = 0
-MODE_DQ = 1
+# positions of a mode's state in the maps' last axis: MODE_Q, MODE_DQ (solvers/base.py)
 N_MONOMIALS = 4        # tau^0 .. tau^3
 #: rows of the monomial responses W (N_MONOMIALS, 2): the response to tau^k is row k
 W_1, W_T, W_T2, W_T3 = 0, 1, 2, 3
@@ -210,6 +209,9 @@ N_CMAP_FOLDED = 8
 #: Newton of the Hermite step
 HERMITE_NEWTON_MAX = 30
 NEWTON_TOL_REL = 1e-6  # Newton update, in units of the tolerance weights
+#: a Newton update this large in those units (or NaN) ends the step as failed: the matrix was
+#: singular or the iterate runs away (the caller takes a smaller step)
+NEWTON_RUNAWAY = 1e300
 
 
 @njit(cache=True)
@@ -744,7 +746,7 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
             e = abs(res[col]) / scale[col]
             if not e <= worst:  # NaN counts as the worst
                 worst = e
-        if not worst < 1e300:  # a singular matrix or a runaway iterate
+        if not worst < NEWTON_RUNAWAY:  # a singular matrix or a runaway iterate
             return False
         if worst <= NEWTON_TOL_REL:
             ok = True

@@ -21,16 +21,13 @@ exposed by sksundae; see ``_IdaCounters``, which checks the private layout befor
 from __future__ import annotations
 
 import collections
-import copy
 import ctypes
 import glob
 import os
-import sys
-import time
 import warnings
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -38,13 +35,20 @@ from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.krylov import krylov_workspace
 from roughvib.model.system import System
-from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import (
-    Checkpoint,
-    input_fingerprint,
-    start_state,
-    write_checkpoint,
+from roughvib.solvers.base import (
+    FIRST_ROW,
+    RawSolution,
+    RunProgress,
+    atol_vector,
+    check_tolerances,
+    checkpoint_scene,
+    checkpoint_stride,
+    make_checkpoint,
+    output_grid,
+    resumed_statistics,
+    tolerance_floors,
 )
+from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
 from roughvib.solvers.events import (
     EventBook,
     EventRecord,
@@ -56,10 +60,12 @@ from roughvib.solvers.events import (
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-# scikit-sundae and scipy.sparse are imported where IDA runs: the other solvers import this
-# module for RawSolution, the tolerances and the output grid, and need neither
+# scikit-sundae and scipy.sparse are imported where IDA runs. RawSolution, EventRecord and
+# tolerance_floors live in solvers/base.py and solvers/events.py; this module still answers
+# for them (simulation.py imports them from here). write_checkpoint and check_tolerances are
+# called through this module's names, so that a caller can replace them here (the tests do).
 
-__all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
+__all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida", "tolerance_floors"]
 
 # A root that fires within REFIRE_DT of the latest restart, for functions switched at that
 # instant, is round-off: contacts in phase reach their margins together, IDA places their roots
@@ -69,7 +75,6 @@ __all__ = ["EventRecord", "RawSolution", "SolverFailure", "solve_ida"]
 # plate.max_frequency (2e-5 s at 50 kHz), far beyond 1e-12 s, so such a refire is ignored once.
 REFIRE_DT = 1e-12  # s
 JAC_COUNT = 0  # the one entry of the Jacobian counter box
-FIRST_ROW = 0  # the output row of t = 0
 # IDA restarts at order 1; its default first step (~1e-3 of the distance to the next output
 # time, 1e-8 s here) takes ~10 step doublings and as many Jacobian factorizations to grow back.
 # Starting at 1e-2 of the last step cut that by a third at unchanged accuracy on the paper
@@ -87,22 +92,6 @@ JACOBIANS_PER_STEP_BUDGET = 40
 
 class _JacobianBudget(Exception):
     """Raised inside the Jacobian callback to abort a stalled IDASolve call."""
-
-
-@dataclass
-class RawSolution:
-    """What a solver hands to :class:`roughvib.results.Result` (one contract for all)."""
-
-    time: np.ndarray                 # (n,) [s]
-    outputs: np.ndarray              # (n, kernels.n_output_columns(K))
-    events: list[EventRecord]
-    stats: dict
-    status: str
-    message: str
-    y_initial: np.ndarray
-    y_final: np.ndarray
-    t_final: float
-    extra: dict = field(default_factory=dict)
 
 
 #: the scikit-sundae versions whose private layout ``_IdaCounters`` was checked against (the
@@ -272,104 +261,6 @@ class _IdaCounters:
         return self._get(name) if self.ok else None
 
 
-def _atol_vector(system: System) -> np.ndarray:
-    """Per-component absolute tolerances scaled from solver.atol (a displacement, m).
-
-    A mode's tolerances are those of the structure's largest displacement in it, converted to
-    the modal coordinate by ``system.mode_scale`` (mass-normalised shapes: q in m sqrt(kg)).
-    """
-    lay = system.layout
-    a = system.scene.solver.atol
-    atol = np.full(lay.size, np.nan)
-    if system.n_modes:
-        omega = np.sqrt(system.omega2)
-        acc = system.scene.solver.atol_acceleration
-        atol[lay.slice("plate.q")] = np.minimum(a, acc / system.omega2) / system.mode_scale
-        atol[lay.slice("plate.dq")] = np.minimum(a * omega, acc / omega) / system.mode_scale
-    atol[lay.index("block.z")] = a
-    atol[lay.index("block.vz")] = a * 2 * np.pi * 1e3
-    if lay.tangential:
-        atol[lay.index("block.x")] = a
-        atol[lay.index("block.vx")] = a * 1e3
-    atol[lay.slice("contact.force")] = a * system.stiff
-    if lay.has("friction.force"):
-        atol[lay.index("friction.force")] = a * float(np.mean(system.stiff))
-    for name in lay.names:
-        if name.startswith("energy."):
-            atol[lay.index(name)] = a * 1e-2
-    if np.isnan(atol).any():  # every state needs a tolerance: never leave one undefined
-        missing = [n for n in lay.names if np.isnan(atol[lay.slice(n)]).any()]
-        raise AssertionError(f"no absolute tolerance for states {missing}")
-    return atol
-
-
-#: solver.atol must be at least this many unit round-offs of the contact compression's terms
-#: (docs/robustness.md): near a lift-off or touch-down a contact force is known only to
-#: s_k eps L. Measured on the one-contact lift-off scene of docs/robustness.md (rtol 1e-10,
-#: 0.02 s): IDA ran through at 100, 10 and 2.3 eps L and stalled at 1 eps L and below, so
-#: the floor keeps a margin of 40 over the lowest atol that ran (adaptive-modal ran far lower).
-ATOL_FLOOR_ULPS = 100.0
-
-
-def tolerance_floors(system: System, y: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Round-off floors of the absolute tolerances at state ``y`` (the static equilibrium).
-
-    Returns ``{field: (floor, scale)}`` for ``atol`` [m] and, with plate modes,
-    ``atol_acceleration`` [m/s^2]; ``scale`` is the magnitude whose round-off sets the floor.
-
-    * ``atol``: the contact compression z - w_k + h is a difference of terms as large as
-      ``L = |z| + max |w_k| + max |h|`` [m] (block position, plate displacement at the contacts,
-      roughness height), so it is known to eps L, and a closing contact's force only to
-      s_k eps L, while its tolerance weight tends to atol s_k. The floor is
-      ``ATOL_FLOOR_ULPS`` eps L.
-    * ``atol_acceleration``: each mode balances w_r^2 q_r against its modal force per unit
-      modal mass u_r = sum_k phi_rk F_k / M, so its acceleration is known to ``eps max |u_r|``.
-      Below that floor both event-driven solvers slow down (1.6x at the floor, 4x at 4x the
-      floor, 100x and more for block.mass >= 1e9 kg) and finally stall.
-    """
-    eps = float(np.finfo(float).eps)
-    lay = system.layout
-    F = np.asarray(y[lay.slice("contact.force")], dtype=float)
-    w = system.cres @ F
-    if system.n_modes:
-        w = w + system.phi.T @ np.asarray(y[lay.slice("plate.q")], dtype=float)
-    L = (abs(float(y[lay.index("block.z")])) + float(np.max(np.abs(w), initial=0.0))
-         + float(np.max(np.abs(system.profile.z), initial=0.0)))
-    floors = {"atol": (ATOL_FLOOR_ULPS * eps * L, L)}
-    if system.n_modes:
-        # modal force per unit modal mass, as the structure's largest acceleration [m/s^2]
-        u = float(np.max(np.abs((system.phi @ F) * system.mode_scale)))
-        floors["atol_acceleration"] = (eps * u, u)
-    return floors
-
-
-def check_tolerances(system: System, y: np.ndarray) -> None:
-    """Refuse absolute tolerances below their round-off floors (:func:`tolerance_floors`).
-
-    Raises
-    ------
-    SceneError
-        One line naming each field below its floor, the rule, the unit and the value.
-    """
-    scfg = system.scene.solver
-    floors = tolerance_floors(system, y)
-    bad = []
-    floor, L = floors["atol"]
-    if scfg.atol < floor:
-        bad.append(f"solver.atol must be >= {floor:.2g} m for this scene ({ATOL_FLOOR_ULPS:g} "
-                   f"round-offs of the contact compression, whose terms reach {L:.3g} m), "
-                   f"got {scfg.atol:g} m")
-    if "atol_acceleration" in floors:
-        floor, u = floors["atol_acceleration"]
-        if scfg.atol_acceleration < floor:
-            bad.append(f"solver.atol_acceleration must be >= {floor:.2g} m/s^2 for this scene "
-                       f"(the round-off of the plate modes' force balance, whose modal forces "
-                       f"per modal mass reach {u:.3g} m/s^2 under block.mass = "
-                       f"{system.scene.block.mass:g} kg), got {scfg.atol_acceleration:g} m/s^2")
-    if bad:
-        raise SceneError("; ".join(bad))
-
-
 def _sparsity(system: System) -> tuple[sp.csc_matrix, np.ndarray]:
     import scipy.sparse as sp
 
@@ -402,7 +293,7 @@ def _closest_contact(t: float, y: np.ndarray, n_contacts: int, ev_args: tuple) -
     """'; contact k closest to switching' from the contact margins at the failure."""
     if n_contacts == 0:
         return ""
-    buf = np.empty(n_contacts + 3)
+    buf = np.empty(n_contacts + kn.N_LAW_ROOTS)
     try:
         kn.events(t, np.asarray(y, dtype=float), buf, *ev_args)
     except Exception:  # noqa: BLE001 - diagnostics only, never mask the failure itself
@@ -437,38 +328,6 @@ def _krylov_options(system: System, args: tuple) -> dict:
                 jactimes=sun.ida.IDAJacTimes(None, jv))
 
 
-def output_grid(system: System) -> tuple[np.ndarray, np.ndarray]:
-    """The uniform output grid of a run and its output rows, NaN until written.
-
-    Returns
-    -------
-    grid : ndarray, shape (n,)
-        0, output.step, ..., output.duration [s].
-    outs : ndarray, shape (n, kernels.n_output_columns(K))
-    """
-    out_cfg = system.scene.output
-    n = int(round(out_cfg.duration / out_cfg.step)) + 1
-    return np.arange(n) * out_cfg.step, np.full((n, kn.n_output_columns(system.n_contacts)),
-                                                  np.nan)
-
-
-def progress_bar(system: System, progress: bool | None, initial: float = 0.0):
-    """The run's progress bar on stderr, in simulated seconds (shared by the solvers).
-
-    ``progress`` None means the scene's ``output.progress``. When stderr is not a terminal
-    (a log file), a few whole lines instead (``roughvib._progress``).
-    """
-    from roughvib._progress import progress_bar as bar
-
-    scene = system.scene
-    if progress is None:
-        progress = scene.output.progress
-    return bar(float(scene.output.duration), initial=initial, unit="s sim",
-               disable=not progress, file=sys.stderr, desc=f"roughvib {scene.name}",
-               value_format=".4f", unit_scale=False, leave=False,
-               bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} s sim [{elapsed}<{remaining}]")
-
-
 def solve_ida(system: System, *, progress: bool | None = None,
               checkpoint_dir: str | os.PathLike | None = None,
               resume: Checkpoint | None = None) -> RawSolution:
@@ -493,31 +352,26 @@ def solve_ida(system: System, *, progress: bool | None = None,
         Grid outputs, event log, statistics; ``status`` is ``"success"`` or the failure cause
         (then the outputs end where the integration stopped).
     """
-    import sksundae as sun
+    return _IdaRun(system, progress, checkpoint_dir, resume).run()
 
-    scene = system.scene
-    out_cfg = scene.output
-    scfg = scene.solver
-    K = system.n_contacts
-    lay = system.layout
-    grid, outs = output_grid(system)
-    n, n_out = outs.shape
 
-    reg, rf = system.new_regime_arrays()
-    regime, y, y_initial = start_state(system, reg, rf, resume, n, n_out)
-    t_start, k_start = (0.0, 1) if resume is None else (float(resume.t), int(resume.k))
-    if resume is not None:
-        outs[:k_start] = resume.outputs
-    y, yp = system.consistent(t_start, y, reg, rf)
-    check_tolerances(system, y_initial)
-    cp_interval = scene.output.checkpoint_interval
-    # checkpoint times are grid indices (a multiple of the interval, rounded to the grid)
-    cp_stride = max(1, int(round(cp_interval / out_cfg.step))) if cp_interval > 0 else 0
-    scene_toml = scene_to_toml(scene) if cp_stride and checkpoint_dir is not None else ""
+class _Callbacks(NamedTuple):
+    resfn: Callable
+    jacfn: Callable
+    eventsfn: Callable
+    pattern: sp.csc_matrix  # the Jacobian's sparsity
 
-    args = system.kernel_args(reg, rf)
-    ev_args = system.event_args(reg, rf)
-    (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, _reg, _rf, work) = args
+
+def _callbacks(system: System, args: tuple, ev_args: tuple, jac_budget: int,
+               jac_count: list[int]) -> _Callbacks:
+    """IDA's residual, sparse Jacobian and event callbacks on the kernels' arrays ``args``
+    and ``ev_args``, and the Jacobian's sparsity pattern.
+
+    The Jacobian callback counts its calls in ``jac_count[JAC_COUNT]`` and raises
+    :class:`_JacobianBudget` beyond ``jac_budget`` (the caller resets the count before each
+    IDA call).
+    """
+    (off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf, work) = args
     pattern, perm = _sparsity(system)
     vals = np.zeros(perm.size)
     residual = kn.residual
@@ -528,10 +382,6 @@ def solve_ida(system: System, *, progress: bool | None = None,
     def resfn(t, yy, yyp, res):
         residual(t, yy, yyp, res, off, fpa, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
                  prof, reg, rf, work)
-
-    budget = step_budget(out_cfg.step)
-    jac_budget = budget // JACOBIANS_PER_STEP_BUDGET
-    jac_count = [0]  # Jacobians within the current step() call
 
     def jacfn(t, yy, yyp, res, cj, jj):
         jac_count[JAC_COUNT] += 1
@@ -544,14 +394,23 @@ def solve_ida(system: System, *, progress: bool | None = None,
     def eventsfn(t, yy, yyp, ev):
         events_k(t, yy, ev, *ev_args)
 
-    n_ev = K + 3
+    n_ev = system.n_contacts + kn.N_LAW_ROOTS
     eventsfn.direction = [-1] * n_ev
     eventsfn.terminal = [True] * n_ev
+    return _Callbacks(resfn, jacfn, eventsfn, pattern)
 
+
+def _new_solver(system: System, args: tuple, callbacks: _Callbacks, budget: int):
+    """scikit-sundae's IDA on the callbacks of :func:`_callbacks`, with the scene's
+    tolerances, limits and linear solver (``budget``: steps per output interval)."""
+    import sksundae as sun
+
+    resfn, jacfn, eventsfn, pattern = callbacks
+    scfg = system.scene.solver
     options = dict(
-        rtol=scfg.rtol, atol=_atol_vector(system), algebraic_idx=lay.algebraic_indices,
-        eventsfn=eventsfn, num_events=n_ev, max_num_steps=budget, max_step=scfg.max_step,
-        max_order=scfg.max_order,
+        rtol=scfg.rtol, atol=atol_vector(system), algebraic_idx=system.layout.algebraic_indices,
+        eventsfn=eventsfn, num_events=len(eventsfn.direction), max_num_steps=budget,
+        max_step=scfg.max_step, max_order=scfg.max_order,
     )
     if scfg.linear_solver == "gmres":
         options.update(_krylov_options(system, args))
@@ -560,57 +419,231 @@ def solve_ida(system: System, *, progress: bool | None = None,
     with warnings.catch_warnings():
         # sksundae warns that its own sparse FD Jacobian is unused: we pass an analytic one
         warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
-        solver = sun.ida.IDA(resfn, **options)
-    solver.init_step(t_start, y, yp)
-    # the Cython object behind the public solver, only to read IDA's statistics through the C
-    # API (docs/architecture.md, Conventions); _IdaCounters checks its layout first
-    counters = _IdaCounters(vars(solver).get("_IDA__IDA"))
-    if counters.problem is not None:
-        warnings.warn(f"IDA step statistics unavailable and restarts use IDA's own first step: "
-                      f"{counters.problem}", RuntimeWarning, stacklevel=2)
-    h_restart = 0.0  # first step after the latest restart [s] (0: IDA's own estimate)
-    h_restart_cap = RESTART_STEP_FRACTION * out_cfg.step
-    # validated before the first step too, so that a failure inside the first IDA call (the
-    # Jacobian guard) still reports IDA's counts
-    counters.validate_time(t_start)
-    if resume is not None and resume.loop.get("h_restart", 0.0) > 0:
-        h_restart = float(resume.loop["h_restart"])
-        counters.set_init_step(h_restart)
+        return sun.ida.IDA(resfn, **options)
 
-    stats = collections.Counter()
-    events: list[EventRecord] = []
-    recent: collections.deque[float] = collections.deque()
-    status, message = "success", "reached the end of the output grid"
-    t_last_restart = 0.0
-    last_fired: set[int] = set()
-    refire_ignored = 0
-    wall_before = cpu_before = 0.0
-    if resume is not None:
-        prev = dict(resume.stats)
-        wall_before = float(prev.pop("wall_time", 0.0))
-        cpu_before = float(prev.pop("cpu_time", 0.0))
-        stats.update(prev)
-        stats["resumes"] += 1
-        events = list(resume.events)
-        recent = collections.deque(resume.loop["recent"])
-        t_last_restart = float(resume.loop["t_last_restart"])
-        last_fired = set(resume.loop["last_fired"])
-        refire_ignored = int(resume.loop["refire_ignored"])
-    wall0 = time.perf_counter()
-    cpu0 = time.process_time()
 
-    if resume is None:
-        kn.outputs(0.0, y, outs[FIRST_ROW], *args)
-    bar = progress_bar(system, progress, initial=t_start)
-    bar_next = k_start
-    bar_stride = max(1, n // 200)
-    vx_i = lay.index("block.vx")
-    first_result = True
+class _IdaRun:
+    """One run of :func:`solve_ida`: the IDA solver, its callbacks and the event loop's state.
 
-    def close_segment(r) -> None:
+    The loop asks IDA for the next output time, one call at a time (:meth:`_next_row`); a
+    root stops it at an event (:meth:`_event`: switch, consistent restart), an output time
+    writes its row (:meth:`_row`) and, at a checkpoint row, restarts IDA there
+    (:meth:`_checkpoint_restart`). The counts of each IDA segment (from one
+    (re)initialisation to the next) are added when it closes (:meth:`_close_segment`).
+    """
+
+    def __init__(self, system: System, progress: bool | None,
+                 checkpoint_dir: str | os.PathLike | None, resume: Checkpoint | None) -> None:
+        self.system = system
+        self.checkpoint_dir = checkpoint_dir
+        scene = system.scene
+        out_cfg = scene.output
+        self.grid, self.outs = output_grid(system)
+        self.n, n_out = self.outs.shape
+        self.reg, self.rf = reg, rf = system.new_regime_arrays()
+        self.regime, y, self.y_initial = start_state(system, reg, rf, resume, self.n, n_out)
+        t_start, k_start = (0.0, 1) if resume is None else (float(resume.t), int(resume.k))
+        if resume is not None:
+            self.outs[:k_start] = resume.outputs
+        self.y, self.yp = system.consistent(t_start, y, reg, rf)
+        check_tolerances(system, self.y_initial)
+        self.cp_stride = checkpoint_stride(out_cfg)
+        self.scene_toml = checkpoint_scene(scene, self.cp_stride, checkpoint_dir)
+
+        self.args = system.kernel_args(reg, rf)
+        self.ev_args = system.event_args(reg, rf)
+        self.budget = step_budget(out_cfg.step)
+        self.jac_budget = self.budget // JACOBIANS_PER_STEP_BUDGET
+        self.jac_count = [0]  # Jacobians within the current step() call
+        callbacks = _callbacks(system, self.args, self.ev_args, self.jac_budget, self.jac_count)
+        self.eventsfn = callbacks.eventsfn
+        self.solver = _new_solver(system, self.args, callbacks, self.budget)
+        self.solver.init_step(t_start, self.y, self.yp)
+        # the Cython object behind the public solver, only to read IDA's statistics through
+        # the C API (docs/architecture.md, Conventions); _IdaCounters checks its layout first
+        self.counters = _IdaCounters(vars(self.solver).get("_IDA__IDA"))
+        if self.counters.problem is not None:
+            warnings.warn(f"IDA step statistics unavailable and restarts use IDA's own first "
+                          f"step: {self.counters.problem}", RuntimeWarning, stacklevel=3)
+        self.h_restart = 0.0  # first step after the latest restart [s] (0: IDA's own estimate)
+        self.h_restart_cap = RESTART_STEP_FRACTION * out_cfg.step
+        # validated before the first step too, so that a failure inside the first IDA call
+        # (the Jacobian guard) still reports IDA's counts
+        self.counters.validate_time(t_start)
+        if resume is not None and resume.loop.get("h_restart", 0.0) > 0:
+            self.h_restart = float(resume.loop["h_restart"])
+            self.counters.set_init_step(self.h_restart)
+
+        self._start_loop(resume)
+        if resume is None:
+            kn.outputs(0.0, self.y, self.outs[FIRST_ROW], *self.args)
+        self.progress = RunProgress(system, progress, t_start, k_start, max(1, self.n // 200))
+        self.vx_i = system.layout.index("block.vx")
+        self.first_result = True
+        if resume is None:
+            self.book.log_initial_phase(0.0, self.y)
+        self.k = k_start
+        self.r = None  # IDA's latest result in the open segment (None: none yet)
+
+    def _start_loop(self, resume: Checkpoint | None) -> None:
+        """The event loop's bookkeeping, new or from the checkpoint, and the run's clock."""
+        stats, self.clock = resumed_statistics(resume)
+        events: list[EventRecord] = []
+        recent: collections.deque[float] = collections.deque()
+        self.t_last_restart = 0.0
+        self.last_fired: set[int] = set()
+        self.refire_ignored = 0
+        if resume is not None:
+            events = list(resume.events)
+            recent = collections.deque(resume.loop["recent"])
+            self.t_last_restart = float(resume.loop["t_last_restart"])
+            self.last_fired = set(resume.loop["last_fired"])
+            self.refire_ignored = int(resume.loop["refire_ignored"])
+        self.clock.start()
+        self.book = EventBook(self.system, self.regime, self.reg, self.rf, events=events,
+                              recent=recent, stats=stats)
+
+    def run(self) -> RawSolution:
+        """Integrate to the end of the grid (or a failure) and return the solution."""
+        status, message = "success", "reached the end of the output grid"
+        try:
+            while self.k < self.n:
+                self._next_row()
+            if self.r is not None:
+                self._close_segment(self.r)
+                if self.r.status != 2:
+                    self.y = np.array(self.r.y, dtype=float)
+        except SolverFailure as exc:
+            status, message = exc.status, str(exc)
+            self._close_segment(self.r)  # r None: the failure came inside the segment's first call
+        finally:
+            self.progress.close()
+        return self._solution(status, message)
+
+    def _next_row(self) -> None:
+        """One IDA call towards the next output time, and what its result asks for."""
+        k, grid = self.k, self.grid
+        self.jac_count[JAC_COUNT] = 0
+        try:
+            r = self.solver.step(grid[k], "normal", None)
+        except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
+            raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
+                                f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
+        except _JacobianBudget:
+            raise stall_failure("ida", grid[k - 1], f"more than {self.jac_budget} Jacobians",
+                                self.regime.describe()) from None
+        self.r = r
+        if self.first_result:
+            self.counters.validate(int(r.nfev))
+            self.first_result = False
+        if r.status == 2:
+            self._event(r)
+            return
+        if r.status == -1:  # max_num_steps within this output interval
+            raise stall_failure("ida", grid[k - 1], f"more than {self.budget} steps",
+                                self.regime.describe())
+        if r.status < 0:
+            # r.y keeps IDA's last accepted state
+            near = _closest_contact(grid[k - 1], r.y, self.system.n_contacts, self.ev_args)
+            raise SolverFailure(
+                "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "
+                f"{r.message} (regime {self.regime.describe()}{near}). "
+                f"Hint: {_IDA_HINTS.get(r.status, _IDA_HINTS[0])}", grid[k - 1])
+        self._row(r)
+
+    def _event(self, r) -> None:
+        """A root stopped IDA: switch the regime and restart there (unless it is the refire
+        of a root just switched, which is ignored once)."""
+        te = float(r.t)
+        row = np.asarray(r.i_events)[-1]
+        fired = {int(i) for i in np.flatnonzero(row)}
+        eventsfn = self.eventsfn
+        for a in ("_i", "_t", "_y", "_yp"):
+            getattr(eventsfn, a).clear()
+        eventsfn._i_cnt[:] = 0
+        same_instant = te - self.t_last_restart <= REFIRE_DT * max(1.0, te)
+        if same_instant and fired <= self.last_fired:
+            self.refire_ignored += 1
+            self.last_fired = set()
+            return
+        self._close_segment(r)
+        self.r = None  # closed; a later failure adds what follows
+        y, yp = self.y, self.yp = self.book.apply(te, np.asarray(r.y, dtype=float), fired)
+        # first step after the restart: RESTART_STEP_FRACTION of the last step
+        self.h_restart = min(RESTART_STEP_FRACTION * self.counters.last_step(),
+                             self.h_restart_cap)
+        self.solver.init_step(te, y, yp)
+        self.counters.set_init_step(self.h_restart)
+        # one instant may take several restarts (IDA reports simultaneous roots up to
+        # ~1e-16 s apart): the functions switched at any of them count as just switched
+        if same_instant:
+            self.last_fired = self.last_fired | self.book.switched
+        else:
+            self.last_fired = set(self.book.switched)
+        self.t_last_restart = te
+        grid, k = self.grid, self.k
+        while k < self.n and grid[k] - te <= 1e-12 * max(1.0, te):
+            kn.outputs(grid[k], y, self.outs[k], *self.args)
+            k += 1
+        self.k = k
+
+    def _row(self, r) -> None:
+        """IDA reached the next output time: write its row, follow the latch's velocity
+        extremum, show the progress and, at a checkpoint row, restart there."""
+        k, grid, rf, regime = self.k, self.grid, self.rf, self.regime
+        yk = r.y
+        kn.outputs(grid[k], yk, self.outs[k], *self.args)
+        if self.vx_i >= 0 and not self.system.coulomb:
+            v = yk[self.vx_i]
+            if regime.latch < 0:
+                if v > rf[kn.RF_VEXT]:
+                    rf[kn.RF_VEXT] = v
+                    regime.v_ext = v
+            elif v < rf[kn.RF_VEXT]:
+                rf[kn.RF_VEXT] = v
+                regime.v_ext = v
+        self.progress.show(k, grid[k])
+        self.k = k = k + 1
+        if self.cp_stride and (k - 1) % self.cp_stride == 0 and k < self.n:
+            self._checkpoint_restart(r, yk)
+
+    def _checkpoint_restart(self, r, yk) -> None:
+        """Restart IDA at the checkpoint time from a consistent state, exactly as a resumed run
+        does, so that both continue bit-identically (and write the checkpoint when a
+        directory is given)."""
+        self._close_segment(r)
+        k = self.k
+        t_cp = float(self.grid[k - 1])
+        y_cp = np.array(yk, dtype=float)
+        self.t_last_restart = t_cp
+        self.last_fired = set()
+        self.h_restart = min(RESTART_STEP_FRACTION * self.counters.last_step(),
+                             self.h_restart_cap)
+        self.book.stats["checkpoints"] += 1
+        if self.scene_toml:
+            self._write_checkpoint(k, t_cp, y_cp)
+        self.y, self.yp = self.system.consistent(t_cp, y_cp, self.reg, self.rf)
+        self.solver.init_step(t_cp, self.y, self.yp)
+        self.counters.set_init_step(self.h_restart)
+        self.r = None
+
+    def _write_checkpoint(self, k_next: int, t_cp: float, y_cp: np.ndarray) -> None:
+        st = dict(self.book.stats)
+        st.update(self.clock.times())
+        st["refires_ignored"] = self.refire_ignored
+        loop = {"recent": list(self.book.recent), "t_last_restart": self.t_last_restart,
+                "last_fired": sorted(self.last_fired), "refire_ignored": self.refire_ignored,
+                "h_restart": self.h_restart}
+        write_checkpoint(self.checkpoint_dir, make_checkpoint(
+            self.system, self.scene_toml, t=t_cp, k=k_next, y=y_cp, y_initial=self.y_initial,
+            outputs=self.outs, reg=self.reg, rf=self.rf, regime=self.regime,
+            events=self.book.events, stats=st, loop=loop, ida=True))
+
+    def _close_segment(self, r) -> None:
         """Add the counts of the IDA segment since the latest (re)initialisation; ``r`` is its
         latest result, or None when the segment failed inside its first call (then IDA's own
         counters give the evaluations, where they are validated)."""
+        stats, counters = self.book.stats, self.counters
         if r is not None:
             stats["residual_evaluations"] += int(r.nfev)
             stats["jacobian_evaluations"] += int(r.njev)
@@ -623,136 +656,23 @@ def solve_ida(system: System, *, progress: bool | None = None,
             stats["error_test_failures"] += counters.error_test_failures() or 0
             stats["nonlinear_convergence_failures"] += counters.nonlinear_conv_failures() or 0
             stats["nonlinear_iterations"] += counters.count("IDAGetNumNonlinSolvIters") or 0
-            if scfg.linear_solver == "gmres":
+            if self.system.scene.solver.linear_solver == "gmres":
                 stats["linear_iterations"] += counters.count("IDAGetNumLinIters") or 0
                 stats["linear_convergence_failures"] += \
                     counters.count("IDAGetNumLinConvFails") or 0
 
-    def write_cp(k_next: int, t_cp: float, y_cp: np.ndarray) -> None:
-        st = dict(stats)
-        st["wall_time"] = wall_before + time.perf_counter() - wall0
-        st["cpu_time"] = cpu_before + time.process_time() - cpu0
-        st["refires_ignored"] = refire_ignored
-        write_checkpoint(checkpoint_dir, Checkpoint(
-            scene_toml=scene_toml, t=t_cp, k=k_next, y=y_cp.copy(), y_initial=y_initial,
-            outputs=outs[:k_next].copy(), reg=reg.copy(), rf=rf.copy(),
-            regime=copy.deepcopy(regime), events=list(events), stats=st,
-            loop={"recent": list(recent), "t_last_restart": t_last_restart,
-                  "last_fired": sorted(last_fired), "refire_ignored": refire_ignored,
-                  "h_restart": h_restart},
-            force_amplitude=float(system.force_amplitude),
-            base_dir=str(Path(scene.base_dir).resolve()),
-            inputs=input_fingerprint(scene_toml, system.profile.stats, ida=True)))
-
-    book = EventBook(system, regime, reg, rf, events=events, recent=recent, stats=stats)
-    if resume is None:
-        book.log_initial_phase(0.0, y)
-    k = k_start
-    r = None
-    try:
-        while k < n:
-            jac_count[JAC_COUNT] = 0
-            try:
-                r = solver.step(grid[k], "normal", None)
-            except KeyError as exc:  # unknown IDA return code (scikit-sundae has no name for it)
-                raise SolverFailure("ida_error", f"IDA returned unknown flag {exc} near "
-                                    f"t = {grid[k - 1]:.6g} s", grid[k - 1]) from None
-            except _JacobianBudget:
-                raise stall_failure("ida", grid[k - 1], f"more than {jac_budget} Jacobians",
-                                    regime.describe()) from None
-            if first_result:
-                counters.validate(int(r.nfev))
-                first_result = False
-            if r.status == 2:
-                te = float(r.t)
-                row = np.asarray(r.i_events)[-1]
-                fired = {int(i) for i in np.flatnonzero(row)}
-                for a in ("_i", "_t", "_y", "_yp"):
-                    getattr(eventsfn, a).clear()
-                eventsfn._i_cnt[:] = 0
-                if te - t_last_restart <= REFIRE_DT * max(1.0, te) and fired <= last_fired:
-                    refire_ignored += 1
-                    last_fired = set()
-                    continue
-                close_segment(r)
-                r_event, r = r, None  # closed; a later failure adds what follows
-                y, yp = book.apply(te, np.asarray(r_event.y, dtype=float), fired)
-                # first step after the restart: RESTART_STEP_FRACTION of the last step
-                h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
-                solver.init_step(te, y, yp)
-                counters.set_init_step(h_restart)
-                # one instant may take several restarts (IDA reports simultaneous roots up to
-                # ~1e-16 s apart): the functions switched at any of them count as just switched
-                if te - t_last_restart <= REFIRE_DT * max(1.0, te):
-                    last_fired = last_fired | book.switched
-                else:
-                    last_fired = set(book.switched)
-                t_last_restart = te
-                while k < n and grid[k] - te <= 1e-12 * max(1.0, te):
-                    kn.outputs(grid[k], y, outs[k], *args)
-                    k += 1
-                continue
-            if r.status == -1:  # max_num_steps within this output interval
-                raise stall_failure("ida", grid[k - 1], f"more than {budget} steps",
-                                    regime.describe())
-            if r.status < 0:
-                # r.y keeps IDA's last accepted state
-                near = _closest_contact(grid[k - 1], r.y, K, ev_args)
-                raise SolverFailure(
-                    "ida_error", f"IDA failed at t = {grid[k - 1]:.6g} s with flag {r.status}: "
-                    f"{r.message} (regime {regime.describe()}{near}). "
-                    f"Hint: {_IDA_HINTS.get(r.status, _IDA_HINTS[0])}", grid[k - 1])
-            yk = r.y
-            kn.outputs(grid[k], yk, outs[k], *args)
-            if vx_i >= 0 and not system.coulomb:
-                v = yk[vx_i]
-                if regime.latch < 0:
-                    if v > rf[kn.RF_VEXT]:
-                        rf[kn.RF_VEXT] = v
-                        regime.v_ext = v
-                elif v < rf[kn.RF_VEXT]:
-                    rf[kn.RF_VEXT] = v
-                    regime.v_ext = v
-            if k >= bar_next:
-                bar.n = float(grid[k])
-                bar.refresh()
-                bar_next = k + bar_stride
-            k += 1
-            if cp_stride and (k - 1) % cp_stride == 0 and k < n:
-                # restart IDA at the checkpoint time from a consistent state, exactly as a
-                # resumed run does, so that both continue bit-identically
-                close_segment(r)
-                t_cp = float(grid[k - 1])
-                y_cp = np.array(yk, dtype=float)
-                t_last_restart = t_cp
-                last_fired = set()
-                h_restart = min(RESTART_STEP_FRACTION * counters.last_step(), h_restart_cap)
-                stats["checkpoints"] += 1
-                if scene_toml:
-                    write_cp(k, t_cp, y_cp)
-                y, yp = system.consistent(t_cp, y_cp, reg, rf)
-                solver.init_step(t_cp, y, yp)
-                counters.set_init_step(h_restart)
-                r = None
-        if r is not None:
-            close_segment(r)
-            y = np.array(r.y, dtype=float) if r.status != 2 else y
-    except SolverFailure as exc:
-        status, message = exc.status, str(exc)
-        close_segment(r)  # r None: the failure came inside the segment's first call
-    finally:
-        bar.close()
-
-    stats["wall_time"] = wall_before + time.perf_counter() - wall0
-    stats["cpu_time"] = cpu_before + time.process_time() - cpu0
-    stats["refires_ignored"] = refire_ignored
-    stats["events_total"] = len(events)
-    stats_d = dict(stats)
-    if not counters.ok:
-        stats_d["steps"] = None
-        why = counters.problem or "IDA's counters could not be validated"
-        stats_d["note"] = f"step counts unavailable ({why})"
-    t_final = float(grid[k - 1]) if k > 0 else 0.0
-    return RawSolution(time=grid, outputs=outs, events=events, stats=stats_d, status=status,
-                       message=message, y_initial=y_initial, y_final=np.asarray(y, dtype=float),
-                       t_final=t_final, extra={"rows_filled": k})
+    def _solution(self, status: str, message: str) -> RawSolution:
+        stats = dict(self.book.stats)
+        stats.update(self.clock.times())
+        stats["refires_ignored"] = self.refire_ignored
+        stats["events_total"] = len(self.book.events)
+        if not self.counters.ok:
+            stats["steps"] = None
+            why = self.counters.problem or "IDA's counters could not be validated"
+            stats["note"] = f"step counts unavailable ({why})"
+        k = self.k
+        t_final = float(self.grid[k - 1]) if k > 0 else 0.0
+        return RawSolution(time=self.grid, outputs=self.outs, events=self.book.events,
+                           stats=stats, status=status, message=message,
+                           y_initial=self.y_initial, y_final=np.asarray(self.y, dtype=float),
+                           t_final=t_final, extra={"rows_filled": k})

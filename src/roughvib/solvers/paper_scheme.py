@@ -35,9 +35,9 @@ from roughvib.model.system import System
 from roughvib.physics.friction import feldmann_mu_law
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
+from roughvib.solvers.base import FIRST_ROW, RawSolution
 from roughvib.solvers.events import initial_phase_events
 from roughvib.solvers.fixed_step import (
-    FIRST_ROW,
     N_TANG,
     TG_LATCH,
     TG_STICK,
@@ -50,7 +50,6 @@ from roughvib.solvers.fixed_step import (
     log_step_events,
     step_grid,
 )
-from roughvib.solvers.ida import RawSolution
 
 __all__ = ["impulse_responses", "solve_paper_scheme"]
 
