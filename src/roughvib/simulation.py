@@ -38,7 +38,7 @@ from roughvib.solvers import registry
 from roughvib.solvers.checkpoint import CHECKPOINT_NAME, Checkpoint, check_inputs, read_checkpoint
 
 if TYPE_CHECKING:
-    from roughvib.solvers.ida import RawSolution
+    from roughvib.solvers.base import RawSolution
 
 __all__ = ["check_verifiable", "checkpoint_scene", "energy_audit", "energy_audit_note", "resume",
            "simulate", "verification_scene", "verify_result"]
@@ -615,7 +615,7 @@ def _check_scaled_atol(system: System, given: Solver, pilot: dict) -> None:
     if pilot.get("level") is None or not system.n_modes:
         return  # a failed pilot leaves the preset's absolute value: the solver checks it
     from roughvib.solvers.checkpoint import start_state
-    from roughvib.solvers.ida import tolerance_floors
+    from roughvib.solvers.base import tolerance_floors
 
     reg, rf = system.new_regime_arrays()
     _, _, y0 = start_state(system, reg, rf, None, 0, 0)
