@@ -41,7 +41,7 @@ def test_no_reference_to_files_outside_the_repository():
 
 def test_the_check_sees_the_sources_and_the_pages():
     names = {p.relative_to(ROOT).as_posix() for p in _files()}
-    assert {"docs/theory.md", "src/roughvib/scene.py", "src/roughvib/cli/report.py",
+    assert {"docs/theory.md", "src/roughvib/scene/core.py", "src/roughvib/cli/report.py",
             "src/roughvib/scenes/paper.toml", "tests/physics/test_plate.py",
             "benchmarks/bench_paper.py", "examples/01_quickstart.py"} <= names
     assert FORBIDDEN.search("see physics.md §2.4") and FORBIDDEN.search("ida-notes §3")

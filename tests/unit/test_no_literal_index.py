@@ -52,7 +52,9 @@ RATCHET = {
     "analysis/events.py": 2, "analysis/validation.py": 1, "cli/lab.py": 1, "records.py": 8,
     "views/validation.py": 3,
     "analysis/figures_data.py": 17, "analysis/levels.py": 5, "analysis/spectra.py": 8,
-    "cli/results.py": 1, "results.py": 3, "scene.py": 8, "simulation.py": 7,
+    "cli/results.py": 1, "results.py": 3, "simulation.py": 7,
+    # scene.py (8 allowed, 3 held) split into the scene/ package: one each is left
+    "scene/checks.py": 1, "scene/core.py": 1, "scene/solver_output.py": 1,
     "studies/compare.py": 3, "studies/sweep/ensemble.py": 4, "studies/sweep/report.py": 7,
     "studies/sweep/run.py": 4, "studies/sweep/spec.py": 3, "studies/sweep/tables.py": 1,
     "views/ensemble.py": 1, "views/figures.py": 39, "views/report.py": 8,

@@ -471,7 +471,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     scene = system.scene
     method = scene.solver.method
     moreau = method == "moreau"
-    if kn.moment_on(system.off):  # scene.py refuses it; this guards a direct call
+    if kn.moment_on(system.off):  # scene/core.py refuses it; this guards a direct call
         raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' or "
                          f"'adaptive-modal', got {method!r}")
     if system.coulomb and not moreau:

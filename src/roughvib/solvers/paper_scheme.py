@@ -238,7 +238,7 @@ def _paper_loop(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential,
 def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSolution:
     """Integrate with the paper's scheme (see the module docstring)."""
     scene = system.scene
-    if kn.moment_on(system.off):  # scene.py refuses it; this guards a direct call
+    if kn.moment_on(system.off):  # scene/core.py refuses it; this guards a direct call
         raise SceneError("contact.friction_moment = true needs solver.method 'ida' or "
                          "'adaptive-modal', got 'paper'")
     if system.coulomb:
