@@ -614,8 +614,8 @@ def _check_scaled_atol(system: System, given: Solver, pilot: dict) -> None:
     """
     if pilot.get("level") is None or not system.n_modes:
         return  # a failed pilot leaves the preset's absolute value: the solver checks it
-    from roughvib.solvers.checkpoint import start_state
     from roughvib.solvers.base import tolerance_floors
+    from roughvib.solvers.checkpoint import start_state
 
     reg, rf = system.new_regime_arrays()
     _, _, y0 = start_state(system, reg, rf, None, 0, 0)
