@@ -51,7 +51,7 @@ nitpick_ignore_regex = [
      r"(numpy|np|scipy|pandas|pd|xarray|xr|matplotlib|dask|numba|sksundae|tqdm)(\..+)?"),
     # Python's own names (builtins, the standard library): same reason.
     ("py:(class|exc|obj)", r"(DeprecationWarning|ValueError|KeyboardInterrupt|Path|"
-                           r"pathlib\.Path|os\.PathLike)"),
+                           r"pathlib\.Path|os\.PathLike|collections\.abc\.\w+)"),
 ]
 
 # -- MyST (the Markdown pages) ---------------------------------------------------------------

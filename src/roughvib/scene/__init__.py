@@ -13,7 +13,7 @@ turn them into flat arrays once.
 The modules, by responsibility (every name stays importable from ``roughvib.scene``):
 
 * :mod:`.checks`: :class:`SceneError`, :class:`ModelValidityWarning`, the field checks, the
-  upper limits and :data:`SANE_BOUNDS`;
+  upper limits and ``SANE_BOUNDS``;
 * :mod:`.bodies`: the sections :class:`Block`, :class:`Plate`, :class:`Contact`,
   :class:`Roughness`;
 * :mod:`.forces`: the sections :class:`Friction` and :class:`Excitation`;
@@ -122,3 +122,13 @@ __all__ = [
     "scene_to_toml",
     "validity_warnings",
 ]
+
+# The public home of these names is ``roughvib.scene``: the API reference documents them here
+# (autodoc takes an object whose ``__module__`` is this package as its member) and error
+# messages and reprs name ``roughvib.scene.Scene``. Pickle finds them here too (re-exported).
+for _name in __all__:
+    _obj = globals()[_name]
+    if isinstance(_obj, type) or callable(_obj) and hasattr(_obj, "__code__"):
+        if _obj.__module__.startswith(__name__ + "."):
+            _obj.__module__ = __name__
+del _name, _obj

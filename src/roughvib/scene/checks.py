@@ -1,10 +1,10 @@
 """Scene validation helpers: the one-line errors, the field checks and the sane bounds.
 
-:class:`SceneError` and :class:`ModelValidityWarning`, the checks each section applies to its
-values (``_number``, ``_positive``, ``_range``, ``_choice``, ...), the upper limits of what a
-scene may ask for (``MAX_*``), the scene name's rule and :data:`SANE_BOUNDS` with
-:func:`bounds_rule`. Nothing in here knows a section; the sections (:mod:`.bodies`,
-:mod:`.forces`, :mod:`.solver_output`) call these.
+:class:`~roughvib.scene.SceneError` and :class:`~roughvib.scene.ModelValidityWarning`, the
+checks each section applies to its values (``_number``, ``_positive``, ``_range``, ``_choice``,
+...), the upper limits of what a scene may ask for (``MAX_*``), the scene name's rule and
+:data:`SANE_BOUNDS` with :func:`bounds_rule`. Nothing in here knows a section; the sections
+(:mod:`.bodies`, :mod:`.forces`, :mod:`.solver_output`) call these.
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
-"""The whole scene: :class:`Scene`, its cross-section checks and its plain-dict form.
+"""The whole scene: :class:`~roughvib.scene.Scene`, its cross-section checks and its plain-dict
+form.
 
-:class:`Scene` holds one section each (:mod:`.bodies`, :mod:`.forces`, :mod:`.solver_output`)
-and checks what spans sections (the block on the plate, what the solver runs, derived counts);
-:func:`scene_to_dict` and :func:`scene_from_dict` convert it to and from the nested dict a TOML
-file reads as.
+:class:`~roughvib.scene.Scene` holds one section each (:mod:`.bodies`, :mod:`.forces`,
+:mod:`.solver_output`) and checks what spans sections (the block on the plate, what the solver
+runs, derived counts); :func:`scene_to_dict` and :func:`scene_from_dict` convert it to and from
+the nested dict a TOML file reads as.
 """
 
 from __future__ import annotations

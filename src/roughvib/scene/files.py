@@ -1,7 +1,7 @@
-"""Scene files: TOML out, the built-in scenes, reading files and :func:`load_scene`.
+"""Scene files: TOML out, the built-in scenes, reading files and :func:`~roughvib.scene.load_scene`.
 
 The built-in scenes are the ``*.toml`` files of the ``roughvib.scenes`` data package, read with
-:mod:`importlib.resources` (so they resolve from an installed wheel too).
+``importlib.resources`` (so they resolve from an installed wheel too).
 """
 
 from __future__ import annotations
@@ -37,7 +37,8 @@ def _toml_value(v: Any) -> str:
 
 
 def scene_to_toml(scene: Scene, *, comments: dict[str, str] | None = None) -> str:
-    """Serialise a scene to TOML text that :func:`load_scene` reads back to an equal scene.
+    """Serialise a scene to TOML text that :func:`~roughvib.scene.load_scene` reads back to an
+    equal scene.
 
     Parameters
     ----------

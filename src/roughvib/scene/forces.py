@@ -133,7 +133,7 @@ class Friction:
 
     @property
     def set_valued(self) -> bool:
-        """Whether the law is set-valued (stick held at v = 0, :data:`SET_VALUED_LAWS`)."""
+        """Whether the law is set-valued (stick held at v = 0, ``SET_VALUED_LAWS``)."""
         return self.law in SET_VALUED_LAWS
 
 

@@ -66,7 +66,7 @@ class Solver:
         refused when the scene is built.
     accuracy : {"reference", "standard", "draft"}
         Accuracy preset: the tolerances (``rtol``, ``atol``, ``atol_acceleration``) or the step
-        each method uses unless they are given explicitly (:data:`ACCURACY_PRESETS`).
+        each method uses unless they are given explicitly (``ACCURACY_PRESETS``).
         ``reference`` (default) meets the accuracy contract of docs/accuracy.md with the
         event-driven methods (the fixed-step ones locate events only to about a step).
     step : float or None

@@ -1,4 +1,4 @@
-"""Legal scene values outside the model's validity: :func:`validity_warnings`.
+"""Legal scene values outside the model's validity: :func:`~roughvib.scene.validity_warnings`.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ scene, or those named; each runs the ladder of its kind: the tolerance-driven so
 adaptive-modal) a ladder of rtol (with ``atol_acceleration`` = rtol x 1e-2 m/s^2, so that one
 knob traces the whole trade), the fixed-step schemes a ladder of steps; and each method also
 runs its three accuracy presets
-(``solver.accuracy``; :data:`roughvib.scene.ACCURACY_PRESETS`). Every run is measured against
+(``solver.accuracy``; ``roughvib.scene.ACCURACY_PRESETS``). Every run is measured against
 the reference with :func:`roughvib.analysis.accuracy.measure_accuracy`, the code that
 ``roughvib run --verify`` uses: the largest band deviation of block and plate (the contract's
 bands), the tangential velocity's relative rms error, the largest event-time error after

@@ -84,8 +84,9 @@ def err_norm(ya, yb, y0, atol, rtol, n_modal, div):
 
 @njit(cache=True, fastmath=kn.SUM_FASTMATH, error_model="numpy")
 def modal_err_sq(ya, yb, y0, atol, rtol, n_modal, div):
-    """sum over the first n_modal states of ((ya - yb) / (div w))^2, w = rtol max(|y0|, |yb|)
-    + atol, summed in whatever order vectorises; NaN or inf in any term makes it so.
+    """Sum over the first ``n_modal`` states of ``((ya - yb) / (div w))^2``, with
+    ``w = rtol max(abs(y0), abs(yb)) + atol``, summed in whatever order vectorises; NaN or inf
+    in any term makes it so.
 
     Written so that the loop vectorises: the larger magnitude by a conditional expression
     (the builtin ``max`` compiled to a call per term here, which LLVM did not inline into a

@@ -335,10 +335,10 @@ def hermite_loop(tt, ist, k_stop, grid, h_top, buf, hp, atol, rtol, outs, off, f
     one kept step each, and starts on a row divisible by that number; each level down a block
     spans half as many (four, then two); below, a pair (m = 2) lies within one output
     interval, aligned to dyadic fractions of it as in the trapezoidal loop
-    (:func:`_block_rows`, :func:`_block_slots`). Every output time is a kept step's end. The
-    kept steps and the full step are taken by :func:`_take_block`; the margins are checked at
+    (``_block_rows``, ``_block_slots``). Every output time is a kept step's end. The
+    kept steps and the full step are taken by ``_take_block``; the margins are checked at
     each kept step's end in turn, each end accepted (armed, written, latch updated) before the
-    next is looked at (:func:`_accept_block`), and a crossing is located by Hermite steps
+    next is looked at (``_accept_block``), and a crossing is located by Hermite steps
     re-taken from the start of its kept step (:func:`hermite_root`).
     """
     Y, DF, C, G, armed, fired = buf

@@ -6,7 +6,7 @@ their difference is the error estimate (:func:`.error.err_norm`), and an accepte
 the two half steps, extrapolated (:func:`.error.extrapolate`). Step sizes are dyadic fractions
 of the largest step, so their propagators are cached (:func:`.propagators.fill_slot`). The
 margins are checked at the half step and at the end; a crossing is located on the half step
-that holds it by re-taken steps of variable length (:func:`_trapezoidal_root`).
+that holds it by re-taken steps of variable length (``_trapezoidal_root``).
 """
 
 from __future__ import annotations
@@ -127,8 +127,8 @@ def trapezoidal_loop(tt, ist, k_stop, grid, h_max, buf, prop, atol, rtol, outs, 
     cache; ``scratch``: ``Scratch``.
 
     Each pass: the guards (:func:`.loop_common.loop_guard`), the step's slots
-    (:func:`_step_slots`), the full and the two half steps, the error test, the crossings
-    (:func:`_crossings`, then :func:`_trapezoidal_root`), the acceptance (:func:`_accept`), the
+    (``_step_slots``), the full and the two half steps, the error test, the crossings
+    (``_crossings``, then ``_trapezoidal_root``), the acceptance (``_accept``), the
     output row at an output time and the next step size.
     """
     Y, D, U, G, armed, fired = buf
