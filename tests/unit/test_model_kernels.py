@@ -59,7 +59,23 @@ def _fd_jacobian(system, t, y, yp, cj, reg, rf):
 ])
 @pytest.mark.short_run
 def test_analytic_jacobian_matches_finite_differences(overrides):
-    system = assemble(_small_scene(**overrides))
+    _assert_jacobian_matches_finite_differences(_small_scene(**overrides))
+
+
+@pytest.mark.parametrize("moment", [False, True])
+@pytest.mark.short_run
+def test_analytic_jacobian_of_the_table_law_matches_finite_differences(tmp_path, moment):
+    # a tabulated Stribeck-like curve, read from a file (the set-valued table law)
+    table = tmp_path / "curve.csv"
+    table.write_text("velocity,mu\n0,0.3856\n0.001,0.35\n0.004,0.31\n0.02,0.30\n0.2,0.29\n")
+    scene = _small_scene(**{"friction.law": "table", "friction.table": str(table),
+                            "contact.friction_moment": moment})
+    assert scene.friction.set_valued
+    _assert_jacobian_matches_finite_differences(scene)
+
+
+def _assert_jacobian_matches_finite_differences(scene):
+    system = assemble(scene)
     rng = np.random.default_rng(3)
     y0, _ = system.static_equilibrium()
     n = system.layout.size
