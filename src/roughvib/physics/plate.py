@@ -86,11 +86,6 @@ class PlateModes:
         return int(self.omega.size)
 
 
-def _wave_speed_factor(plate: Plate) -> float:
-    """sqrt(B'/m'') [m^2/s]: omega = this * k^2 for a Kirchhoff plate."""
-    return math.sqrt(plate.bending_stiffness / plate.mass_per_area)
-
-
 def plate_modes(plate: Plate, max_frequency: float | None = None) -> PlateModes:
     """All modes (n, m) of the simply supported plate with f_nm <= max_frequency.
 
@@ -120,16 +115,15 @@ def plate_modes(plate: Plate, max_frequency: float | None = None) -> PlateModes:
     if not (math.isfinite(fmax) and fmax > 0.0):
         raise ValueError(f"max_frequency must be a finite number > 0 Hz, got {max_frequency}")
     a, b = plate.length, plate.width
-    c = _wave_speed_factor(plate)
+    c = plate.wave_speed_factor
     wmax = 2.0 * math.pi * fmax
     kmax = math.sqrt(wmax / c)  # largest wavenumber [rad/m]
     n_max = int(kmax * a / math.pi) + 1
     m_max = int(kmax * b / math.pi) + 1
     n, m = np.meshgrid(np.arange(1, n_max + 1), np.arange(1, m_max + 1), indexing="ij")
     n, m = n.ravel(), m.ravel()
-    omega = c * ((n * (math.pi / a)) ** 2 + (m * (math.pi / b)) ** 2)
-    # relative slack so a frequency that equals the limit up to rounding is kept
-    keep = omega <= wmax * (1.0 + 1e-12)
+    omega = plate.mode_omega(n, m)
+    keep = plate.keeps_mode(omega, fmax)
     n, m, omega = n[keep], m[keep], omega[keep]
     order = np.lexsort((m, n, omega))
     return PlateModes(

@@ -27,6 +27,9 @@ from roughvib.scene.checks import (
     _set,
 )
 
+#: relative slack of the plate's mode cut (``Plate.keeps_mode``)
+MODE_CUT_SLACK = 1e-12
+
 
 @dataclass(frozen=True)
 class Block:
@@ -181,6 +184,24 @@ class Plate:
     def mass_per_area(self) -> float:
         """m'' = rho h [kg/m^2]."""
         return self.density * self.thickness
+
+    @property
+    def wave_speed_factor(self) -> float:
+        """sqrt(B'/m'') [m^2/s]: omega = this * k^2 for a Kirchhoff plate."""
+        return math.sqrt(self.bending_stiffness / self.mass_per_area)
+
+    def mode_omega(self, n, m):
+        """omega_nm = sqrt(B'/m'') ((n pi / a)^2 + (m pi / b)^2) [rad/s], the Kirchhoff angular
+        frequency of mode (n, m) of the simply supported plate (n, m >= 1: ints or arrays)."""
+        c = self.wave_speed_factor
+        return c * ((n * (math.pi / self.length)) ** 2 + (m * (math.pi / self.width)) ** 2)
+
+    def keeps_mode(self, omega, max_frequency: float | None = None):
+        """Whether a mode of angular frequency ``omega`` [rad/s] is below the cut
+        ``max_frequency`` [Hz] (default ``plate.max_frequency``), with a relative slack of
+        1e-12 so that a frequency equal to the limit up to rounding is kept."""
+        fmax = self.max_frequency if max_frequency is None else max_frequency
+        return omega <= 2.0 * math.pi * fmax * (1.0 + MODE_CUT_SLACK)
 
 
 @dataclass(frozen=True)

@@ -52,7 +52,7 @@ def validity_warnings(scene: Scene) -> list[str]:
         else:
             # bending wavenumber k = 2 pi / (6 h) at omega = k^2 sqrt(B / m'')
             k = 2 * math.pi / (BENDING_WAVELENGTH_THICKNESSES * plt.thickness)
-            f6 = k**2 * math.sqrt(plt.bending_stiffness / plt.mass_per_area) / (2 * math.pi)
+            f6 = k**2 * plt.wave_speed_factor / (2 * math.pi)
             if f6 < plt.max_frequency:
                 out.append(f"plate modes above {f6:.4g} Hz have bending wavelengths shorter than "
                            f"{BENDING_WAVELENGTH_THICKNESSES:g} x plate.thickness "

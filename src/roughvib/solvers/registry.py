@@ -272,23 +272,15 @@ def _underdamped_modes(scene, m: Method) -> str | None:
     return None
 
 
-def _first_mode_omega(plate) -> float:
-    """The lowest angular natural frequency of the simply supported plate [rad/s], mode (1, 1),
-    computed as ``roughvib.physics.plate.plate_modes`` computes it."""
-    c = math.sqrt(plate.bending_stiffness / plate.mass_per_area)
-    ka, kb = math.pi / plate.length, math.pi / plate.width
-    return c * (ka * ka + kb * kb)
-
-
 def _plate_modes(scene, m: Method) -> str | None:
     plate = scene.plate
     if plate.kind == "rigid":
         return (f"plate.kind = 'rigid' has no modes, and {m.name} needs a structure with modes "
                 f"(the plate is its impulse response)")
     if plate.kind == "modal":
-        # plate_modes keeps a mode up to max_frequency with a relative slack of 1e-12
-        w1 = _first_mode_omega(plate)
-        if w1 > 2.0 * math.pi * plate.max_frequency * (1.0 + 1e-12):
+        # mode (1, 1) by the plate's own rule, the one plate_modes keeps its modes by
+        w1 = plate.mode_omega(1, 1)
+        if not plate.keeps_mode(w1):
             return (f"plate.max_frequency = {plate.max_frequency:g} Hz is below the plate's "
                     f"first mode ({w1 / (2.0 * math.pi):.4g} Hz), and {m.name} needs at "
                     f"least one plate mode (the plate is its impulse response)")
