@@ -43,7 +43,7 @@ def _rebase(scene, folder):
 
 
 def test_every_registered_law_is_a_scene_choice():
-    assert tuple(LAWS) == FRICTION_LAWS
+    assert tuple(LAWS) == tuple(FRICTION_LAWS)
     assert [law.law_id for law in LAWS.values()] == sorted({law.law_id for law in LAWS.values()})
 
 

@@ -280,7 +280,7 @@ def test_extrapolation_is_richardsons_and_keeps_the_energy_integrals(law):
     expect[energy] = before[energy]
     if law == "coulomb":
         il = off[kn.OFF_IL]
-        assert yb[il] == kn.coulomb_friction(t, yb, off, fp, reg)
+        assert yb[il] == kn.set_valued_friction(t, yb, off, fp, reg)
         assert yb[il] != expect[il]  # recomputed, not extrapolated
         expect[il] = yb[il]
     np.testing.assert_array_equal(yb, expect)

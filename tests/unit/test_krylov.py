@@ -41,7 +41,7 @@ def _states(system, trial, rng):
     y0, _ = system.static_equilibrium()
     n = system.layout.size
     reg, rf = system.new_regime_arrays()
-    reg[kn.REG_B] = (-1, 0, 1)[trial] if system.coulomb else (-1, 1, 1)[trial]
+    reg[kn.REG_B] = (-1, 0, 1)[trial] if system.set_valued else (-1, 1, 1)[trial]
     reg[kn.REG_S] = (1, -1, 1)[trial]
     closed = rng.integers(0, 2, system.n_contacts)
     closed[0] = 1
@@ -52,7 +52,7 @@ def _states(system, trial, rng):
     if system.tangential:
         y[lay.index("block.vx")] = 2e-3 * (trial - 1) + 3e-5
         y[lay.index("block.x")] = 1e-4 * trial
-    if system.coulomb:
+    if system.set_valued:
         y[lay.index("friction.force")] = 0.5
     if system.n_modes:  # moving modes (the friction moment's power depends on them)
         y[lay.slice("plate.dq")] += 1e-4 * rng.standard_normal(system.n_modes)

@@ -56,6 +56,8 @@ def _fd_jacobian(system, t, y, yp, cj, reg, rf):
     {"contact.friction_moment": True, "contact.patch": "area"},
     {"friction.law": "coulomb", "friction.stribeck_velocity": 2e-3,
      "contact.friction_moment": True},
+    {"friction.law": "lugre"},
+    {"friction.law": "lugre", "friction.parameters.sigma2": 0.5, "plate.kind": "rigid"},
 ])
 @pytest.mark.short_run
 def test_analytic_jacobian_matches_finite_differences(overrides):
@@ -82,7 +84,7 @@ def _assert_jacobian_matches_finite_differences(scene):
     for trial in range(3):
         reg, rf = system.new_regime_arrays()
         # feldmann: branch -1/+1; coulomb: slip-/stick/slip+
-        reg[kn.REG_B] = (-1, 0, 1)[trial] if system.coulomb else (-1, 1, 1)[trial]
+        reg[kn.REG_B] = (-1, 0, 1)[trial] if system.set_valued else (-1, 1, 1)[trial]
         reg[kn.REG_S] = (1, -1, 1)[trial]
         reg[kn.REG_CLOSED:] = rng.integers(0, 2, system.n_contacts)
         rf[0] = 1e-3
@@ -91,8 +93,10 @@ def _assert_jacobian_matches_finite_differences(scene):
         if system.tangential:
             y[system.layout.index("block.vx")] = 2e-3 * (trial - 1) + 3e-5
             y[system.layout.index("block.x")] = 1e-4 * trial
-        if system.coulomb:
+        if system.set_valued:
             y[system.layout.index("friction.force")] = 0.5  # a realistic value for the FD step
+        if system.layout.has("friction.state"):  # a bristle deflection of a few um
+            y[system.layout.slice("friction.state")] = 2e-6 * (trial - 1) + 1e-7
         yp = 1e-3 * rng.standard_normal(n)
         cj = 10.0 ** (2 + trial)
         J = _fd_jacobian(system, 0.003, y, yp, cj, reg, rf)

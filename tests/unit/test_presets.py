@@ -38,7 +38,7 @@ def _runs(method: str) -> dict:
     set-valued laws only (moreau), as the solver registry says."""
     from roughvib.solvers import registry
 
-    return {} if registry.get(method).runs_law(False) else {"friction.law": "coulomb"}
+    return {} if registry.get(method).runs_law("single-valued") else {"friction.law": "coulomb"}
 
 
 def test_each_preset_is_what_the_docs_say():

@@ -67,8 +67,10 @@ def test_the_friction_laws_name_the_solvers_the_registry_gives_them():
 
     assert [n for n, law in LAWS.items() if law.set_valued] == list(SET_VALUED_LAWS)
     for name, law in LAWS.items():
+        kind = ("set-valued" if name in SET_VALUED_LAWS
+                else "dynamic" if law.states else "single-valued")
         assert law.solvers == tuple(m.name for m in registry.methods()
-                                    if m.runs_law(name in SET_VALUED_LAWS)), name
+                                    if kind in m.friction), name
     # and docs/friction.md's table says the same
     for row in _first_table((DOCS / "friction.md").read_text()):
         law = re.match(r"`([a-z]+)`", row[0]).group(1)
@@ -84,6 +86,7 @@ COMPONENT_SCENES = {
     "Feldmann law": [{"friction.law": "feldmann"}],
     "coulomb, table": [{"friction.law": "coulomb"},
                        {"friction.law": "table", "friction.table": "curve.csv"}],
+    "LuGre law": [{"friction.law": "lugre"}],
     "prescribed motion, any law": [
         {"excitation.kind": "prescribed", "excitation.velocity": 0.01,
          "excitation.force_amplitude": "none", "friction.law": law}
@@ -116,7 +119,7 @@ def test_the_architecture_table_of_components_is_what_the_registry_says(tmp_path
             m = registry.get(method)
             for over in COMPONENT_SCENES[component]:
                 # the rest of the scene is one the solver runs (moreau: a set-valued law)
-                base = {} if m.runs_law(False) else {"friction.law": "coulomb"}
+                base = {} if m.runs_law("single-valued") else {"friction.law": "coulomb"}
                 scene = _scene(tmp_path, {**base, **over})
                 assert (m.supports(scene) is None) == cell.startswith("yes"), (
                     component, method, over, m.supports(scene))

@@ -76,6 +76,7 @@ from roughvib.model.layout import (
     OFF_IL,
     OFF_IPSI,
     OFF_IQ,
+    OFF_IS,
     OFF_IVX,
     OFF_IVZ,
     OFF_IX,
@@ -85,9 +86,12 @@ from roughvib.model.layout import (
     OFF_R,
 )
 from roughvib.physics.friction import (
-    feldmann_mu,
+    KIND_DYNAMIC,
+    dynamic_law,
     is_set_valued,
     kinetic_coefficient,
+    law_kind,
+    single_valued_mu,
 )
 from roughvib.physics.surface.interp import profile_eval
 
@@ -323,7 +327,42 @@ def set_valued(off):
 
 
 @njit(cache=True)
-def coulomb_friction(t, y, off, fp, reg):
+def dynamic(off):
+    """Whether the scene's friction law is dynamic (internal states ``friction.state``)."""
+    return law_kind(off[OFF_LAW]) == KIND_DYNAMIC
+
+
+@njit(cache=True)
+def velocity_law(vx, off, fp, reg):
+    """A single-valued law's coefficient in the current regime and its slope in v.
+
+    Returns
+    -------
+    mu : float
+        [-].
+    dmu_dv : float
+        [s/m].
+    """
+    return single_valued_mu(off[OFF_LAW], vx + reg[REG_S] * fp[FP_VH], reg[REG_B],
+                            fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1], fp[FP_A2])
+
+
+@njit(cache=True)
+def dynamic_friction(vx, y, off, fp, reg):
+    """A dynamic law's coefficient, its state's rate and their partial derivatives, for the
+    velocity's sign ``b = reg[REG_B]`` of the current regime.
+
+    Returns
+    -------
+    mu, zdot, dmu_dv, dmu_dz, dzdot_dv, dzdot_dz : float
+        ``roughvib.physics.friction.dynamic_law``'s, z the law's state ``friction.state``.
+    """
+    return dynamic_law(off[OFF_LAW], vx, y[off[OFF_IS]], float(reg[REG_B]), fp[FP_MU_SLIP],
+                       fp[FP_MU_STICK], fp[N_FP:])
+
+
+@njit(cache=True)
+def set_valued_friction(t, y, off, fp, reg):
     """Algebraic friction force lambda [N] of the set-valued law for the current regime."""
     ivx, iF, K = off[OFF_IVX], off[OFF_IF], off[OFF_K]
     vx = y[ivx]
@@ -390,9 +429,10 @@ def moment_share(t, y, off, fp, reg):
             return 0.0, 0.0, 0.0, 0.0
         lam = y[off[OFF_IL]]
         return lam / fsum, 0.0, 1.0 / fsum, -lam / (fsum * fsum)
+    if dynamic(off):  # refused when the scene is loaded (roughvib.solvers.registry)
+        raise ValueError("contact.friction_moment: not integrated for a dynamic friction law")
     _, vx = tangential_kinematics(t, y, off, fp)
-    mu, dmu = feldmann_mu(vx + reg[REG_S] * fp[FP_VH], reg[REG_B], fp[FP_MU_SLIP],
-                          fp[FP_MU_STICK], fp[FP_A1], fp[FP_A2])
+    mu, dmu = velocity_law(vx, off, fp, reg)
     return mu, dmu, 0.0, 0.0
 
 
@@ -512,11 +552,13 @@ def residual(t, y, yp, res, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, s
         res[ix] = yp[ix] - vx
         if set_valued(off):
             fric = y[iL]
-            res[iL] = fric - coulomb_friction(t, y, off, fp, reg)
+            res[iL] = fric - set_valued_friction(t, y, off, fp, reg)
+        elif dynamic(off):
+            mu, zdot, _, _, _, _ = dynamic_friction(vx, y, off, fp, reg)
+            fric = mu * fsum
+            res[off[OFF_IS]] = yp[off[OFF_IS]] - zdot
         else:
-            xx = vx + reg[REG_S] * fp[FP_VH]
-            mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
-                                fp[FP_A2])
+            mu, _ = velocity_law(vx, off, fp, reg)
             fric = mu * fsum
         res[ivx] = yp[ivx] - (texc - fric - fp[FP_R2] * vx) / m
     # contacts (algebraic)
@@ -629,6 +671,14 @@ def jacobian_pattern(off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 add(iE + E_FRICTION, iF + k)
         for r in range(R):
             add(iE + E_FRICTION, idq + r)
+    iS = int(off[OFF_IS])
+    if ix >= 0 and iS >= 0:
+        # a dynamic law: the friction (velocity row, friction power) depends on its state,
+        # whose rate depends on the state and the velocity
+        add(ivx, iS)
+        add(iS, iS)
+        add(iS, ivx)
+        add(iE + E_FRICTION, iS)
     return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
 
 
@@ -682,6 +732,10 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
     texc = 0.0
     iL = off[OFF_IL]
     sv = set_valued(off)
+    dyn = ix >= 0 and dynamic(off)
+    dmuz = 0.0
+    dzv = 0.0
+    dzz = 0.0
     if ix >= 0:
         texc = fp[FP_T0] * math.cos(fp[FP_OMEGA] * t)
         vals[p] = cj
@@ -691,9 +745,10 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
             vals[p + 3] = 1.0 / m
             p += 4
         else:
-            xx = vx + reg[REG_S] * fp[FP_VH]
-            mu, dmu = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
-                                  fp[FP_A2])
+            if dyn:
+                mu, zdot, dmu, dmuz, dzv, dzz = dynamic_friction(vx, y, off, fp, reg)
+            else:
+                mu, dmu = velocity_law(vx, off, fp, reg)
             vals[p + 2] = cj + (dmu * fsum + fp[FP_R2]) / m
             p += 3
             for _k in range(K):
@@ -788,6 +843,12 @@ def jacobian_values(t, y, yp, cj, vals, off, fp, omega2, cdamp, phi, phi_obs, st
         for r in range(R):
             vals[p] = cm * moment_arm(r, y, off, fp)
             p += 1
+    if dyn:
+        vals[p] = dmuz * fsum / m
+        vals[p + 1] = cj - dzz
+        vals[p + 2] = -dzv
+        vals[p + 3] = -dmuz * fsum * vx
+        p += 4
     return p
 
 
@@ -846,9 +907,13 @@ def events(t, y, ev, off, fp, phi, cres, spos, prof, reg, rf, work):
             ev[K + ROOT_PHASE] = 1.0
     elif ix >= 0:
         vx = y[off[OFF_IVX]]
-        xx = vx + reg[REG_S] * fp[FP_VH]
-        ev[K + ROOT_BRANCH] = reg[REG_B] * xx
-        ev[K + ROOT_LATCH] = latch_margin(y, off, fp, reg, rf)
+        if dynamic(off):  # the velocity's sign, no latch
+            ev[K + ROOT_BRANCH] = reg[REG_B] * vx
+            ev[K + ROOT_LATCH] = 1.0
+        else:
+            xx = vx + reg[REG_S] * fp[FP_VH]
+            ev[K + ROOT_BRANCH] = reg[REG_B] * xx
+            ev[K + ROOT_LATCH] = latch_margin(y, off, fp, reg, rf)
         vs2 = fp[FP_VSTICK] * fp[FP_VSTICK]
         if reg[REG_PHASE] == 1:
             ev[K + ROOT_PHASE] = vs2 - vx * vx
@@ -917,10 +982,11 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
         mu = fr / fsum if fsum > 0.0 else np.nan
         if reg[REG_B] == 0:
             vx = 0.0  # stick holds the velocity at zero: report the regime, not round-off
+    elif ix >= 0 and dynamic(off):
+        mu, _, _, _, _, _ = dynamic_friction(vx, y, off, fp, reg)
+        fr = mu * fsum
     elif ix >= 0:
-        xx = vx + reg[REG_S] * fp[FP_VH]
-        mu, _ = feldmann_mu(xx, reg[REG_B], fp[FP_MU_SLIP], fp[FP_MU_STICK], fp[FP_A1],
-                            fp[FP_A2])
+        mu, _ = velocity_law(vx, off, fp, reg)
         fr = mu * fsum
     out[OUT_Z] = y[iz]
     out[OUT_VZ] = vz

@@ -4,10 +4,12 @@ Only the states a scene requires exist: a rigid plate has no ``plate.q``/``plate
 prescribed tangential motion has no ``block.x``/``block.vx``. The order is
 
     plate.q (R), plate.dq (R), block.z, block.vz, [block.x, block.vx], contact.force (K),
-    [friction.force], energy.* (6 running integrals for the energy audit)
+    [friction.force], [friction.state (n)], energy.* (6 running integrals for the energy
+    audit)
 
-``contact.force`` and ``friction.force`` (set-valued Coulomb law only) are algebraic (DAE);
-everything else is differential. Outside this
+``contact.force`` and ``friction.force`` (set-valued laws only) are algebraic (DAE);
+``friction.state`` holds a dynamic law's internal states (e.g. a bristle deflection),
+as many as the law declares (``FrictionLaw.states``); everything else is differential. Outside this
 module no code indexes the state with bare integers: use :meth:`StateLayout.slice` or the
 ``index`` attributes.
 """
@@ -19,7 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["ENERGY_TERMS", "N_OFF", "OFF_IDQ", "OFF_IE", "OFF_IF", "OFF_IL", "OFF_IPSI", "OFF_IQ",
-           "OFF_IVX", "OFF_IVZ", "OFF_IX", "OFF_IZ", "OFF_K", "OFF_LAW", "OFF_R", "StateLayout"]
+           "OFF_IS", "OFF_IVX", "OFF_IVZ", "OFF_IX", "OFF_IZ", "OFF_K", "OFF_LAW", "OFF_R",
+           "StateLayout"]
 
 # Positions in the int64 header ``off`` that every kernel receives (:meth:`StateLayout.offsets`).
 # numba reads module-level integers as compile-time constants, so ``off[OFF_IZ]`` compiles to
@@ -40,7 +43,8 @@ OFF_LAW = 11  #: friction-law id (roughvib.physics.friction.LAW_*)
 #: ``fp[off[OFF_IPSI] + k R + r]`` = hp/2 dphi_r/dx at contact k [1/sqrt(kg)]), -1 when
 #: ``contact.friction_moment`` is off
 OFF_IPSI = 12
-N_OFF = 13
+OFF_IS = 13   #: first friction.state (a dynamic law's internal states), -1 without one
+N_OFF = 14
 
 #: running integrals appended to the state (all in J): their time derivatives are powers
 ENERGY_TERMS = (
@@ -75,13 +79,16 @@ class StateLayout:
     tangential : bool
         Whether the block's tangential position and velocity are states.
     friction_state : bool
-        Whether the friction force is an algebraic state (set-valued Coulomb law).
+        Whether the friction force is an algebraic state (set-valued laws).
+    law_states : int
+        Internal states of a dynamic friction law (``friction.state``), 0 without one.
     """
 
     n_modes: int
     n_contacts: int
     tangential: bool
     friction_state: bool = False
+    law_states: int = 0
     _slices: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -92,6 +99,8 @@ class StateLayout:
         sizes += [("contact.force", k)]
         if self.friction_state:
             sizes += [("friction.force", 1)]
+        if self.law_states:
+            sizes += [("friction.state", self.law_states)]
         sizes += [(f"energy.{name}", 1) for name in ENERGY_TERMS]
         slices = {}
         pos = 0
@@ -144,7 +153,8 @@ class StateLayout:
         """Integer header handed to the kernels, positions ``OFF_*`` of this module.
 
         ``off[OFF_IX]``/``off[OFF_IVX]`` are -1 for prescribed tangential motion,
-        ``off[OFF_IL]`` (friction force) is -1 unless the friction force is a state;
+        ``off[OFF_IL]`` (friction force) is -1 unless the friction force is a state,
+        ``off[OFF_IS]`` (first friction.state) -1 unless the law has internal states;
         ``off[OFF_LAW]`` is the friction-law id ``law`` (``roughvib.physics.friction``).
         """
         off = np.empty(N_OFF, dtype=np.int64)
@@ -161,4 +171,5 @@ class StateLayout:
         off[OFF_IL] = self.index("friction.force")
         off[OFF_LAW] = law
         off[OFF_IPSI] = -1  # no friction moment; roughvib.model.system.assemble sets it
+        off[OFF_IS] = self._slices["friction.state"].start if self.law_states else -1
         return off

@@ -3,8 +3,8 @@
 The solver owns *when* a root fires; this module owns *what it means*: which regime follows,
 what the event is called in the log, and which guard acted. Root indices follow
 :func:`roughvib.model.kernels.events`: ``0..K-1`` contacts, then three friction roots whose
-meaning depends on the law (feldmann: branch, latch, phase; coulomb: break-away or velocity
-zero, bare threshold, dwell timer).
+meaning depends on the law (feldmann: branch, latch, phase; set-valued laws: break-away or
+velocity zero, bare threshold, dwell timer; dynamic laws: the velocity's sign, none, phase).
 """
 
 from __future__ import annotations
@@ -40,9 +40,11 @@ class Regime:
         Stick phase (feldmann: ``|v|`` < friction.stick_velocity, for logging; coulomb: the regime).
     dwell_end : float
         coulomb: break-away is held until this time [s] (``NO_DWELL`` when inactive).
-    coulomb : bool
+    set_valued : bool
         Whether the law is set-valued (``coulomb`` or ``table``: stick is a regime with an
-        algebraic friction force); False for the Feldmann law.
+        algebraic friction force); False for the single-valued and dynamic laws, whose
+        regimes are the branch (the sign of the velocity for a dynamic law), the latch and the
+        logged stick phase.
     switch_times : list of float
         coulomb: times of the recent stick/slip switches [s], for the chatter guard (only
         those within its window are kept).
@@ -54,7 +56,7 @@ class Regime:
     v_ext: float = 0.0
     stick: bool = True
     dwell_end: float = NO_DWELL
-    coulomb: bool = False
+    set_valued: bool = False
     switch_times: list = field(default_factory=list)
 
     def pack(self, reg: np.ndarray, rf: np.ndarray) -> None:
@@ -69,7 +71,7 @@ class Regime:
     def describe(self) -> str:
         """Short text, e.g. ``closed=1111111011 slip+`` or ``... b=+1 s=-1 slip``."""
         c = "".join(str(int(v)) for v in self.closed)
-        if self.coulomb:
+        if self.set_valued:
             phase = "stick" if self.branch == 0 else ("slip+" if self.branch > 0 else "slip-")
             return f"closed={c} {phase}"
         return (f"closed={c} b={self.branch:+d} s={self.latch:+d} "
@@ -86,18 +88,18 @@ class Transition:
 
 
 def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
-                   coulomb: bool) -> Regime:
+                   set_valued: bool) -> Regime:
     """Regime at t = 0: the static contact set, block at rest.
 
     feldmann: latch s = -1 (accelerating branch), branch from sign(s v_h) (or of T0 when
     v_h = 0), stick phase. coulomb: stick unless ``|T0|`` exceeds the break-away bound with the
     static normal force m g, then slip in the direction of T0.
     """
-    reg = Regime(closed=closed.astype(np.int64), coulomb=coulomb)
+    reg = Regime(closed=closed.astype(np.int64), set_valued=set_valued)
     if not tangential:
         return reg
     t0 = fp[kn.FP_T0]
-    if coulomb:
+    if set_valued:
         bound = fp[kn.FP_MU_STICK] * fp[kn.FP_MASS] * fp[kn.FP_GRAV] * (1 + fp[kn.FP_HYST])
         reg.branch = 0 if abs(t0) <= bound else int(math.copysign(1, t0))
         reg.stick = reg.branch == 0
@@ -130,7 +132,7 @@ def switch(regime: Regime, idx: int, t: float, y: np.ndarray, fp: np.ndarray,
         return [Transition("touch_down", idx)]
     j = idx - K
     vx = float(y[i_vx])
-    if not regime.coulomb:
+    if not regime.set_valued:
         if j == 0:
             regime.branch = -regime.branch
             return [Transition("friction_branch", -1)]

@@ -21,7 +21,7 @@ import numpy as np
 from roughvib.model import kernels as kn
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
-from roughvib.physics.friction import LAWS, calibrated_force_amplitude, law_table
+from roughvib.physics.friction import LAWS, calibrated_force_amplitude
 from roughvib.physics.structures import Structure, build_structure
 from roughvib.physics.surface.contact import contact_layout, scene_input
 from roughvib.physics.surface.interp import cached_coefficients
@@ -39,6 +39,10 @@ __all__ = ["GRAVITY", "MAX_RMS_SLOPE", "MAX_RMS_TO_BLOCK", "Regime", "System", "
            "WARN_RMS_TO_BLOCK", "assemble", "check_profile", "estimate_travel"]
 
 GRAVITY = 9.81  # m/s^2, the paper's value (F_stat = m g)
+#: how the run's summary names the tangential model a law is calibrated in
+_CALIBRATION_MODELS = {"feldmann": "tangential model (F_N = m g)",
+                       "set-valued": "set-valued tangential model (F_N = m g)",
+                       "dynamic": "the law's own tangential model (F_N = m g)"}
 
 
 @dataclass
@@ -106,8 +110,8 @@ class System:
         return np.zeros(kn.REG_CLOSED + self.n_contacts, dtype=np.int64), np.zeros(2)
 
     @property
-    def coulomb(self) -> bool:
-        """Whether the friction force is an algebraic state (set-valued Coulomb law)."""
+    def set_valued(self) -> bool:
+        """Whether the friction force is an algebraic state (a set-valued law)."""
         return self.layout.friction_state
 
     # ---- algebra ---------------------------------------------------------------------
@@ -175,10 +179,10 @@ class System:
         y = np.array(y, dtype=float)
         y[self.layout.slice("contact.force")] = self.contact_forces(
             t, y, reg[kn.REG_CLOSED:])
-        if self.coulomb:
+        if self.set_valued:
             if reg[kn.REG_B] == 0:
                 y[self.layout.index("block.vx")] = 0.0
-            y[self.layout.index("friction.force")] = kn.coulomb_friction(t, y, self.off,
+            y[self.layout.index("friction.force")] = kn.set_valued_friction(t, y, self.off,
                                                                           self.fp, reg)
         res = np.empty_like(y)
         kn.residual(t, y, np.zeros_like(y), res, *self.kernel_args(reg, rf))
@@ -461,9 +465,11 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     cdamp = 2.0 * structure.damping_ratio * structure.omega
     R = phi.shape[0]
     law = LAWS[fr.law]
-    layout = StateLayout(R, K, tangential, friction_state=tangential and law.set_valued)
-    # the kinetic curve of the table law (read and checked before the calibration needs it)
-    table = law_table(fr, scene.base_dir) if tangential else np.zeros(0)
+    layout = StateLayout(R, K, tangential, friction_state=tangential and law.set_valued,
+                         law_states=law.states if tangential else 0)
+    # the law's packed parameters (a tabulated curve, read and checked before the
+    # calibration needs it; a dynamic law's constants)
+    table = law.pack(fr, scene.base_dir) if tangential else np.zeros(0)
 
     calibration: dict = {}
     if not tangential:
@@ -484,8 +490,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
                 f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
                 f"friction law ({err}); check the friction keys or give "
                 f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
-        calibration = {"method": ("tangential model (F_N = m g)" if law.calibration == "feldmann"
-                                  else "set-valued tangential model (F_N = m g)"),
+        calibration = {"method": _CALIBRATION_MODELS[law.calibration],
                        "target_rms_velocity": exc.target_rms_velocity, "cache": cache}
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
@@ -503,7 +508,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_MU_STICK] = fr.mu_stick
     fp[kn.FP_A1] = fr.a1
     fp[kn.FP_A2] = fr.a2
-    fp[kn.FP_VH] = fr.hysteresis_velocity
+    # the hysteresis shift is the Feldmann law's; a dynamic law's branch is the sign of v
+    fp[kn.FP_VH] = fr.hysteresis_velocity if law.kind != "dynamic" else 0.0
     fp[kn.FP_EPS] = fr.effective_latch_velocity
     fp[kn.FP_VSTICK] = fr.stick_velocity
     fp[kn.FP_PV] = exc.velocity if not tangential else 0.0
@@ -514,7 +520,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_DX] = profile.dx
     fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
     fp[kn.FP_HYST] = fr.switching_hysteresis
-    fp = np.concatenate([fp, table])  # the table law's curve follows the scalars (N_FP on)
+    fp = np.concatenate([fp, table])  # the law's own parameters follow the scalars (N_FP on)
     off = layout.offsets(law.law_id)
     if scene.contact.friction_moment and tangential and R > 0:
         # the friction force acts on the top surface, hp/2 above the mid-plane: its lever

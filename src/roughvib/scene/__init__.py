@@ -83,6 +83,8 @@ from roughvib.scene.forces import (
     SET_VALUED_LAWS,  # noqa: F401
     Excitation,
     Friction,
+    LawDeclaration,  # noqa: F401
+    LawKey,  # noqa: F401
 )
 from roughvib.scene.solver_output import (
     _TOLERANCE_KEYS,  # noqa: F401

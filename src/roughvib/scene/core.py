@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -156,6 +157,14 @@ def _assign(data: dict, key: str, value: Any) -> None:
     if len(parts) == 1 and parts[0] in _TOP_KEYS:
         data[parts[0]] = value
         return
+    if len(parts) == 3 and parts[0] in _SECTIONS:
+        # a key of a table inside a section (friction.parameters.sigma0)
+        section, name, inner = parts
+        table = data.setdefault(section, {}).setdefault(name, {})
+        if not isinstance(table, dict):
+            raise SceneError(f"{key}: {section}.{name} is not a table, got {_fmt(table)}")
+        table[inner] = value
+        return
     if len(parts) != 2 or parts[0] not in _SECTIONS:
         raise SceneError(f"{key} is not a scene key (use section.key, sections: "
                          f"{', '.join(_SECTIONS)}), got {_fmt(value)}")
@@ -170,9 +179,10 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
         d = {}
         for f in fields(obj):
             v = getattr(obj, f.name)
-            if v is None:
+            if v is None or (isinstance(v, Mapping) and not v):
                 continue
-            d[f.name] = list(v) if isinstance(v, tuple) else v
+            d[f.name] = (list(v) if isinstance(v, tuple) else
+                         dict(v) if isinstance(v, Mapping) else v)
         out[sec] = d
     return out
 

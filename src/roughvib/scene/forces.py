@@ -7,7 +7,8 @@ Frozen dataclasses in SI units, each validated in ``__post_init__`` with the hel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 from roughvib.scene.checks import (
     SceneError,
@@ -23,9 +24,71 @@ from roughvib.scene.checks import (
     _set,
 )
 
-#: a test keeps both lists equal) and those of them with a set-valued stick
-FRICTION_LAWS = ("feldmann", "coulomb", "table")
-SET_VALUED_LAWS = ("coulomb", "table")
+
+@dataclass(frozen=True)
+class LawKey:
+    """One key of a friction law's own parameters (``friction.parameters``).
+
+    Attributes
+    ----------
+    default : float
+        Its value when the scene does not give it.
+    unit : str
+        SI unit ("" for none).
+    lowest, highest : float
+        The physically sane range (inclusive).
+    meaning : str
+        What it is, in a few words (the refusal and docs/friction.md say it).
+    """
+
+    default: float
+    unit: str
+    lowest: float
+    highest: float
+    meaning: str
+
+
+@dataclass(frozen=True)
+class LawDeclaration:
+    """What the scene knows of a friction law: its kind and its own keys.
+
+    Attributes
+    ----------
+    kind : {"single-valued", "set-valued", "dynamic"}
+        ``single-valued``: mu a function of the velocity and discrete regimes (feldmann);
+        ``set-valued``: stick held at v = 0, the friction force an algebraic unknown
+        (coulomb, table); ``dynamic``: internal states with their own rate equations (lugre).
+        The solvers declare which kinds they run (``roughvib.solvers.registry``).
+    keys : mapping
+        ``{name: LawKey}``: the law's own keys, given in ``friction.parameters`` (the laws
+        that predate that table read their keys from the section itself and declare none
+        here).
+    """
+
+    kind: str
+    keys: Mapping[str, LawKey] = field(default_factory=dict)
+
+
+#: the friction laws a scene can name (``friction.law``), in the order of
+#: ``roughvib.physics.friction.LAWS`` (the registration checks it), with their kinds and keys
+FRICTION_LAWS: dict[str, LawDeclaration] = {
+    "feldmann": LawDeclaration("single-valued"),
+    "coulomb": LawDeclaration("set-valued"),
+    "table": LawDeclaration("set-valued"),
+    # LuGre (Canudas de Wit et al. 1995). mu_c, mu_s are friction.mu_slip, mu_stick; v_s the
+    # decay of the paper's law's Stribeck term (1 / a1 = 2 mm/s); sigma1 damps the block's
+    # pre-sliding oscillation on its own weight, sqrt(sigma0 g), to a damping ratio of about
+    # 0.5 (as sigma1 = sqrt(sigma0) does for the unit mass and load of the original example);
+    # sigma2 = 0 keeps the steady sliding level at mu_slip
+    "lugre": LawDeclaration("dynamic", {
+        "sigma0": LawKey(1e5, "1/m", 1.0, 1e10, "bristle stiffness per unit normal force"),
+        "sigma1": LawKey(100.0, "s/m", 0.0, 1e6, "bristle damping per unit normal force"),
+        "sigma2": LawKey(0.0, "s/m", 0.0, 1e4, "viscous coefficient"),
+        "stribeck_velocity": LawKey(2e-3, "m/s", 1e-9, 10.0, "Stribeck velocity v_s"),
+    }),
+}
+#: the set-valued laws (stick held at v = 0)
+SET_VALUED_LAWS = tuple(n for n, d in FRICTION_LAWS.items() if d.kind == "set-valued")
 
 
 @dataclass(frozen=True)
@@ -34,13 +97,17 @@ class Friction:
 
     Attributes
     ----------
-    law : {"feldmann", "coulomb", "table"}
+    law : {"feldmann", "coulomb", "table", "lugre"}
         ``feldmann``: the paper's Eq. 10 with the latched hysteresis of docs/theory.md
         (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
         Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
         zero and the friction force is an algebraic unknown (docs/theory.md). ``table``: the
         same set-valued law with the kinetic coefficient read from ``table``
-        (docs/friction.md).
+        (docs/friction.md). ``lugre``: the LuGre dynamic law with one bristle state, its
+        constants in ``parameters`` (docs/friction.md).
+    parameters : mapping
+        The law's own keys (:data:`FRICTION_LAWS`), completed with their defaults; empty for a
+        law that declares none. A key of another law is refused.
     table : str or None
         ``table``: CSV file of the kinetic curve, columns ``velocity`` [m/s] (from 0,
         increasing) and ``mu`` [-], relative to the scene file's folder.
@@ -78,6 +145,7 @@ class Friction:
     """
 
     law: str = "feldmann"
+    parameters: Mapping[str, float] = field(default_factory=dict)
     table: str | None = None
     mu_slip: float = 0.30
     mu_stick: float = 0.40
@@ -94,7 +162,8 @@ class Friction:
 
     def __post_init__(self) -> None:
         p = "friction"
-        _set(self, "law", _choice(f"{p}.law", self.law, FRICTION_LAWS))
+        _set(self, "law", _choice(f"{p}.law", self.law, tuple(FRICTION_LAWS)))
+        _set(self, "parameters", _law_parameters(self.law, self.parameters))
         if self.law == "table":
             if not isinstance(self.table, str) or not self.table.strip():
                 raise SceneError(f"{p}.table must name a CSV file (velocity [m/s], mu [-]) when "
@@ -132,9 +201,45 @@ class Friction:
         return max(self.latch_velocity, self.hysteresis_velocity)
 
     @property
+    def kind(self) -> str:
+        """The law's kind: ``"single-valued"``, ``"set-valued"`` or ``"dynamic"``."""
+        return FRICTION_LAWS[self.law].kind
+
+    @property
     def set_valued(self) -> bool:
         """Whether the law is set-valued (stick held at v = 0, ``SET_VALUED_LAWS``)."""
-        return self.law in SET_VALUED_LAWS
+        return self.kind == "set-valued"
+
+
+def _law_parameters(law: str, given) -> dict[str, float]:
+    """``friction.parameters`` checked against the law's own keys and completed with their
+    defaults (one line naming the key, rule, unit and value otherwise)."""
+    keys = FRICTION_LAWS[law].keys
+    if given is None:
+        given = {}
+    if not isinstance(given, Mapping):
+        raise SceneError(f"friction.parameters must be a table of the law's own keys, got "
+                         f"{_fmt(given)}")
+    out = {}
+    for name, value in given.items():
+        if name not in keys:
+            owners = [n for n, d in FRICTION_LAWS.items() if name in d.keys]
+            whose = (f"a key of friction.law = {owners[0]!r}" if owners else "no law's key")
+            known = ", ".join(keys) if keys else "none"
+            raise SceneError(f"friction.parameters.{name} is {whose}, not of friction.law = "
+                             f"{law!r} (its keys: {known}), got {_fmt(value)}")
+        key = keys[name]
+        path = f"friction.parameters.{name}"
+        v = _number(path, value, key.unit)
+        if not (key.lowest <= v <= key.highest):
+            unit = f" {key.unit}" if key.unit else ""
+            raise SceneError(f"{path} ({key.meaning}) must be in [{key.lowest:g}, "
+                             f"{key.highest:g}]{unit} (the physically sane range), got "
+                             f"{_fmt(value)}")
+        out[name] = float(v)
+    for name, key in keys.items():
+        out.setdefault(name, float(key.default))
+    return out
 
 
 @dataclass(frozen=True)

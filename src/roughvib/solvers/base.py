@@ -136,7 +136,8 @@ def atol_vector(system: System) -> np.ndarray:
     -------
     ndarray, shape (n_states,)
         In each state's unit: m sqrt(kg) (plate.q), m sqrt(kg)/s (plate.dq), m (block.z,
-        block.x), m/s (block.vz, block.vx), N (contact.force, friction.force), J (energy.*).
+        block.x, friction.state), m/s (block.vz, block.vx), N (contact.force, friction.force),
+        J (energy.*).
 
     Raises
     ------
@@ -159,6 +160,8 @@ def atol_vector(system: System) -> np.ndarray:
     atol[lay.slice("contact.force")] = a * system.stiff
     if lay.has("friction.force"):
         atol[lay.index("friction.force")] = a * float(np.mean(system.stiff))
+    if lay.has("friction.state"):  # a dynamic law's states are displacements (FrictionLaw)
+        atol[lay.slice("friction.state")] = a
     for name in lay.names:
         if name.startswith("energy."):
             atol[lay.index(name)] = a * 1e-2

@@ -30,7 +30,7 @@ from scipy.linalg import expm
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.physics.friction import feldmann_mu_law, kinetic_coefficient, latch_update
+from roughvib.physics.friction import LAWS, feldmann_mu_law, kinetic_coefficient, latch_update
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.base import FIRST_ROW, MODE_DQ, MODE_Q, RawSolution
@@ -477,14 +477,11 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     if kn.moment_on(system.off):  # scene/core.py refuses it; this guards a direct call
         raise SceneError(f"contact.friction_moment = true needs solver.method 'ida' or "
                          f"'adaptive-modal', got {method!r}")
-    if system.coulomb and not moreau:
-        raise SceneError(f"solver.method = {method!r} supports friction.law = 'feldmann' "
-                         f"only (the set-valued law needs 'adaptive-modal', 'ida' or "
-                         f"'moreau'), got {scene.friction.law!r}")
-    if moreau and not system.coulomb and system.tangential:
-        raise SceneError(f"solver.method = 'moreau' needs friction.law = 'coulomb' or 'table' "
-                         f"(Moreau-Jean time-stepping of set-valued friction), got "
-                         f"{scene.friction.law!r}")
+    law = LAWS[scene.friction.law]
+    # the scene check's rule, again for a direct call
+    if system.tangential and method not in law.solvers:
+        raise SceneError(f"solver.method = {method!r} does not run friction.law = {law.name!r} "
+                         f"({law.kind}; it runs with {', '.join(law.solvers)})")
     h, out_every, n_out, n_steps = step_grid(scene)
     K = system.n_contacts
     lay = system.layout
@@ -506,7 +503,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     zv[ZV_AZ] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
     # initial phase as IDA's: stick at rest; with the Coulomb law only if the block cannot move
     start_stick = initial_regime(closed, system.fp, lay.tangential, True).stick \
-        if system.coulomb else True
+        if system.set_valued else True
     tang = np.zeros(N_TANG)
     tang[TG_LATCH] = float(regime.latch)
     tang[TG_STICK] = 1.0 if start_stick else 0.0

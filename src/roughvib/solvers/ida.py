@@ -593,7 +593,7 @@ class _IdaRun:
         k, grid, rf, regime = self.k, self.grid, self.rf, self.regime
         yk = r.y
         kn.outputs(grid[k], yk, self.outs[k], *self.args)
-        if self.vx_i >= 0 and not self.system.coulomb:
+        if self.vx_i >= 0 and not self.system.set_valued:
             v = yk[self.vx_i]
             if regime.latch < 0:
                 if v > rf[kn.RF_VEXT]:

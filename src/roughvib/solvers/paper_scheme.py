@@ -32,7 +32,7 @@ from numba import njit
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.physics.friction import feldmann_mu_law
+from roughvib.physics.friction import LAWS, feldmann_mu_law
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.base import FIRST_ROW, RawSolution
@@ -241,9 +241,11 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     if kn.moment_on(system.off):  # scene/core.py refuses it; this guards a direct call
         raise SceneError("contact.friction_moment = true needs solver.method 'ida' or "
                          "'adaptive-modal', got 'paper'")
-    if system.coulomb:
-        raise SceneError(f"solver.method = 'paper' supports friction.law = 'feldmann' only, "
-                         f"got {scene.friction.law!r}")
+    law = LAWS[scene.friction.law]
+    # the scene check's rule, again for a direct call
+    if system.tangential and "paper" not in law.solvers:
+        raise SceneError(f"solver.method = 'paper' does not run friction.law = {law.name!r} "
+                         f"({law.kind}; it runs with {', '.join(law.solvers)})")
     if system.n_modes == 0:
         if scene.plate.kind == "rigid":
             raise SceneError("solver.method = 'paper' needs a structure with modes (the plate "

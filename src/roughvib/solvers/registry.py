@@ -40,8 +40,9 @@ TOLERANCE = "tolerance"
 #: kind of a solver driven by a fixed step (``solver.step``)
 STEP = "step"
 _KINDS = (TOLERANCE, STEP)
-#: which friction laws a solver runs with a force-driven block
-_FRICTION = ("any", "single-valued", "set-valued")
+#: the kinds of friction law (``roughvib.scene.FRICTION_LAWS``), each of which a solver may run
+#: with a force-driven block
+LAW_KINDS = ("single-valued", "set-valued", "dynamic")
 
 #: ``solver.method = "auto"``: the first of these that runs the scene
 AUTO = ("adaptive-modal", "ida")
@@ -74,9 +75,9 @@ class Method:
         Writes checkpoints (``output.checkpoint_interval``) and resumes from them.
     energy_audit : bool
         Keeps the energy integrals, so a run has an energy audit (and can be verified).
-    friction : {"any", "single-valued", "set-valued"}
-        The friction laws it runs with a force-driven block (a prescribed motion has no
-        friction model, so every solver runs it with any law).
+    friction : tuple of {"single-valued", "set-valued", "dynamic"}
+        The kinds of friction law it runs with a force-driven block (a prescribed motion has
+        no friction model, so every solver runs it with any law).
     friction_moment : bool
         Integrates the friction force's moment on the plate (``contact.friction_moment``).
     rules : tuple of callables
@@ -90,14 +91,14 @@ class Method:
     solve: str
     checkpoints: bool = False
     energy_audit: bool = True
-    friction: str = "any"
+    friction: tuple[str, ...] = LAW_KINDS
     friction_moment: bool = False
     rules: tuple[Rule, ...] = field(default=())
 
-    def runs_law(self, set_valued: bool) -> bool:
-        """Whether it runs a friction law that is (or is not) set-valued, with a force-driven
-        block."""
-        return self.friction == "any" or (self.friction == "set-valued") == bool(set_valued)
+    def runs_law(self, kind: str) -> bool:
+        """Whether it runs a friction law of this kind (``"single-valued"``, ``"set-valued"``
+        or ``"dynamic"``) with a force-driven block."""
+        return kind in self.friction
 
     def refusal(self, scene) -> str | None:
         """The first rule that rules the solver out for ``scene`` (key, value and why), or
@@ -156,8 +157,8 @@ def register(method: Method) -> Method:
     if method.kind not in _KINDS:
         raise ValueError(f"solver {method.name!r}: kind must be one of {_KINDS}, "
                          f"got {method.kind!r}")
-    if method.friction not in _FRICTION:
-        raise ValueError(f"solver {method.name!r}: friction must be one of {_FRICTION}, "
+    if not method.friction or not set(method.friction) <= set(LAW_KINDS):
+        raise ValueError(f"solver {method.name!r}: friction must be kinds of {LAW_KINDS}, "
                          f"got {method.friction!r}")
     if ":" not in method.solve:
         raise ValueError(f"solver {method.name!r}: solve must be 'module:function', "
@@ -236,13 +237,30 @@ def _friction_law(scene, m: Method) -> str | None:
     if scene.excitation.kind != "force":  # prescribed motion: no friction model
         return None
     law = scene.friction.law
-    set_valued = scene.friction.set_valued
-    if m.runs_law(set_valued):
+    kind = scene.friction.kind
+    if m.runs_law(kind):
         return None
-    if set_valued:
-        return (f"friction.law = {law!r} is set-valued (stick held at v = 0), and {m.name} "
-                f"runs single-valued laws only")
-    return f"friction.law = {law!r} is single-valued, and {m.name} runs set-valued laws only"
+    what = {"set-valued": "set-valued (stick held at v = 0)",
+            "dynamic": "dynamic (internal states)"}.get(kind, kind)
+    return (f"friction.law = {law!r} is {what}, and {m.name} runs "
+            f"{_either(m.friction)} laws only")
+
+
+def _dynamic_law_moment(scene, m: Method) -> str | None:
+    if (scene.contact.friction_moment and scene.excitation.kind == "force"
+            and scene.friction.kind == "dynamic"):
+        return (f"contact.friction_moment = true, and the moment of a dynamic law's force "
+                f"(friction.law = {scene.friction.law!r}) is not integrated by any solver yet")
+    return None
+
+
+def _krylov_law(scene, m: Method) -> str | None:
+    if (scene.solver.linear_solver == "gmres" and scene.excitation.kind == "force"
+            and scene.friction.kind == "dynamic"):
+        return (f"solver.linear_solver = 'gmres', and IDA's Krylov preconditioner does not "
+                f"eliminate a dynamic law's states (friction.law = {scene.friction.law!r}); "
+                f"use solver.linear_solver = 'sparse'")
+    return None
 
 
 def _friction_moment(scene, m: Method) -> str | None:
@@ -288,7 +306,8 @@ def _plate_modes(scene, m: Method) -> str | None:
     return None
 
 
-_COMMON_RULES: tuple[Rule, ...] = (_friction_law, _friction_moment, _checkpoints)
+_COMMON_RULES: tuple[Rule, ...] = (_friction_law, _friction_moment, _dynamic_law_moment,
+                                   _checkpoints)
 
 
 # --------------------------------------------------------------------------------------------
@@ -315,7 +334,7 @@ register(Method(
      "draft": {"rtol": 1e-4, "atol": 1e-11, "atol_acceleration": 1e-6,
                "atol_acceleration_relative": 1e-4}},
     "roughvib.solvers.ida:solve_ida",
-    checkpoints=True, friction_moment=True))
+    checkpoints=True, friction_moment=True, rules=(_krylov_law,)))
 
 # adaptive-modal: the Hermite step is fourth order and the trapezoidal step's kept states are
 # extrapolated to third order, so the reference's plate-mode tolerance is a decade looser than
@@ -332,7 +351,8 @@ register(Method(
      "draft": {"rtol": 1e-3, "atol": 1e-11, "atol_acceleration": 1e-5,
                "atol_acceleration_relative": 1e-3}},
     "roughvib.solvers.adaptive_modal:solve_adaptive_modal",
-    checkpoints=True, friction_moment=True, rules=(_underdamped_modes,)))
+    checkpoints=True, friction_moment=True, friction=("single-valued", "set-valued"),
+    rules=(_underdamped_modes,)))
 
 # fixed steps divide the default 1e-5 s output step: 1e-5 s is the coarsest that runs
 register(Method(
@@ -340,14 +360,14 @@ register(Method(
     "fixed step: exact per-mode propagation, piecewise-linear modal force",
     {"reference": {"step": 2.5e-6}, "standard": {"step": 5e-6}, "draft": {"step": 1e-5}},
     "roughvib.solvers.fixed_step:solve_fixed_step",
-    friction="single-valued"))
+    friction=("single-valued",)))
 
 register(Method(
     "newmark", STEP,
     "fixed step: average-acceleration Newmark on the modal model",
     {"reference": {"step": 1e-6}, "standard": {"step": 5e-6}, "draft": {"step": 1e-5}},
     "roughvib.solvers.fixed_step:solve_fixed_step",
-    friction="single-valued"))
+    friction=("single-valued",)))
 
 # the paper's scheme is defined by its 1e-5 s step; no preset changes it
 register(Method(
@@ -355,11 +375,11 @@ register(Method(
     "the paper's scheme: backward Euler, plate by convolution of its impulse response",
     {"reference": {"step": 1e-5}, "standard": {"step": 1e-5}, "draft": {"step": 1e-5}},
     "roughvib.solvers.paper_scheme:solve_paper_scheme",
-    energy_audit=False, friction="single-valued", rules=(_plate_modes, _underdamped_modes)))
+    energy_audit=False, friction=("single-valued",), rules=(_plate_modes, _underdamped_modes)))
 
 register(Method(
     "moreau", STEP,
     "fixed step: Moreau-Jean time-stepping of the set-valued laws, exact-modal plate",
     {"reference": {"step": 1e-6}, "standard": {"step": 5e-6}, "draft": {"step": 1e-5}},
     "roughvib.solvers.fixed_step:solve_fixed_step",
-    friction="set-valued"))
+    friction=("set-valued",)))

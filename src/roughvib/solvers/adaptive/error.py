@@ -127,7 +127,7 @@ def extrapolate(t1, ya, yb, ye, ge, armed, off, fp, phi, cres, spos, prof, reg, 
     for j in range(iE + kn.N_ENERGY, yb.size):
         ye[j] = yb[j] + (yb[j] - ya[j]) / 3.0
     if kn.set_valued(off) and off[kn.OFF_IX] >= 0:
-        ye[off[kn.OFF_IL]] = kn.coulomb_friction(t1, ye, off, fp, reg)
+        ye[off[kn.OFF_IL]] = kn.set_valued_friction(t1, ye, off, fp, reg)
     kn.events(t1, ye, ge, off, fp, phi, cres, spos, prof, reg, rf, work)
     for i in range(ge.size):
         if armed[i] == 1 and not ge[i] > 0.0:

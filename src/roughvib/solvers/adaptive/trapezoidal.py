@@ -68,7 +68,7 @@ def friction_force(t, y, vx, fsum, off, fp, reg):
     The force is the one of :func:`.kernels.residual`: the Feldmann law ``mu(v + s v_h) F_N``
     of the branch and latch; a set-valued law in slip b ``b mu_k(b v) F_N`` (the law's kinetic
     curve, :func:`.kernels.kinetic`), in stick ``T_exc - r2 v``, whatever holds the block
-    (:func:`.kernels.coulomb_friction`).
+    (:func:`.kernels.set_valued_friction`).
 
     Parameters
     ----------
@@ -94,7 +94,7 @@ def friction_force(t, y, vx, fsum, off, fp, reg):
     if kn.set_valued(off):
         b = reg[kn.REG_B]
         if b == 0:
-            return kn.coulomb_friction(t, y, off, fp, reg), 0.0, 0.0
+            return kn.set_valued_friction(t, y, off, fp, reg), 0.0, 0.0
         muk, dmuk = kn.kinetic(b * vx, off, fp)
         # d/dv of b mu_k(b v): b^2 mu_k' = mu_k'
         return b * muk * fsum, dmuk * fsum, b * muk
@@ -345,7 +345,7 @@ def _end_state(t1, h, y0, d0, y1, d1, u1, F, v1, x0, v0, av, cz, zc, beta, sq, s
         y1[ivx] = 0.0
     if kn.set_valued(off) and force_driven:
         # the algebraic friction force of the new state (kernels.residual's row of it)
-        y1[off[kn.OFF_IL]] = kn.coulomb_friction(t1, y1, off, fp, reg)
+        y1[off[kn.OFF_IL]] = kn.set_valued_friction(t1, y1, off, fp, reg)
     derivatives(t1, y1, d1, off, fp, cdamp, spos, prof, reg)
     for i in range(kn.N_ENERGY):
         y1[iE + i] = y0[iE + i] + 0.5 * h * (d0[D_POWER + i] + d1[D_POWER + i])

@@ -1,0 +1,240 @@
+"""The friction laws' registration: ids, what each law declares, and the kernels' one dispatch.
+
+A law is one module of this package (its curve and exact derivatives, its states, its
+tangential-only model) plus one entry here:
+
+* its id (``LAW_*``), the value the kernels see in ``off[OFF_LAW]``;
+* a :class:`FrictionLaw` in :data:`LAWS`: its kind (``single-valued``, ``set-valued`` or
+  ``dynamic`` with internal states), how many states it adds to the state vector, how its
+  parameters are packed for the kernels and the tangential model in which T0 is calibrated;
+* a branch in the numba dispatch below (:func:`law_kind`, :func:`dynamic_law`,
+  :func:`single_valued_mu`; a set-valued law's kinetic curve in
+  ``setvalued.kinetic_coefficient``), which raises for an id no law registered: no kernel
+  falls through to another law's physics.
+
+The scene's keys of a law and its kind are declared where the scene is validated
+(``roughvib.scene.FRICTION_LAWS``); the solvers that run a law follow from its kind and the
+solver registry (:attr:`FrictionLaw.solvers`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from roughvib.physics.friction import coulomb, feldmann, lugre, table
+from roughvib.physics.friction.feldmann import feldmann_mu, tangential_feldmann
+from roughvib.physics.friction.setvalued import kinetic_coefficient, tangential_set_valued
+from roughvib.scene import FRICTION_LAWS
+from roughvib.solvers import registry
+
+__all__ = ["KIND_DYNAMIC", "KIND_SET_VALUED", "KIND_SINGLE_VALUED", "LAWS", "LAW_COULOMB",
+           "LAW_FELDMANN", "LAW_LUGRE", "LAW_TABLE", "FrictionLaw", "dynamic_law",
+           "is_set_valued", "kinetic_coefficient", "law_kind", "single_valued_mu"]
+
+#: ids of the friction laws as the kernels see them (``off[OFF_LAW]``, roughvib.model.layout)
+LAW_FELDMANN = feldmann.LAW_ID
+LAW_COULOMB = coulomb.LAW_ID
+LAW_TABLE = table.LAW_ID
+LAW_LUGRE = lugre.LAW_ID
+
+#: the kinds of law as the kernels see them (:func:`law_kind`)
+KIND_SINGLE_VALUED = 0  # mu a function of the velocity (and discrete regimes): feldmann
+KIND_SET_VALUED = 1     # stick held at v = 0, the friction force algebraic: coulomb, table
+KIND_DYNAMIC = 2        # internal states with their own rate equations: lugre
+_KIND_IDS = {"single-valued": KIND_SINGLE_VALUED, "set-valued": KIND_SET_VALUED,
+             "dynamic": KIND_DYNAMIC}
+
+
+def _no_parameters(friction, base_dir) -> np.ndarray:
+    return np.zeros(0)
+
+
+def _table_parameters(friction, base_dir) -> np.ndarray:
+    return table.law_table(friction, base_dir)
+
+
+def _lugre_parameters(friction, base_dir) -> np.ndarray:
+    return lugre.pack_parameters(friction.parameters)
+
+
+# the tangential-only models, tangential(T0, mass, r2, normal_force, omega, friction, dt, n,
+# v, x, table): fill v, x (length n + 1) from rest
+def _feldmann_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table):
+    tangential_feldmann(T0, mass, r2, normal_force, omega, float(friction.mu_slip),
+                        float(friction.mu_stick), float(friction.a1), float(friction.a2),
+                        float(friction.hysteresis_velocity),
+                        float(friction.effective_latch_velocity), dt, n, v, x)
+
+
+def _set_valued_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, curve):
+    tab = np.zeros(0) if curve is None else np.asarray(curve, dtype=float)
+    tangential_set_valued(T0, mass, r2, normal_force, omega, LAWS[friction.law].law_id,
+                          float(friction.mu_slip), float(friction.mu_stick),
+                          float(friction.stribeck_velocity or 0.0), tab, dt, n, v, x)
+
+
+def _lugre_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table):
+    lugre.tangential_lugre(T0, mass, r2, normal_force, omega, float(friction.mu_slip),
+                           float(friction.mu_stick), lugre.pack_parameters(friction.parameters),
+                           dt, n, v, x)
+
+
+@dataclass(frozen=True)
+class FrictionLaw:
+    """What a friction law declares (docs/architecture.md, "A friction law").
+
+    Attributes
+    ----------
+    name : str
+        The value of ``friction.law`` that selects it.
+    law_id : int
+        Its id in the kernels (``LAW_*``).
+    states : int
+        Internal states it adds to the state vector (``friction.state``): 0 but for a dynamic
+        law. They are displacements [m] (the solvers' absolute tolerance is ``solver.atol``).
+    calibration : {"feldmann", "set-valued", "dynamic"}
+        Which tangential-only model T0 is calibrated in (to ``excitation.target_rms_velocity``,
+        ``roughvib.physics.friction.calibration``): the Feldmann law's, the set-valued laws'
+        or a dynamic law's own.
+    pack : callable
+        ``pack(friction, base_dir) -> ndarray``: its parameters as the kernels read them
+        (``fp`` from ``kernels.N_FP``): a tabulated curve, a dynamic law's constants, or
+        nothing.
+    tangential : callable
+        ``tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table)``: the
+        tangential-only model (constant normal force, from rest), filling ``v`` [m/s] and
+        ``x`` [m] (length n + 1) on the grid ``k dt``.
+    """
+
+    name: str
+    law_id: int
+    states: int
+    calibration: str
+    pack: Callable
+    tangential: Callable
+
+    @property
+    def kind(self) -> str:
+        """``"single-valued"``, ``"set-valued"`` or ``"dynamic"``, as the scene declares it."""
+        return FRICTION_LAWS[self.name].kind
+
+    @property
+    def kind_id(self) -> int:
+        """The kind as the kernels see it (``KIND_*``)."""
+        return _KIND_IDS[self.kind]
+
+    @property
+    def set_valued(self) -> bool:
+        """True: stick is a regime with the velocity held at zero and the friction force an
+        algebraic state (break-away at ``mu_stick F_N``, the kinetic curve of
+        ``setvalued.kinetic_coefficient`` in slip)."""
+        return self.kind == "set-valued"
+
+    @property
+    def solvers(self) -> tuple[str, ...]:
+        """The solver methods that integrate it with a force-driven block, as the solver
+        registry says (:meth:`roughvib.solvers.registry.Method.runs_law`)."""
+        return tuple(m.name for m in registry.methods() if m.runs_law(self.kind))
+
+
+#: the friction laws by the name a scene uses (``friction.law``)
+LAWS = {
+    "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, 0, "feldmann", _no_parameters,
+                            _feldmann_tangential),
+    # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
+    # mu_slip / mu_stick), so that its runs stay bit-identical
+    "coulomb": FrictionLaw("coulomb", LAW_COULOMB, 0, "feldmann", _no_parameters,
+                           _feldmann_tangential),
+    "table": FrictionLaw("table", LAW_TABLE, 0, "set-valued", _table_parameters,
+                         _set_valued_tangential),
+    "lugre": FrictionLaw("lugre", LAW_LUGRE, 1, "dynamic", _lugre_parameters,
+                         _lugre_tangential),
+}
+if len({law.law_id for law in LAWS.values()}) != len(LAWS):  # pragma: no cover
+    raise ImportError("two friction laws have the same LAW_ID")
+if tuple(LAWS) != tuple(FRICTION_LAWS):  # pragma: no cover - a registration error
+    raise ImportError(f"the friction laws registered ({', '.join(LAWS)}) are not the scene's "
+                      f"({', '.join(FRICTION_LAWS)})")
+
+
+# --------------------------------------------------------------------------------------------
+# the kernels' dispatch: every branch on a law id is here
+# --------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def law_kind(law):
+    """The kind (``KIND_*``) of the law with id ``law``; raises for an unregistered id."""
+    if law == LAW_FELDMANN:
+        return KIND_SINGLE_VALUED
+    if law == LAW_COULOMB or law == LAW_TABLE:
+        return KIND_SET_VALUED
+    if law == LAW_LUGRE:
+        return KIND_DYNAMIC
+    raise ValueError("friction law: no law is registered with this id")
+
+
+@njit(cache=True)
+def is_set_valued(law):
+    """Whether the law with id ``law`` has a stick regime with an algebraic friction force."""
+    return law_kind(law) == KIND_SET_VALUED
+
+
+@njit(cache=True)
+def single_valued_mu(law, x, b, mu_slip, mu_stick, a1, a2):
+    """A single-valued law's coefficient on its branch ``b`` and its slope.
+
+    Parameters
+    ----------
+    law : int
+        ``LAW_FELDMANN`` (any other id raises).
+    x : float
+        The law's argument [m/s] (the Feldmann law: ``v + s v_h``).
+    b : float
+        The branch, +1.0 or -1.0.
+    mu_slip, mu_stick, a1, a2 : float
+        The Feldmann law's constants ([-], [-], [s/m], [s/m]).
+
+    Returns
+    -------
+    mu : float
+        [-].
+    dmu_dx : float
+        [s/m].
+    """
+    if law == LAW_FELDMANN:
+        return feldmann_mu(x, b, mu_slip, mu_stick, a1, a2)
+    raise ValueError("friction law: single_valued_mu of a law that is not single-valued")
+
+
+@njit(cache=True)
+def dynamic_law(law, v, z, b, mu_slip, mu_stick, p):
+    """A dynamic law's coefficient, its state's rate and their partial derivatives.
+
+    Parameters
+    ----------
+    law : int
+        A dynamic law's id (``LAW_LUGRE``; any other id raises).
+    v : float
+        Sliding velocity [m/s].
+    z : float
+        The law's state (LuGre: the bristle deflection [m]).
+    b : float
+        The velocity's sign in the current regime (+1.0 or -1.0).
+    mu_slip, mu_stick : float
+        ``friction.mu_slip``, ``friction.mu_stick`` [-].
+    p : ndarray
+        The law's packed parameters (``fp`` from ``kernels.N_FP``).
+
+    Returns
+    -------
+    mu, zdot, dmu_dv, dmu_dz, dzdot_dv, dzdot_dz : float
+        As ``roughvib.physics.friction.lugre.bristle_law``.
+    """
+    if law == LAW_LUGRE:
+        return lugre.bristle_law(v, z, b, mu_slip, mu_stick, p)
+    raise ValueError("friction law: dynamic_law of a law without internal states")
