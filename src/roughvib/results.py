@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from roughvib._eventlog import EVENT_KINDS, REGIME_NOTATION
+from roughvib.model.variables import VARIABLE_TABLE
 from roughvib.rundir import (
     MICROPHONES_FILE,
     RADIATION_FILE,
@@ -59,23 +60,11 @@ __all__ = ["EVENT_COLUMNS", "EVENT_KINDS", "MICROPHONES_FILE", "MixedRunError", 
            "SUMMARY_DIGEST", "VARIABLES", "check_run_files", "expected_result_bytes",
            "load_result", "read_summary", "seal_summary"]
 
-#: name -> (units, long name)
-VARIABLES: dict[str, tuple[str, str]] = {
-    "block_vertical_displacement": ("m", "vertical block displacement (positive down)"),
-    "block_vertical_velocity": ("m s-1", "vertical block velocity (positive down)"),
-    "block_vertical_acceleration": ("m s-2", "vertical block acceleration (positive down)"),
-    "plate_vertical_acceleration": ("m s-2",
-                                    "plate acceleration at the observation point (positive down)"),
-    "block_tangential_displacement": ("m", "tangential block displacement"),
-    "block_tangential_velocity": ("m s-1", "tangential block velocity (friction velocity)"),
-    "friction_force": ("N", "friction force on the block (opposing +velocity)"),
-    "normal_force": ("N", "total normal contact force"),
-    "friction_coefficient": ("1", "friction force / normal force"),
-    "contact_force": ("N", "normal force per contact spring"),
-    "roughness_input": ("m", "roughness displacement input per contact (positive down)"),
-    "contact_closed": ("1", "contact closed (1) or open, lifted off (0), from the event log"),
-    "stick": ("1", "block in a stick phase (1) or sliding (0), from the event log"),
-}
+#: name -> (units, long name) of every variable of a result: the one table of
+#: :mod:`roughvib.model.variables` (the outputs the solvers write and those rebuilt from the
+#: event log)
+VARIABLES: dict[str, tuple[str, str]] = {v.name: (v.unit, v.description)
+                                         for v in VARIABLE_TABLE}
 
 EVENT_COLUMNS = ["time", "kind", "contact", "regime_before", "regime_after", "margin_before",
                  "margin_after", "tangential_velocity", "normal_force", "contact_force",

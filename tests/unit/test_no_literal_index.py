@@ -151,8 +151,8 @@ def test_outputs_are_named_with_the_units_of_the_result() -> None:
     from roughvib.model import kernels as kn
     from roughvib.results import VARIABLES
 
-    for name, unit in kn.OUTPUTS + kn.CONTACT_OUTPUTS:
-        assert VARIABLES[name][0] == unit, name
+    for v in kn.OUTPUTS + kn.CONTACT_OUTPUTS:
+        assert VARIABLES[v.name][0] == v.unit, v.name
     K = 3
     taken = []
     for col in kn.output_columns(K).values():

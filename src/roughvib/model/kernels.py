@@ -47,9 +47,12 @@ rows. The friction law keeps the block's velocity as the slip velocity. The powe
 ``sum_k T_k u'_k`` it puts into the plate is taken from the friction's: the friction
 dissipation integrates ``sum_k T_k (v - u'_k)``, so the energy audit closes unchanged.
 
-Outputs are named (``OUTPUTS``, each with its unit); a kernel writes the column ``OUT_*`` of a
-fixed output, and :func:`out_force_column` / :func:`out_roughness_column` give the column of a
-per-contact output: no other code computes a column number.
+Outputs are named, each with its unit and description, in one table
+(:mod:`roughvib.model.variables`, re-exported here: ``OUTPUTS``, the columns ``OUT_*``);
+:func:`write_output_row` is the one function that writes a row, by name, for every solver
+(:func:`outputs` from a state of the DAE, the fixed-step loops from their schemes' values), and
+:func:`out_force_column` / :func:`out_roughness_column` give the column of a per-contact output:
+no other code computes a column number.
 """
 
 from __future__ import annotations
@@ -84,6 +87,26 @@ from roughvib.model.layout import (
     OFF_K,
     OFF_LAW,
     OFF_R,
+)
+from roughvib.model.variables import (  # noqa: F401  (the outputs, re-exported)
+    CONTACT_OUTPUTS,
+    N_OUT_FIXED,
+    OUT_AZ,
+    OUT_C_FORCE,
+    OUT_C_ROUGHNESS,
+    OUT_FRICTION,
+    OUT_MU,
+    OUT_NAMES,
+    OUT_NORMAL,
+    OUT_PLATE_ACC,
+    OUT_VX,
+    OUT_VZ,
+    OUT_X,
+    OUT_Z,
+    OUTPUTS,
+    contact_column,
+    n_output_columns,
+    output_columns,
 )
 from roughvib.physics.friction import (
     KIND_DYNAMIC,
@@ -133,36 +156,21 @@ ROOT_LATCH = 1   # feldmann: latch margin; set-valued: threshold without hystere
 ROOT_PHASE = 2   # feldmann: stick/slip phase margin; set-valued: dwell timer (stick)
 N_LAW_ROOTS = 3
 
-#: the fixed outputs of :func:`outputs`, in column order: (name, unit)
-OUTPUTS = (("block_vertical_displacement", "m"), ("block_vertical_velocity", "m s-1"),
-           ("block_vertical_acceleration", "m s-2"), ("plate_vertical_acceleration", "m s-2"),
-           ("block_tangential_displacement", "m"), ("block_tangential_velocity", "m s-1"),
-           ("friction_force", "N"), ("normal_force", "N"), ("friction_coefficient", "1"))
-OUT_Z = 0
-OUT_VZ = 1
-OUT_AZ = 2
-OUT_PLATE_ACC = 3
-OUT_X = 4
-OUT_VX = 5
-OUT_FRICTION = 6
-OUT_NORMAL = 7
-OUT_MU = 8
-#: the per-contact outputs after the fixed ones, each a block of K columns: (name, unit)
-CONTACT_OUTPUTS = (("contact_force", "N"), ("roughness_input", "m"))
-OUT_NAMES = tuple(name for name, _ in OUTPUTS)
-N_OUT_FIXED = len(OUTPUTS)
+# the outputs (names, units, descriptions, columns) are declared in roughvib.model.variables;
+# their columns are re-exported here for the kernels and the solvers
+_contact_column = njit(cache=True, inline="always")(contact_column)
 
 
 @njit(cache=True)
 def out_force_column(k, K):
     """Output column of the contact force F_k [N] (contact k of K)."""
-    return N_OUT_FIXED + k
+    return _contact_column(OUT_C_FORCE, k, K)
 
 
 @njit(cache=True)
 def out_roughness_column(k, K):
     """Output column of the roughness displacement -h(s_k + x) [m] at contact k of K."""
-    return N_OUT_FIXED + K + k
+    return _contact_column(OUT_C_ROUGHNESS, k, K)
 
 
 def work_size(K: int) -> int:
@@ -170,25 +178,54 @@ def work_size(K: int) -> int:
     return 5 * K + 8
 
 
-def n_output_columns(K: int) -> int:
-    """Number of output columns with K contacts: the fixed ones, then two per contact."""
-    return N_OUT_FIXED + len(CONTACT_OUTPUTS) * K
+@njit(cache=True, inline="always")  # every solver's output row, as fast as if written there
+def write_output_row(out, tangential, z, vz, az, plate_acc, x, vx, friction, normal, mu, force,
+                     height):
+    """Write one output row, every output by name: the one writer of output columns.
 
+    Every solver calls it with the quantities of its scheme at an output time (``outputs``
+    computes them from a state of the DAE); a new output (``roughvib.model.variables``) is
+    a new argument here. Without a tangential state (prescribed motion) there is no
+    friction model: the friction force and coefficient are NaN.
 
-def output_columns(K: int) -> dict[str, int | slice]:
-    """Where each named output lies in a row of :func:`outputs` with K contacts.
-
-    Returns
-    -------
-    dict
-        Name -> column (fixed outputs) or slice of K columns (per-contact outputs), in the
-        order of ``OUTPUTS`` then ``CONTACT_OUTPUTS``.
+    Parameters
+    ----------
+    out : ndarray, shape (n_output_columns(K),)
+        The row, written in place.
+    tangential : bool
+        Whether the block's tangential motion is a state (a friction model).
+    z, vz, az : float
+        Block vertical displacement [m], velocity [m/s], acceleration [m/s^2] (positive
+        down).
+    plate_acc : float
+        Plate acceleration at the observation point [m/s^2] (positive down).
+    x, vx : float
+        Block tangential displacement [m] and velocity [m/s].
+    friction : float
+        Friction force on the block [N].
+    normal : float
+        Total normal contact force [N].
+    mu : float
+        Friction coefficient, friction force / normal force [-].
+    force : ndarray, shape (K,)
+        Contact forces [N].
+    height : ndarray, shape (K,)
+        Profile height h(s_k + x) at the contacts [m] (positive up); the output is the
+        roughness displacement -h (positive down).
     """
-    cols: dict[str, int | slice] = {name: j for j, (name, _) in enumerate(OUTPUTS)}
-    starts = (out_force_column(0, K), out_roughness_column(0, K))
-    for (name, _), start in zip(CONTACT_OUTPUTS, starts, strict=True):
-        cols[name] = slice(start, start + K)
-    return cols
+    K = force.size
+    out[OUT_Z] = z
+    out[OUT_VZ] = vz
+    out[OUT_AZ] = az
+    out[OUT_PLATE_ACC] = plate_acc
+    out[OUT_X] = x
+    out[OUT_VX] = vx
+    out[OUT_FRICTION] = friction if tangential else np.nan
+    out[OUT_NORMAL] = normal
+    out[OUT_MU] = mu if tangential else np.nan
+    for k in range(K):
+        out[out_force_column(k, K)] = force[k]
+        out[out_roughness_column(k, K)] = -height[k]
 
 
 @njit(cache=True, inline="always")
@@ -957,7 +994,9 @@ def observed_acceleration(q, dq, fk, phi, phi_obs, omega2, cdamp, psi, cm, M):
 @njit(cache=True)
 def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, prof, reg, rf,
             work):
-    """One row of the stored outputs (columns ``OUT_NAMES``, then F_k, then xi_rough_k)."""
+    """One row of the stored outputs at a state y of the DAE at t [s], written into ``out``
+    by :func:`write_output_row` (the columns of ``roughvib.model.variables``). Uses
+    ``work[3K:5K]`` as scratch (the profile heights and the contact forces)."""
     iq, idq, iz, ivz, ix, _ivx, iF, _iE, R, K = state_offsets(off)
     m = fp[FP_MASS]
     M = fp[FP_MMODAL]
@@ -988,16 +1027,9 @@ def outputs(t, y, out, off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos, 
     elif ix >= 0:
         mu, _ = velocity_law(vx, off, fp, reg)
         fr = mu * fsum
-    out[OUT_Z] = y[iz]
-    out[OUT_VZ] = vz
-    out[OUT_AZ] = fp[FP_GRAV] - fp[FP_R1] * vz / m - fsum / m
-    out[OUT_PLATE_ACC] = acc
-    out[OUT_X] = x
-    out[OUT_VX] = vx
-    out[OUT_FRICTION] = fr
-    out[OUT_NORMAL] = fsum
-    out[OUT_MU] = mu
+    height = work[3 * K:4 * K]
     for k in range(K):
-        out[out_force_column(k, K)] = fk[k]
         h, _, _ = profile_eval(prof, fp[FP_S0], fp[FP_DX], spos[k] + x)
-        out[out_roughness_column(k, K)] = -h
+        height[k] = h
+    az = fp[FP_GRAV] - fp[FP_R1] * vz / m - fsum / m
+    write_output_row(out, ix >= 0, y[iz], vz, az, acc, x, vx, fr, fsum, mu, fk, height)

@@ -231,6 +231,13 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
 
     ``zv`` = [z, vz, az]; ``tang`` = [x, vx, latch s, v_ext, stick phase]; ``energy`` the six
     running integrals; status 0 ok, 1 Newton failure (tangential), 2 active set failure.
+
+    Each step: the tangential velocity (``_moreau_velocity``, ``_trapezoidal_velocity`` or the
+    prescribed motion), the modes' free response (``_free_response``), the block's
+    predictor (``_block_predictor``), the contacts' right-hand side (``_contact_rhs``) and
+    active-set solve (``_solve_contacts``), the modes' end state (``_end_modes``), the
+    events (:func:`log_step_events`), the energy integrals (``_end_powers``,
+    ``_add_energy``), and at an output time the row (``_output_row``).
     """
     q, dq, zv, Fv, active, tang, energy = state
     ev_t, ev_kind, ev_contact = evs
@@ -238,13 +245,7 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
     K = stiff.size
     M = fp[kn.FP_MMODAL]
     m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
-    # G1 in contact coordinates: G1c_kj = sum_r phi_rk phi_rj G1_r[0] / M + C_res
-    G1c = cres.copy()
-    for r in range(R):
-        gr = G1[r, MODE_Q] / M
-        for k in range(K):
-            for j in range(K):
-                G1c[k, j] += phi[r, k] * phi[r, j] * gr
+    G1c = _contact_compliance(G1, phi, cres, M)
     u = np.empty(R)
     u_new = np.empty(R)
     sq = np.empty(R)
@@ -256,7 +257,86 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
     hk = np.empty(K)
     dhk = np.empty(K)
     Fn = np.empty(K)
-    # modal force at step n
+    S0 = _start(q, Fv, zv, tang, phi, cres, spos, prof, fp, u, comp_old, dhk)
+    x0 = tang[TG_X]
+    v0 = tang[TG_VX]
+    n_ev = 0
+    # the powers at the step's start and end (E_*), swapped after each step
+    pw = np.empty(kn.N_ENERGY)
+    qw = np.empty(kn.N_ENERGY)
+    _start_powers(tangential, moreau, v0, S0, zv[ZV_VZ], tang[TG_LATCH], Fv, dhk, dq, cdamp,
+                  fp, pw)
+    lam = 0.0
+    row = 0
+    for n in range(n_steps):
+        t0 = n * h
+        t1 = t0 + h
+        # the tangential step (normal force of step n)
+        if tangential and moreau:
+            v1, lam = _moreau_velocity(t1, h, v0, S0, law, fp)
+            x1 = x0 + h * v1
+        elif tangential:
+            v1, ok = _trapezoidal_velocity(t0, t1, h, v0, S0, tang[TG_LATCH], fp)
+            if not ok:
+                return n_ev, 1, n
+            x1 = x0 + 0.5 * h * (v0 + v1)
+        else:
+            x1, v1 = kn.prescribed_motion(t1, fp)
+        _free_response(Phi, G0, q, dq, u, phi, sq, sdq, wfree)
+        zc, beta, Q, mp = _block_predictor(h, zv, m, g, r1)
+        _contact_rhs(x1, zc, wfree, spos, prof, fp, hk, dhk, rhs)
+        if not _solve_contacts(active, stiff, beta, G1c, rhs, Fn, comp, K):
+            return n_ev, 2, n
+        S1 = _end_modes(Fn, phi, G1, M, sq, sdq, u_new, q, dq, u)
+        az0 = zv[ZV_AZ]
+        az1 = (Q - S1) / mp
+        vz1 = zv[ZV_VZ] + h / 2 * (az0 + az1)
+        z1 = zc - beta * S1
+        # events by sign change (Moreau: stick is v = 0 exactly)
+        n_ev = log_step_events(t0, h, comp_old, comp, v0, v1, tang, 0.0 if moreau else vst,
+                               moreau, not moreau, eps, ev_t, ev_kind, ev_contact, n_ev,
+                               tangential)
+        fric1, mu1 = _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam,
+                                 tang[TG_LATCH], Fn, dhk, dq, cdamp, fp, qw)
+        _add_energy(energy, h, tangential, pw, qw)
+        pw, qw = qw, pw
+        # advance
+        zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ] = z1, vz1, az1
+        for k in range(K):
+            Fv[k] = Fn[k]
+        x0, v0, S0 = x1, v1, S1
+        tang[TG_X] = x1
+        tang[TG_VX] = v1
+        if (n + 1) % out_every == 0:
+            row += 1
+            _output_row(out[row], tangential, z1, vz1, az1, x1, v1, fric1, S1, mu1, Fn, hk, q,
+                        dq, phi, phi_obs, omega2, cdamp, fp)
+    return n_ev, 0, n_steps
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _contact_compliance(G1, phi, cres, M):
+    """G1 in contact coordinates [m/N]: ``G1c_kj = sum_r phi_rk phi_rj G1_r[q] / M + C_res``,
+    the plate displacement at contact k per unit force at contact j at the step's end."""
+    R = G1.shape[0]
+    K = cres.shape[0]
+    G1c = cres.copy()
+    for r in range(R):
+        gr = G1[r, MODE_Q] / M
+        for k in range(K):
+            for j in range(K):
+                G1c[k, j] += phi[r, k] * phi[r, j] * gr
+    return G1c
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _start(q, Fv, zv, tang, phi, cres, spos, prof, fp, u, comp_old, dhk):
+    """The loop's start: the modal force per modal mass ``u`` [N/kg] of the forces Fv, the
+    compressions ``comp_old`` [m] (for the events) and profile slopes ``dhk`` [-] at the
+    start; returns the total normal force [N]."""
+    R = q.size
+    K = Fv.size
+    M = fp[kn.FP_MMODAL]
     for r in range(R):
         acc = 0.0
         for k in range(K):
@@ -266,8 +346,6 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
     for k in range(K):
         S0 += Fv[k]
     x0 = tang[TG_X]
-    v0 = tang[TG_VX]
-    # initial compressions for event detection
     for k in range(K):
         w = 0.0
         for r in range(R):
@@ -277,166 +355,203 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
         hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x0)
         comp_old[k] = zv[ZV_Z] - w + hh
         dhk[k] = dh
-    n_ev = 0
-    # powers at step n
+    return S0
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _start_powers(tangential, moreau, v0, S0, vz0, latch, Fv, dhk, dq, cdamp, fp, pw):
+    """The powers [W] at the start into ``pw``, at the energy integrals' positions ``E_*``."""
+    M = fp[kn.FP_MMODAL]
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     p_exc = 0.0
     p_fric = 0.0
-    lam = 0.0
     if tangential and moreau:
         p_exc = fp[kn.FP_T0] * v0
     elif tangential:
-        mu0, _ = feldmann_mu_law(v0 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
+        mu0, _ = feldmann_mu_law(v0 + latch * vh, mu_sl, mu_st, a1, a2)
         p_exc = fp[kn.FP_T0] * v0
         p_fric = mu0 * S0 * v0
     p_r2 = r2 * v0 * v0
-    p_r1 = r1 * zv[ZV_VZ] * zv[ZV_VZ]
+    p_r1 = r1 * vz0 * vz0
     p_pl = M * kn.weighted_square_sum(cdamp, dq)
     p_ro = 0.0
-    for k in range(K):
+    for k in range(Fv.size):
         p_ro += Fv[k] * dhk[k] * v0
-    row = 0
-    for n in range(n_steps):
-        t0 = n * h
-        t1 = t0 + h
-        # ---- tangential (trapezoidal, Newton on v1; normal force of step n) ----------------
-        if tangential and moreau:
-            # Moreau-Jean (Acary & Brogliato 2008): free velocity, then the friction impulse is
-            # the projection onto [-h mu_stick F_N, h mu_stick F_N] (stick: v = 0 exactly)
-            t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
-            vfree = (v0 + h * t_new / m) / (1.0 + h * r2 / m)
-            bound = h * mu_st * S0 / (m + h * r2)
-            if abs(vfree) <= bound:
-                v1 = 0.0
+    _powers_at(p_exc, p_fric, p_r2, p_r1, p_pl, p_ro, pw)
+
+
+@njit(cache=True, inline="always")
+def _powers_at(exc, fric, r2, r1, pl, ro, pw):
+    """The six powers [W] into ``pw`` at the energy integrals' positions ``E_*``."""
+    pw[kn.E_EXCITATION] = exc
+    pw[kn.E_FRICTION] = fric
+    pw[kn.E_TANGENTIAL_DAMPING] = r2
+    pw[kn.E_VERTICAL_DAMPING] = r1
+    pw[kn.E_PLATE_DAMPING] = pl
+    pw[kn.E_ROUGHNESS] = ro
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _moreau_velocity(t1, h, v0, S0, law, fp):
+    """Moreau-Jean's velocity at t1 [m/s] and friction force [N] over the step (Acary &
+    Brogliato 2008): the free velocity, then the friction impulse as the projection onto
+    [-h mu_stick F_N, h mu_stick F_N] (stick: v = 0 exactly); in slip
+    ``|v1| = |vfree| - h mu_k(|v1|) S0 / (m + h r2)``, a scalar fixed point solved by
+    bisection."""
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
+    t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+    vfree = (v0 + h * t_new / m) / (1.0 + h * r2 / m)
+    bound = h * mu_st * S0 / (m + h * r2)
+    if abs(vfree) <= bound:
+        v1 = 0.0
+    else:
+        lo, hi = 0.0, abs(vfree)
+        for _it in range(MOREAU_BISECTION_MAX):
+            mid = 0.5 * (lo + hi)
+            muk, _ = kinetic_coefficient(law, mid, mu_sl, mu_st, fp[kn.FP_VSTRIB],
+                                         fp[kn.N_FP:])
+            if mid - (abs(vfree) - h * muk * S0 / (m + h * r2)) > 0.0:
+                hi = mid
             else:
-                # slip: |v1| = |vfree| - h mu_k(|v1|) S0 / (m + h r2), a scalar fixed point
-                lo, hi = 0.0, abs(vfree)
-                for _it in range(MOREAU_BISECTION_MAX):
-                    mid = 0.5 * (lo + hi)
-                    muk, _ = kinetic_coefficient(law, mid, mu_sl, mu_st, fp[kn.FP_VSTRIB],
-                                                 fp[kn.N_FP:])
-                    if mid - (abs(vfree) - h * muk * S0 / (m + h * r2)) > 0.0:
-                        hi = mid
-                    else:
-                        lo = mid
-                    if hi - lo <= 1e-16 + 1e-14 * hi:
-                        break
-                v1 = math.copysign(0.5 * (lo + hi), vfree)
-            lam = (m + h * r2) * (vfree - v1) / h
-            x1 = x0 + h * v1
-        elif tangential:
-            s_l = tang[TG_LATCH]
-            t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
-            t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
-            mu0, _ = feldmann_mu_law(v0 + s_l * vh, mu_sl, mu_st, a1, a2)
-            f0 = t_old - mu0 * S0 - r2 * v0
-            v1 = v0
-            ok = False
-            for _it in range(60):
-                mu1, dmu1 = feldmann_mu_law(v1 + s_l * vh, mu_sl, mu_st, a1, a2)
-                gval = m * (v1 - v0) / h - 0.5 * f0 - 0.5 * (t_new - mu1 * S0 - r2 * v1)
-                dg = m / h + 0.5 * (dmu1 * S0 + r2)
-                dv = gval / dg
-                v1 -= dv
-                if abs(dv) <= 1e-15 + 1e-13 * abs(v1):
-                    ok = True
-                    break
-            if not ok:
-                return n_ev, 1, n
-            x1 = x0 + 0.5 * h * (v0 + v1)
-        else:
-            x1, v1 = kn.prescribed_motion(t1, fp)
-        # ---- modal free response and plate displacement at the contacts ----------------
-        for r in range(R):
-            sq[r] = (Phi[r, MODE_Q, MODE_Q] * q[r] + Phi[r, MODE_Q, MODE_DQ] * dq[r]
-                     + G0[r, MODE_Q] * u[r])
-            sdq[r] = (Phi[r, MODE_DQ, MODE_Q] * q[r] + Phi[r, MODE_DQ, MODE_DQ] * dq[r]
-                      + G0[r, MODE_DQ] * u[r])
-        for k in range(K):  # summed in vectorisable order (kernels.vdot)
-            wfree[k] = kn.vdot(phi[:, k], sq)
-        # ---- block (average-acceleration Newmark), affine in the total force S1 ----------
-        z0, vz0, az0 = zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ]
-        mp = m + r1 * h / 2
-        Q = m * g - r1 * (vz0 + h * az0 / 2)
-        zc = z0 + h * vz0 + h * h / 4 * (az0 + Q / mp)
-        beta = h * h / (4 * mp)
-        for k in range(K):
-            hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
-            hk[k] = hh
-            dhk[k] = dh
-            rhs[k] = zc - wfree[k] + hh
-        if not _solve_contacts(active, stiff, beta, G1c, rhs, Fn, comp, K):
-            return n_ev, 2, n
-        S1 = 0.0
-        for k in range(K):
-            S1 += Fn[k]
-        inv_m = 1.0 / M
-        for r in range(R):
-            acc = 0.0
-            for k in range(K):
-                acc += phi[r, k] * Fn[k]
-            u_new[r] = acc * inv_m
-            q[r] = sq[r] + G1[r, MODE_Q] * u_new[r]
-            dq[r] = sdq[r] + G1[r, MODE_DQ] * u_new[r]
-            u[r] = u_new[r]
-        az1 = (Q - S1) / mp
-        vz1 = vz0 + h / 2 * (az0 + az1)
-        z1 = zc - beta * S1
-        # ---- events by sign change (Moreau: stick is v = 0 exactly) -----------------------
-        n_ev = log_step_events(t0, h, comp_old, comp, v0, v1, tang, 0.0 if moreau else vst,
-                               moreau, not moreau, eps, ev_t, ev_kind, ev_contact, n_ev,
-                               tangential)
-        # ---- energy (trapezoidal quadrature of the powers) ------------------------------
-        q_exc = 0.0
-        q_fric = 0.0
-        mu1 = 0.0
-        fric1 = 0.0
-        if tangential and moreau:
-            fric1 = lam
-            mu1 = lam / S0 if S0 > 0.0 else np.nan
-            q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
-            q_fric = lam * v1
-        elif tangential:
-            mu1, _ = feldmann_mu_law(v1 + tang[TG_LATCH] * vh, mu_sl, mu_st, a1, a2)
-            fric1 = mu1 * S1
-            q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
-            q_fric = mu1 * S1 * v1
-        q_r2 = r2 * v1 * v1 if tangential else 0.0
-        q_r1 = r1 * vz1 * vz1
-        q_pl = M * kn.weighted_square_sum(cdamp, dq)
-        q_ro = 0.0
-        for k in range(K):
-            q_ro += Fn[k] * dhk[k] * v1
-        energy[kn.E_EXCITATION] += 0.5 * h * (p_exc + q_exc)
-        energy[kn.E_FRICTION] += 0.5 * h * (p_fric + q_fric)
-        energy[kn.E_TANGENTIAL_DAMPING] += 0.5 * h * (p_r2 + q_r2) if tangential else 0.0
-        energy[kn.E_VERTICAL_DAMPING] += 0.5 * h * (p_r1 + q_r1)
-        energy[kn.E_PLATE_DAMPING] += 0.5 * h * (p_pl + q_pl)
-        energy[kn.E_ROUGHNESS] += 0.5 * h * (p_ro + q_ro)
-        p_exc, p_fric, p_r2, p_r1, p_pl, p_ro = q_exc, q_fric, q_r2, q_r1, q_pl, q_ro
-        # ---- advance ---------------------------------------------------------------------
-        zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ] = z1, vz1, az1
-        for k in range(K):
-            Fv[k] = Fn[k]
-        x0, v0, S0 = x1, v1, S1
-        tang[TG_X] = x1
-        tang[TG_VX] = v1
-        if (n + 1) % out_every == 0:
-            row += 1
-            acc = kn.observed_acceleration(q, dq, Fn, phi, phi_obs, omega2, cdamp, fp[:0], 0.0,
-                                           M)
-            out[row, kn.OUT_Z] = z1
-            out[row, kn.OUT_VZ] = vz1
-            out[row, kn.OUT_AZ] = az1
-            out[row, kn.OUT_PLATE_ACC] = acc
-            out[row, kn.OUT_X] = x1
-            out[row, kn.OUT_VX] = v1
-            out[row, kn.OUT_FRICTION] = fric1 if tangential else np.nan
-            out[row, kn.OUT_NORMAL] = S1
-            out[row, kn.OUT_MU] = mu1 if tangential else np.nan
-            for k in range(K):
-                out[row, kn.out_force_column(k, K)] = Fn[k]
-                out[row, kn.out_roughness_column(k, K)] = -hk[k]
-    return n_ev, 0, n_steps
+                lo = mid
+            if hi - lo <= 1e-16 + 1e-14 * hi:
+                break
+        v1 = math.copysign(0.5 * (lo + hi), vfree)
+    lam = (m + h * r2) * (vfree - v1) / h
+    return v1, lam
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _trapezoidal_velocity(t0, t1, h, v0, S0, s_l, fp):
+    """The Feldmann law's velocity at t1 [m/s] by the trapezoidal rule, Newton on v1 with
+    the latch s_l and the normal force S0 [N] of the step's start; ``(v1, converged)``."""
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
+    t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
+    t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
+    mu0, _ = feldmann_mu_law(v0 + s_l * vh, mu_sl, mu_st, a1, a2)
+    f0 = t_old - mu0 * S0 - r2 * v0
+    v1 = v0
+    for _it in range(60):
+        mu1, dmu1 = feldmann_mu_law(v1 + s_l * vh, mu_sl, mu_st, a1, a2)
+        gval = m * (v1 - v0) / h - 0.5 * f0 - 0.5 * (t_new - mu1 * S0 - r2 * v1)
+        dg = m / h + 0.5 * (dmu1 * S0 + r2)
+        dv = gval / dg
+        v1 -= dv
+        if abs(dv) <= 1e-15 + 1e-13 * abs(v1):
+            return v1, True
+    return v1, False
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _free_response(Phi, G0, q, dq, u, phi, sq, sdq, wfree):
+    """The modes' free response over the step (the force held at its start value's share):
+    ``sq``, ``sdq`` (R,), and the plate displacement it gives at the contacts ``wfree``
+    (K,) [m], summed in vectorisable order (:func:`roughvib.model.kernels.vdot`)."""
+    for r in range(q.size):
+        sq[r] = (Phi[r, MODE_Q, MODE_Q] * q[r] + Phi[r, MODE_Q, MODE_DQ] * dq[r]
+                 + G0[r, MODE_Q] * u[r])
+        sdq[r] = (Phi[r, MODE_DQ, MODE_Q] * q[r] + Phi[r, MODE_DQ, MODE_DQ] * dq[r]
+                  + G0[r, MODE_DQ] * u[r])
+    for k in range(wfree.size):
+        wfree[k] = kn.vdot(phi[:, k], sq)
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _block_predictor(h, zv, m, g, r1):
+    """The block's average-acceleration Newmark step, affine in the total contact force S1
+    [N]: ``z1 = zc - beta S1``, ``az1 = (Q - S1) / mp``; returns ``(zc, beta, Q, mp)``."""
+    z0, vz0, az0 = zv[ZV_Z], zv[ZV_VZ], zv[ZV_AZ]
+    mp = m + r1 * h / 2
+    Q = m * g - r1 * (vz0 + h * az0 / 2)
+    zc = z0 + h * vz0 + h * h / 4 * (az0 + Q / mp)
+    beta = h * h / (4 * mp)
+    return zc, beta, Q, mp
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _contact_rhs(x1, zc, wfree, spos, prof, fp, hk, dhk, rhs):
+    """The profile heights ``hk`` [m] and slopes ``dhk`` [-] at the contacts at x1 and the
+    right-hand side of the contact solve ``rhs = zc - wfree + h`` [m]."""
+    for k in range(rhs.size):
+        hh, dh, _ = profile_eval(prof, fp[kn.FP_S0], fp[kn.FP_DX], spos[k] + x1)
+        hk[k] = hh
+        dhk[k] = dh
+        rhs[k] = zc - wfree[k] + hh
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _end_modes(Fn, phi, G1, M, sq, sdq, u_new, q, dq, u):
+    """The modes at the step's end under the contact forces Fn [N]: q, dq and the modal
+    force per modal mass ``u`` updated in place; returns the total normal force [N]."""
+    S1 = 0.0
+    for k in range(Fn.size):
+        S1 += Fn[k]
+    inv_m = 1.0 / M
+    for r in range(q.size):
+        acc = 0.0
+        for k in range(Fn.size):
+            acc += phi[r, k] * Fn[k]
+        u_new[r] = acc * inv_m
+        q[r] = sq[r] + G1[r, MODE_Q] * u_new[r]
+        dq[r] = sdq[r] + G1[r, MODE_DQ] * u_new[r]
+        u[r] = u_new[r]
+    return S1
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam, latch, Fn, dhk, dq, cdamp, fp,
+                qw):
+    """The friction force [N] and coefficient [-] at the step's end, ``(fric1, mu1)``, and
+    the powers [W] there into ``qw`` (at the positions ``E_*``)."""
+    M = fp[kn.FP_MMODAL]
+    m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
+    q_exc = 0.0
+    q_fric = 0.0
+    mu1 = 0.0
+    fric1 = 0.0
+    if tangential and moreau:
+        fric1 = lam
+        mu1 = lam / S0 if S0 > 0.0 else np.nan
+        q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
+        q_fric = lam * v1
+    elif tangential:
+        mu1, _ = feldmann_mu_law(v1 + latch * vh, mu_sl, mu_st, a1, a2)
+        fric1 = mu1 * S1
+        q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
+        q_fric = mu1 * S1 * v1
+    q_r2 = r2 * v1 * v1 if tangential else 0.0
+    q_r1 = r1 * vz1 * vz1
+    q_pl = M * kn.weighted_square_sum(cdamp, dq)
+    q_ro = 0.0
+    for k in range(Fn.size):
+        q_ro += Fn[k] * dhk[k] * v1
+    _powers_at(q_exc, q_fric, q_r2, q_r1, q_pl, q_ro, qw)
+    return fric1, mu1
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _add_energy(energy, h, tangential, p, q):
+    """The energy integrals [J] over the step: trapezoidal quadrature of the powers p at its
+    start and q at its end (``E_*``; no tangential damping under prescribed motion)."""
+    energy[kn.E_EXCITATION] += 0.5 * h * (p[kn.E_EXCITATION] + q[kn.E_EXCITATION])
+    energy[kn.E_FRICTION] += 0.5 * h * (p[kn.E_FRICTION] + q[kn.E_FRICTION])
+    if tangential:  # prescribed motion: the integral stays 0
+        energy[kn.E_TANGENTIAL_DAMPING] += 0.5 * h * (p[kn.E_TANGENTIAL_DAMPING]
+                                                      + q[kn.E_TANGENTIAL_DAMPING])
+    energy[kn.E_VERTICAL_DAMPING] += 0.5 * h * (p[kn.E_VERTICAL_DAMPING]
+                                                + q[kn.E_VERTICAL_DAMPING])
+    energy[kn.E_PLATE_DAMPING] += 0.5 * h * (p[kn.E_PLATE_DAMPING] + q[kn.E_PLATE_DAMPING])
+    energy[kn.E_ROUGHNESS] += 0.5 * h * (p[kn.E_ROUGHNESS] + q[kn.E_ROUGHNESS])
+
+
+@njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
+def _output_row(out, tangential, z1, vz1, az1, x1, v1, fric1, S1, mu1, Fn, hk, q, dq, phi,
+                phi_obs, omega2, cdamp, fp):
+    """The output row of the step's end: the plate's acceleration at the observation point
+    and ``kernels.write_output_row``."""
+    acc = kn.observed_acceleration(q, dq, Fn, phi, phi_obs, omega2, cdamp, fp[:0], 0.0,
+                                   fp[kn.FP_MMODAL])
+    kn.write_output_row(out, tangential, z1, vz1, az1, acc, x1, v1, fric1, S1, mu1, Fn, hk)
 
 
 def step_grid(scene) -> tuple[float, int, int, int]:

@@ -215,23 +215,13 @@ def _paper_loop(h, n_steps, out_every, G, Ga, stiff, spos, prof, fp, tangential,
         tang[TG_X], tang[TG_VX] = x1, vx1
         if (n + 1) % out_every == 0:
             row += 1
-            out[row, kn.OUT_Z] = z1
-            out[row, kn.OUT_VZ] = vz1
-            out[row, kn.OUT_AZ] = az1
             # the force history convolved with the acceleration kernel (see impulse_responses)
             ao = 0.0
             for mm in range(0, n + 2):
                 for j in range(K):
                     ao += Ga[mm, j] * Fhist[n + 1 - mm, j]
-            out[row, kn.OUT_PLATE_ACC] = ao
-            out[row, kn.OUT_X] = x1
-            out[row, kn.OUT_VX] = vx1
-            out[row, kn.OUT_FRICTION] = mu1 * S if tangential else np.nan
-            out[row, kn.OUT_NORMAL] = S
-            out[row, kn.OUT_MU] = mu1 if tangential else np.nan
-            for k in range(K):
-                out[row, kn.out_force_column(k, K)] = Fv[k]
-                out[row, kn.out_roughness_column(k, K)] = -hk[k]
+            kn.write_output_row(out[row], tangential, z1, vz1, az1, ao, x1, vx1, mu1 * S, S, mu1,
+                                Fv, hk)
     return n_ev, 0, n_steps
 
 
