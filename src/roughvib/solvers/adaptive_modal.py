@@ -193,7 +193,8 @@ def hermite_applies(system: System) -> bool:
     """Whether the Hermite step covers the scene: the Feldmann law (not set-valued), a
     force-driven block, no friction moment."""
     off = system.off
-    return bool(off[kn.OFF_IX] >= 0 and not kn.set_valued(off) and not kn.moment_on(off))
+    return bool(off[kn.OFF_IX] >= 0 and not kn.set_valued(off) and not kn.dynamic(off)
+                and not kn.moment_on(off))
 
 
 def solve_adaptive_modal(system: System, *, progress: bool | None = None,

@@ -25,7 +25,6 @@ from numba import njit
 
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor, lu_solve
-from roughvib.physics.friction import feldmann_mu
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.solvers.adaptive.layout import D_AX, D_AZ, D_POWER, I_NEWTON
 from roughvib.solvers.adaptive.propagators import (
@@ -98,8 +97,7 @@ def friction_force(t, y, vx, fsum, off, fp, reg):
         muk, dmuk = kn.kinetic(b * vx, off, fp)
         # d/dv of b mu_k(b v): b^2 mu_k' = mu_k'
         return b * muk * fsum, dmuk * fsum, b * muk
-    mu, dmu = feldmann_mu(vx + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
-                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    mu, dmu = kn.velocity_law(vx, off, fp, reg)  # raises for a law of another kind
     return mu * fsum, dmu * fsum, mu
 
 
@@ -138,8 +136,7 @@ def moment_coefficient(t1, v1, S1, off, fp, reg):
             return 0.0, 0.0, 0.0
         lam = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
         return lam / S1, 0.0, -lam / (S1 * S1)
-    mu, dmu = feldmann_mu(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
-                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    mu, dmu = kn.velocity_law(v1, off, fp, reg)  # raises for a law of another kind
     return mu, dmu, 0.0
 
 
