@@ -154,6 +154,19 @@ def test_grid_and_case_list_combine_and_case_keys_fill_from_the_base(tmp_path):
                                                     "friction.mu_slip": 0.2}
 
 
+def test_a_laws_own_key_is_swept_and_checked_against_the_base_law():
+    spec = sw.load_sweep({"base": "paper", "set": {"friction.law": "lugre"},
+                          "grid": {"friction.parameters.sigma0": [1e5, 4e5]}})
+    assert spec.base_value("friction.parameters.sigma0") == 1e5  # the law's default
+    scenes = [spec.base.with_overrides(c.values) for c in spec.cases()]
+    assert [s.friction.parameters["sigma0"] for s in scenes] == [1e5, 4e5]
+    assert scenes[1].friction.parameters["sigma1"] == 100.0  # the others keep their defaults
+    with pytest.raises(SceneError, match=r"^grid.friction.parameters.sigma0 is not a known key "
+                                         r"of friction.parameters for this base scene \(known: "
+                                         r"none\)$"):
+        sw.load_sweep({"base": "paper", "grid": {"friction.parameters.sigma0": [1e5]}})
+
+
 @pytest.mark.parametrize("text,fragment", [
     ('[grid]\n"block.colour" = [1, 2]', "grid.block.colour is not a known key of [block]"),
     ('[grid]\n"blok.mass" = [1, 2]', "grid.blok.mass is not a scene key"),

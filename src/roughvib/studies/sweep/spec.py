@@ -13,7 +13,7 @@ import json
 import os
 import re
 import tomllib
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -107,8 +107,10 @@ class Sweep:
 
     def base_value(self, key: str) -> Any:
         """Value of a dotted key in the base scene (None if unset)."""
-        section, _, field = key.partition(".")
-        return scene_to_dict(self.base).get(section, {}).get(field)
+        value: Any = scene_to_dict(self.base)
+        for part in key.split("."):  # section.key, or section.table.key
+            value = value.get(part) if isinstance(value, dict) else None
+        return value
 
     def cases(self) -> list[Case]:
         """All cases in C order (grid keys in file order, the case list last)."""
@@ -157,6 +159,13 @@ def _check_key(base: Scene, key: str, where: str) -> None:
     section, dot, field = key.partition(".")
     if key in ("name", "description"):
         raise SceneError(f"{where}{key} cannot be swept (each case is named by the sweep)")
+    name, inner_dot, inner = field.partition(".")
+    table = getattr(getattr(base, section, None), name, None) if inner_dot else None
+    if isinstance(table, Mapping):  # a key of a table in a section (friction.parameters.sigma0)
+        if inner not in table:  # the base's table holds every key its law has (defaults)
+            raise SceneError(f"{where}{key} is not a known key of {section}.{name} for this "
+                             f"base scene (known: {', '.join(table) or 'none'})")
+        return
     if not dot or "." in field or section not in sections:
         raise SceneError(f"{where}{key} is not a scene key (use section.key, sections: "
                          f"{', '.join(sections)})")
