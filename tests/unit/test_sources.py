@@ -28,6 +28,10 @@ def test_the_variants_change_one_key_each_and_only_where_it_applies():
                                  "excitation.target_rms_velocity": "none",
                                  "roughness.shortest_wavelength": 50e-6})
     assert [v.name for v in source_variants(pres)] == ["as is", "contact filter"]
+    # no solver integrates the moment of a dynamic law's force: no such variant
+    lugre = paper.with_overrides({"friction.law": "lugre"})
+    assert [v.name for v in source_variants(lugre)] == ["as is", "tail", "contact filter",
+                                                        "stick-slip"]
 
 
 @pytest.mark.short_run

@@ -32,7 +32,7 @@ import pandas as pd
 
 from roughvib.analysis.accuracy import SIGNALS, analysis_window
 from roughvib.analysis.bands import band_levels
-from roughvib.scene import Scene, scene_from_dict
+from roughvib.scene import Scene, SceneError, scene_from_dict
 from roughvib.simulation import simulate
 from roughvib.solvers import registry
 
@@ -105,9 +105,13 @@ def source_variants(scene: Scene, v_rms: float | None = None) -> list[Variant]:
     if (exc.kind == "force" and scene.plate.kind != "rigid"
             and registry.get(scene.resolved_solver().method).friction_moment):
         on = not c.friction_moment
-        out.append(Variant("friction moment", f"contact.friction_moment = {str(on).lower()}",
-                           scene.with_overrides({"contact.friction_moment": on}),
-                           f"{'with' if on else 'without'} the friction moment"))
+        try:  # a law whose force's moment no solver integrates (a dynamic law) has no variant
+            toggled = scene.with_overrides({"contact.friction_moment": on})
+        except SceneError:
+            toggled = None
+        if toggled is not None:
+            out.append(Variant("friction moment", f"contact.friction_moment = {str(on).lower()}",
+                               toggled, f"{'with' if on else 'without'} the friction moment"))
     return out
 
 
