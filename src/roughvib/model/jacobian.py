@@ -124,7 +124,7 @@ FrictionTerms = namedtuple("FrictionTerms", ["vx", "fsum", "mu", "dmu", "alpha",
                                              "cm", "dcv", "dcl", "dcf", "wm"])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def friction_terms(t, y, off, fp, reg):
     """The friction law linearised at (t, y) in regime ``reg``: the one place that
     differentiates the law for the Newton matrix.
