@@ -186,8 +186,8 @@ def test_without_the_moment_nothing_changes():
     assert plain.fp.size == kn.N_FP
     R, K = on.n_modes, on.n_contacts
     assert on.off[kn.OFF_IPSI] == kn.N_FP and on.fp.size == kn.N_FP + R * K
-    rows0, _ = kn.jacobian_pattern(plain.off)
-    rows1, _ = kn.jacobian_pattern(on.off)
+    rows0, _ = plain.jacobian_pattern()
+    rows1, _ = on.jacobian_pattern()
     assert rows1.size == rows0.size + 2 * R  # the modal rows' friction column, the power's dq
     zero = assemble(scene.with_overrides({"contact.friction_moment": True}))
     zero.fp[kn.N_FP:] = 0.0

@@ -7,6 +7,7 @@ import scipy.sparse as sp
 from kernel_scene import SMALL_SCENE
 
 import roughvib
+from roughvib.model import jacobian as jac
 from roughvib.model import kernels as kn
 from roughvib.model import krylov
 from roughvib.model.system import assemble
@@ -74,8 +75,8 @@ def _dense_jacobian(system, t, y, cj, reg, rf):
     n = system.layout.size
     pattern, perm = _sparsity(system)
     vals = np.zeros(perm.size)
-    kn.jacobian_values(t, _as_ida_gives(y), _as_ida_gives(np.zeros(n)), cj, vals,
-                       *system.kernel_args(reg, rf))
+    jac.jacobian_values(t, _as_ida_gives(y), _as_ida_gives(np.zeros(n)), cj, vals,
+                        *system.kernel_args(reg, rf))
     data = np.zeros(perm.size)
     kn.scatter(vals, perm, data)
     return sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()

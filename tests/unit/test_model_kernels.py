@@ -1,14 +1,20 @@
 """Kernels of the hybrid DAE: analytic Jacobian vs finite differences, plain-Python parity."""
 
+import warnings
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 from kernel_scene import SMALL_SCENE
 
 import roughvib
+from roughvib.model import jacobian as jac
 from roughvib.model import kernels as kn
 from roughvib.model.layout import StateLayout
 from roughvib.model.system import assemble
+from roughvib.physics.structures import export_modes
+from roughvib.physics.structures.exchange import write_modes
+from roughvib.scene import ModelValidityWarning, Plate
 from roughvib.solvers.ida import _sparsity
 
 
@@ -76,11 +82,42 @@ def test_analytic_jacobian_of_the_table_law_matches_finite_differences(tmp_path,
     _assert_jacobian_matches_finite_differences(scene)
 
 
-def _assert_jacobian_matches_finite_differences(scene):
-    system = assemble(scene)
+@pytest.mark.parametrize("moment", [False, True])
+@pytest.mark.short_run
+def test_analytic_jacobian_of_imported_modes_matches_finite_differences(tmp_path, moment):
+    # the small scene's plate exported (modes to twice its cut: a residual compliance from
+    # the file) and imported: shapes and slopes interpolated between scattered nodes
+    write_modes(tmp_path / "modes.npz", export_modes(Plate(max_frequency=3e3), grid=(41, 36)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelValidityWarning)
+        scene = _small_scene(**{"plate.kind": "imported",
+                                "plate.modes_file": str(tmp_path / "modes.npz"),
+                                "contact.friction_moment": moment})
+        system = assemble(scene)
+    assert system.n_modes > 0 and np.any(system.cres)
+    _assert_jacobian_matches_finite_differences(scene, system)
+
+
+def _disagreement(J, rows, cols, vals, n):
+    """How far the sparse matrix of (rows, cols, vals) is from J: the largest difference
+    relative to its row's largest entry, and 1 where J has an entry outside the pattern."""
+    A = sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).toarray()
+    declared = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n)).toarray() > 0
+    scale = np.maximum(np.abs(J), np.abs(A)).max(axis=1, keepdims=True) + 1e-300
+    outside = 1.0 if np.any(J[~declared] != 0.0) else 0.0
+    return max(float(np.max(np.abs(A - J) / scale)), outside)
+
+
+def _assert_jacobian_matches_finite_differences(scene, system=None):
+    """The sparse Jacobian (pattern pass and value pass of ``jacobian_entries``, through IDA's
+    CSC permutation) equals central differences of the residual in three regimes; the pattern
+    is the same in every regime; and the check itself fails for values out of step with the
+    pattern (the values reversed)."""
+    system = assemble(scene) if system is None else system
     rng = np.random.default_rng(3)
     y0, _ = system.static_equilibrium()
     n = system.layout.size
+    rows, cols = system.jacobian_pattern()
     for trial in range(3):
         reg, rf = system.new_regime_arrays()
         # feldmann: branch -1/+1; coulomb: slip-/stick/slip+
@@ -100,16 +137,23 @@ def _assert_jacobian_matches_finite_differences(scene):
         yp = 1e-3 * rng.standard_normal(n)
         cj = 10.0 ** (2 + trial)
         J = _fd_jacobian(system, 0.003, y, yp, cj, reg, rf)
+        # the pattern does not depend on the regime it is built in
+        rows_reg, cols_reg = jac.jacobian_pattern(*system.kernel_args(reg, rf))
+        assert np.array_equal(rows_reg, rows) and np.array_equal(cols_reg, cols)
         pattern, perm = _sparsity(system)
         vals = np.zeros(perm.size)
-        kn.jacobian_values(0.003, _read_only(y), _read_only(yp), cj, vals,
-                           *system.kernel_args(reg, rf))
+        nnz = jac.jacobian_values(0.003, _read_only(y), _read_only(yp), cj, vals,
+                                  *system.kernel_args(reg, rf))
+        assert nnz == rows.size == perm.size
         data = np.zeros(perm.size)
         kn.scatter(vals, perm, data)
         A = sp.csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()
         scale = np.maximum(np.abs(J), np.abs(A)).max(axis=1, keepdims=True) + 1e-300
         assert np.max(np.abs(A - J) / scale) < 1e-5
         assert np.all(J[pattern.toarray() == 0] == 0.0)
+        # the same check on the COO triplets, and that it catches values out of step
+        assert _disagreement(J, rows, cols, vals, n) < 1e-5
+        assert _disagreement(J, rows, cols, vals[::-1], n) > 1e-2
 
 
 def test_layout_names_and_sizes():
@@ -168,7 +212,8 @@ def test_consistent_force_rates_follow_the_contact_law():
 
 @pytest.mark.short_run
 def test_kernels_without_jit_match_compiled(run_without_jit):
-    """The residual computed with NUMBA_DISABLE_JIT=1 equals the compiled one."""
+    """The residual, the Jacobian's pattern and its values computed with NUMBA_DISABLE_JIT=1
+    (``emit`` as plain Python) equal the compiled ones."""
     system = assemble(_small_scene())
     y, closed = system.static_equilibrium()
     y = y * 1.001
@@ -179,13 +224,24 @@ def test_kernels_without_jit_match_compiled(run_without_jit):
     res = np.empty_like(y)
     yp = np.linspace(-1e-3, 1e-3, y.size)
     kn.residual(0.002, y, yp, res, *system.kernel_args(reg, rf))
+    rows, cols = system.jacobian_pattern()
+    vals = np.zeros(rows.size)
+    jac.jacobian_values(0.002, y, yp, 3e4, vals, *system.kernel_args(reg, rf))
     plain = run_without_jit("""
+        from roughvib.model import jacobian as jac
         y, yp = inp["y"], inp["yp"]
         res = np.empty_like(y)
-        kn.residual(0.002, y, yp, res, *s.kernel_args(inp["reg"], np.zeros(1)))
-        out["res"] = res
+        args = s.kernel_args(inp["reg"], np.zeros(2))
+        kn.residual(0.002, y, yp, res, *args)
+        rows, cols = s.jacobian_pattern()
+        vals = np.zeros(rows.size)
+        jac.jacobian_values(0.002, y, yp, 3e4, vals, *args)
+        out.update(res=res, rows=rows, cols=cols, vals=vals)
     """, y=y, yp=yp, reg=reg)
     np.testing.assert_allclose(plain["res"], res, rtol=1e-12, atol=1e-18)
+    np.testing.assert_array_equal(plain["rows"], rows)
+    np.testing.assert_array_equal(plain["cols"], cols)
+    np.testing.assert_allclose(plain["vals"], vals, rtol=1e-12, atol=1e-300)
 
 
 @pytest.mark.parametrize("n_contacts", [1, 3])

@@ -20,10 +20,15 @@ The modal part of the Schur matrix, ``P_kj = sum_r phi_rk phi_rj / (M d_r)`` wit
 ``d_r = omega_r^2 + cj (cj + 2 zeta_r omega_r)``, depends on cj only and is cached until cj
 changes. Cost per call O(R K) (+ O(R K^2) when cj changed, + O(K^3)), no allocation.
 
-:func:`jac_vec` forms J v from the analytic Jacobian values of
-:func:`roughvib.model.kernels.jacobian_values` (COO order of ``jacobian_pattern``), so the
-sparse-direct and the Krylov paths share one Jacobian; the unit tests check
-``precond_solve(J v) == v`` in every regime.
+:func:`jac_vec` forms J v without forming J. Neither kernel differentiates the friction law
+itself: both read the law's linearisation (coefficient, slopes, the set-valued friction row,
+the friction moment's share and power) from :func:`roughvib.model.jacobian.friction_terms`,
+the function whose terms the sparse Jacobian's entries (``jacobian_entries``) are built from,
+so the sparse-direct and the Krylov paths differentiate the model once. They keep their own
+arithmetic on those terms (grouped as the elimination needs them, e.g. ``mu / (m e_x)``, or
+summed over S = sum_k v_k): the runs of the Krylov path stay what they were to the bit. The
+unit tests check J v against the sparse Jacobian and ``precond_solve(J v) == v`` in every
+regime.
 
 Friction moment (``contact.friction_moment``): the modal rows gain the moment's force
 ``c sum_k Psi_rk F_k`` (:func:`roughvib.model.kernels.moment_share`), linear in the force
@@ -42,9 +47,9 @@ import numpy as np
 from numba import njit
 
 from roughvib.model import kernels as kn
-from roughvib.physics.friction import feldmann_mu
+from roughvib.model.jacobian import friction_terms
 
-__all__ = ["jac_vec", "krylov_workspace", "precond_solve", "tangential_coefficients"]
+__all__ = ["jac_vec", "krylov_workspace", "precond_solve"]
 
 
 # positions in the ``cache`` array of krylov_workspace
@@ -127,38 +132,6 @@ def lu_solve(A, piv, b):
 
 
 @njit(cache=True)
-def tangential_coefficients(t, y, off, fp, reg):
-    """Linearised tangential law at y: (vx, fsum, mu, dmu, alpha, beta).
-
-    Feldmann law: friction mu(X) F_N with slope dmu [s/m]. Coulomb law (friction force lambda
-    algebraic): the lambda row reads ``d lambda + alpha d vx + beta sum_k dF_k``.
-    """
-    iF, K = off[kn.OFF_IF], off[kn.OFF_K]
-    fsum = 0.0
-    for k in range(K):
-        fsum += y[iF + k]
-    _, vx = kn.tangential_kinematics(t, y, off, fp)
-    mu = 0.0
-    dmu = 0.0
-    alpha = 0.0
-    beta = 0.0
-    if off[kn.OFF_IX] >= 0:
-        if kn.set_valued(off):
-            bb = reg[kn.REG_B]
-            if bb == 0:
-                alpha = fp[kn.FP_R2]
-            else:
-                muk, dmuk = kn.kinetic(bb * vx, off, fp)
-                alpha = -dmuk * fsum
-                beta = -bb * muk
-        else:
-            xx = vx + reg[kn.REG_S] * fp[kn.FP_VH]
-            mu, dmu = feldmann_mu(xx, reg[kn.REG_B], fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK],
-                                  fp[kn.FP_A1], fp[kn.FP_A2])
-    return vx, fsum, mu, dmu, alpha, beta
-
-
-@njit(cache=True)
 def _same_iterate(t, y, cj, cache, ycache):
     """Whether the Schur matrix in the workspace was factorised at this (t, y, cj)."""
     if cache[C_T_A] != t or cache[C_CJ_A] != cj or cache[C_N_Y] != y.size:
@@ -213,7 +186,8 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
                 P[j, k] = P[k, j]
         cache[C_CJ_P] = cj
         cache[C_T_A] = np.nan
-    vx, fsum, mu, dmu, alpha, beta = tangential_coefficients(t, y, off, fp, reg)
+    ft = friction_terms(t, y, off, fp, reg)
+    fsum, mu, dmu, alpha, beta = ft.fsum, ft.mu, ft.dmu, ft.alpha, ft.beta
     # vertical pair: zvz = vz0 + rho_z S, zz = (r_z + zvz) / cj
     ez = cj + r1 / m
     rho_z = -1.0 / (m * ez)
@@ -237,7 +211,7 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
     e1 = 0.0
     ip = off[kn.OFF_IPSI]
     if moment:
-        cm, dcv, dcl, dcf = kn.moment_share(t, y, off, fp, reg)
+        cm, dcv, dcl, dcf = ft.cm, ft.dcv, ft.dcl, ft.dcf
         if kn.set_valued(off):  # zL = rv_L - alpha zvx - beta S, zvx = vx0 + rho_x S
             e0 = dcl * (rv[iL] - alpha * vx0)
             e1 = dcf - dcl * (alpha * rho_x + beta)
@@ -318,22 +292,24 @@ def precond_solve(t, y, cj, rv, zv, off, fp, omega2, cdamp, phi, stiff, cres, sp
     # energy rows (lower triangular: cj zE + coupling = r)
     for i in range(6):
         zv[iE + i] = rv[iE + i]
-    _energy_rows(t, y, zv, zv, off, fp, cdamp, work, vx, fsum, mu, dmu, -1.0)
+    _energy_rows(t, y, zv, zv, off, fp, cdamp, work, ft, -1.0)
     for i in range(6):
         zv[iE + i] /= cj
 
 
 @njit(cache=True)
-def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
+def _energy_rows(t, y, v, out, off, fp, cdamp, work, ft, sign):
     """out[iE + i] += sign * (coupling of energy row i to the other states) . v.
 
     The coupling is the Jacobian of the energy rows without their ``cj`` diagonal (nothing
     depends on the energy states, so they never enter it): ``sign = +1`` adds it to a
     product J v, ``sign = -1`` moves it to the right-hand side of a solve. ``work`` holds
-    the compressions and profile slopes at y (:func:`roughvib.model.kernels.compressions`).
+    the compressions and profile slopes at y (:func:`roughvib.model.kernels.compressions`),
+    ``ft`` the friction's terms at y (:func:`roughvib.model.jacobian.friction_terms`).
     """
     _iq, idq, _iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     iL = off[kn.OFF_IL]
+    vx, fsum, mu, dmu = ft.vx, ft.fsum, ft.mu, ft.dmu
     c0 = 0.0
     c1 = 0.0
     c2 = 0.0
@@ -364,20 +340,12 @@ def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
         c5 -= s2 * vx * v[ix] + s1 * v[ivx]
     if ix >= 0 and kn.moment_on(off):
         # the friction power is lambda v - c W (kernels.residual): + d(c W) . v
-        if kn.set_valued(off):
-            cm, dcv, dcl, dcf = 0.0, 0.0, 0.0, 0.0
-            if fsum > 0.0:
-                cm = y[iL] / fsum
-                dcl = 1.0 / fsum
-                dcf = -y[iL] / (fsum * fsum)
-        else:
-            cm, dcv, dcl, dcf = mu, dmu, 0.0, 0.0
+        cm, dcv, dcl, dcf, wm = ft.cm, ft.dcv, ft.dcl, ft.dcf, ft.wm
         sv = 0.0
         acc = 0.0
         for k in range(K):
             sv += v[iF + k]
             acc += kn.surface_velocity(k, y, off, fp) * v[iF + k]
-        wm = kn.moment_power(y, off, fp)
         c1 += wm * (dcv * v[ivx] + dcf * sv + (dcl * v[iL] if iL >= 0 else 0.0)) + cm * acc
         acc = 0.0
         for r in range(R):
@@ -395,14 +363,15 @@ def _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, sign):
 def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, prof, reg, work):
     """out = J v for the Newton matrix J = dF/dy + cj dF/dyp at (t, y), without forming J.
 
-    The same matrix as :func:`roughvib.model.kernels.jacobian_values` (the unit tests compare
-    them); O(R K) per call.
+    The same matrix as :func:`roughvib.model.jacobian.jacobian_values`, from the same
+    friction terms (module docstring; the unit tests compare them); O(R K) per call.
     """
     iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
     iL = off[kn.OFF_IL]
     m = fp[kn.FP_MASS]
     M = fp[kn.FP_MMODAL]
-    vx, fsum, mu, dmu, alpha, beta = tangential_coefficients(t, y, off, fp, reg)
+    ft = friction_terms(t, y, off, fp, reg)
+    fsum, mu, dmu, alpha, beta = ft.fsum, ft.mu, ft.dmu, ft.alpha, ft.beta
     kn.compressions(t, y, off, fp, phi, cres, spos, prof, work)
     sv = 0.0
     for k in range(K):
@@ -412,7 +381,7 @@ def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, pr
     dtan = 0.0  # the moment coefficient's change along v: dc/dv v_x + dc/dlambda v_L + dc/dF S
     ip = off[kn.OFF_IPSI]
     if moment:
-        cm, dcv, dcl, dcf = kn.moment_share(t, y, off, fp, reg)
+        cm, dcv, dcl, dcf = ft.cm, ft.dcv, ft.dcl, ft.dcf
         dtan = dcv * v[ivx] + dcf * sv + (dcl * v[iL] if iL >= 0 else 0.0)
     for r in range(R):
         f = 0.0
@@ -447,4 +416,4 @@ def jac_vec(t, y, cj, v, out, off, fp, omega2, cdamp, phi, stiff, cres, spos, pr
             out[iF + k] = v[iF + k] / stiff[k]
     for i in range(6):
         out[iE + i] = cj * v[iE + i]
-    _energy_rows(t, y, v, out, off, fp, cdamp, work, vx, fsum, mu, dmu, 1.0)
+    _energy_rows(t, y, v, out, off, fp, cdamp, work, ft, 1.0)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from roughvib.model import kernels as kn
+from roughvib.model.jacobian import jacobian_pattern
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import LAWS, calibrated_force_amplitude
@@ -104,6 +105,17 @@ class System:
     def event_args(self, reg: np.ndarray, rf: np.ndarray) -> tuple:
         return (self.off, self.fp, self.phi, self.cres, self.input_s, self.prof, reg, rf,
                 self.work)
+
+    def jacobian_pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column indices of IDA's Jacobian entries (the pattern pass of
+        :func:`roughvib.model.jacobian.jacobian_entries` on this system's arrays).
+
+        Returns
+        -------
+        rows, cols : ndarray (nnz,) of int64
+            In the order of :func:`roughvib.model.jacobian.jacobian_values`.
+        """
+        return jacobian_pattern(*self.kernel_args(*self.new_regime_arrays()))
 
     def new_regime_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Zeroed regime arrays ``(reg, rf)`` of the kernels' argument tail (int64, float64)."""
