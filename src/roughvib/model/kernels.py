@@ -35,7 +35,7 @@ No Heaviside, no max(): contact state and friction branch are regimes switched b
 Set-valued laws (``coulomb``, ``table``: the kernels branch on the law id
 ``off[OFF_LAW]``): the friction force lambda is algebraic. In stick ``lambda = T_exc - r2 v``
 so that v' = 0 exactly (index 1); in slip b ``lambda = b mu_k(b v) F_N`` with the law's kinetic
-coefficient (:func:`roughvib.physics.friction.kinetic_coefficient`).
+coefficient (``roughvib.physics.friction.kinetic_coefficient``).
 
 Friction moment (``contact.friction_moment``, ``off[OFF_IPSI] >= 0``): the friction force
 T_k = c F_k that the block exerts on the plate at contact k (along +x, the block's x; c = mu

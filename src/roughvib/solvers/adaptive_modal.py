@@ -54,7 +54,7 @@ oscillator; below, a power series of the same matrix exponential, because the cl
 ``1 - cos`` terms lose all digits for omega h -> 0 (both branches are tested against scipy's
 expm).
 
-Friction: every law of :data:`roughvib.physics.friction.LAWS` (or prescribed motion). The
+Friction: every law of ``roughvib.physics.friction.LAWS`` (or prescribed motion). The
 Feldmann law is a smooth function of the velocity in each branch. A set-valued law
 (``coulomb``, ``table``) slides with its kinetic curve and its exact slope in the Newton row
 of the velocity; in its stick regime the block is held (v = 0, x fixed, no tangential unknown)

@@ -5,8 +5,8 @@
 * :mod:`~roughvib.physics.friction.coulomb` and :mod:`~roughvib.physics.friction.table`: the
   set-valued laws' kinetic curves (stick held at v = 0), and
   :mod:`~roughvib.physics.friction.setvalued` what they share;
-* a dynamic law with internal states (its module named in :data:`LAWS`' registration);
-* :mod:`~roughvib.physics.friction.laws`: the registration (ids, :data:`LAWS`, what each law
+* a dynamic law with internal states (its module named in ``LAWS``' registration);
+* :mod:`~roughvib.physics.friction.laws`: the registration (ids, ``LAWS``, what each law
   declares) and the kernels' one dispatch on the law id;
 * :mod:`~roughvib.physics.friction.calibration`: the tangential-only model each law declares
   and the calibration of the force amplitude T0 to a target rms velocity.

@@ -73,7 +73,7 @@ def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, 
     dt : float, optional
         Fixed step [s]; keep dt well below m / (mu_stick a2 F_N) (~1.3e-5 s for the defaults).
     table : ndarray, optional
-        The packed kinetic curve of the ``table`` law (:func:`law_table`).
+        The packed kinetic curve of the ``table`` law (``table.law_table``).
 
     Returns
     -------
@@ -186,7 +186,7 @@ def calibrate_force_amplitude(target_rms: float, mass: float, r2: float, normal_
     dt : float, optional
         Time step [s].
     table : ndarray, optional
-        The packed kinetic curve of the ``table`` law (:func:`law_table`).
+        The packed kinetic curve of the ``table`` law (``table.law_table``).
 
     Returns
     -------

@@ -3,7 +3,7 @@
 Canudas de Wit, Olsson, Astrom and Lischinsky, "A new model for control of systems with
 friction", IEEE Trans. Automatic Control 40 (1995) 419-425. Bristles of mean deflection z
 [m] carry the friction force; here the force scales with the normal force, as the paper's law
-does:
+does::
 
     T = mu F_N,   mu = sigma0 z + sigma1 dz/dt + sigma2 v,
     dz/dt = v - sigma0 |v| z / g(v),   g(v) = mu_c + (mu_s - mu_c) exp(-(v / v_s)^2),

@@ -8,7 +8,7 @@ contact forces and the tangential velocity, solved by Newton on a (K+1)-square s
 matrix of the plate's size is ever formed). The step is second order; unlike BDF2 it has no
 error at all in the modes' own dynamics, only in the force history.
 
-Friction: every law of :data:`roughvib.physics.friction.LAWS` (or prescribed motion). The
+Friction: every law of ``roughvib.physics.friction.LAWS`` (or prescribed motion). The
 Feldmann law is a smooth function of the velocity in each branch. A set-valued law
 (``coulomb``, ``table``) slides with its kinetic curve and its exact slope in the Newton row
 of the velocity; in its stick regime the block is held (v = 0, x fixed, no tangential unknown)
