@@ -106,8 +106,8 @@ class Friction:
         (docs/friction.md). ``lugre``: the LuGre dynamic law with one bristle state, its
         constants in ``parameters`` (docs/friction.md).
     parameters : mapping
-        The law's own keys (``roughvib.scene.FRICTION_LAWS``), completed with their defaults; empty for a
-        law that declares none. A key of another law is refused.
+        The law's own keys (``roughvib.scene.FRICTION_LAWS``), completed with their
+        defaults; empty for a law that declares none. A key of another law is refused.
     table : str or None
         ``table``: CSV file of the kinetic curve, columns ``velocity`` [m/s] (from 0,
         increasing) and ``mu`` [-], relative to the scene file's folder.
