@@ -67,7 +67,6 @@ Limits: underdamped modes (plate loss factor < 2).
 
 from __future__ import annotations
 
-import collections
 import os
 
 import numpy as np
@@ -145,18 +144,15 @@ from roughvib.solvers.adaptive.trapezoidal_loop import (
 )
 from roughvib.solvers.base import (
     FIRST_ROW,
+    EventRun,
     RawSolution,
     RunProgress,
     atol_vector,
     check_tolerances,
-    checkpoint_scene,
-    checkpoint_stride,
     make_checkpoint,
-    output_grid,
-    resumed_statistics,
 )
-from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
-from roughvib.solvers.events import EventBook, SolverFailure, stall_failure, step_budget
+from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
+from roughvib.solvers.events import SolverFailure, stall_failure, step_budget
 
 # The solver's compiled parts stay importable from here under the names the tests,
 # benchmarks and docs use (several were private functions of this module before it was
@@ -242,7 +238,7 @@ def _largest_step(output_step: float, max_step: float) -> float:
     return h_max
 
 
-class _AdaptiveRun:
+class _AdaptiveRun(EventRun):
     """One run of :func:`solve_adaptive_modal`: the loop's arrays and the Python side of it.
 
     The compiled loop (:func:`.adaptive.hermite_loop.advance_hermite` or
@@ -255,35 +251,26 @@ class _AdaptiveRun:
     def __init__(self, system: System, progress: bool | None,
                  checkpoint_dir: str | os.PathLike | None, resume: Checkpoint | None,
                  hermite: bool | None) -> None:
-        self.system = system
-        self.checkpoint_dir = checkpoint_dir
-        scene = system.scene
-        out_cfg = scene.output
-        self.grid, self.outs = output_grid(system)
-        self.n, n_out = self.outs.shape
-        self.h_max = _largest_step(out_cfg.step, scene.solver.max_step)
-        self.h_top = hermite_top_pair(out_cfg.step, scene.solver.max_step)
-        self.reg, self.rf = system.new_regime_arrays()
-        self.regime, y, self.y_initial = start_state(system, self.reg, self.rf, resume, self.n,
-                                                     n_out)
-        check_tolerances(system, self.y_initial)
-        self.args = system.kernel_args(self.reg, self.rf)
         if hermite is None:
             hermite = hermite_applies(system)
         elif hermite and not hermite_applies(system):
             raise ValueError("the Hermite step covers the Feldmann law with a force-driven "
                              "block and no friction moment only")
         self.hermite = hermite
-        self._allocate(y)
+        # a checkpoint row ends a block of the Hermite loop
+        super().__init__(system, checkpoint_dir, resume, PAIR_ROWS if hermite else 1)
+        scene = system.scene
+        out_cfg = scene.output
+        self.h_max = _largest_step(out_cfg.step, scene.solver.max_step)
+        self.h_top = hermite_top_pair(out_cfg.step, scene.solver.max_step)
+        check_tolerances(system, self.y_initial)
+        self._allocate(self.y_start)
         self.atol = atol_vector(system)
         self.tt = np.zeros(1)
         self.track_latch = bool(system.layout.tangential)
-        # a checkpoint row ends a block of the Hermite loop
-        self.cp_stride = checkpoint_stride(out_cfg, PAIR_ROWS if hermite else 1)
-        self.scene_toml = checkpoint_scene(scene, self.cp_stride, checkpoint_dir)
         self.budget = step_budget(out_cfg.step)
         self._start(resume)
-        self.progress = RunProgress(system, progress, float(self.tt[T_NOW]), 0)
+        self.progress = RunProgress(system, progress, self.t_start, 0)
         self.chunk = max(1, self.n // 50)  # returns to Python (progress, checkpoints): ~0.1 ms
         self.clock.start()
 
@@ -318,19 +305,17 @@ class _AdaptiveRun:
 
     def _start(self, resume: Checkpoint | None) -> None:
         """The loop state at the start, or the checkpoint's; the event book and the clock."""
-        stats, self.clock = resumed_statistics(resume)
-        system, ist, buf = self.system, self.ist, self.buf
+        self._event_book(resume)
+        ist, buf = self.ist, self.buf
         if resume is None:
             kn.outputs(0.0, self.y, self.outs[FIRST_ROW], *self.args)
             ist[I_K] = 1
             # the first step h_max / 256 (the Hermite loop: its first full step about as long)
             ist[I_LEV] = HERMITE_FIRST_LEVEL if self.hermite else TRAPEZOIDAL_FIRST_LEVEL
-            self.book = EventBook(system, self.regime, self.reg, self.rf, stats=stats)
             self.book.log_initial_phase(0.0, self.y)
             self.fresh = True
             return
         loop = resume.loop
-        self.outs[:resume.k] = resume.outputs
         ist[:] = loop["ist"]
         self.tt[T_NOW] = resume.t
         if self.hermite:
@@ -344,9 +329,6 @@ class _AdaptiveRun:
             buf.U[B_NOW] = loop["u"]
         buf.G[G_START] = loop["g"]
         buf.armed[:] = loop["armed"]
-        self.book = EventBook(system, self.regime, self.reg, self.rf,
-                              events=list(resume.events),
-                              recent=collections.deque(loop["recent"]), stats=stats)
         self.fresh = False  # the loop continues exactly where the checkpointed run was
 
     def run(self) -> RawSolution:

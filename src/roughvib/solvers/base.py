@@ -13,6 +13,7 @@ The solvers (:mod:`.ida`, :mod:`.adaptive_modal`, :mod:`.fixed_step`,
   event-driven solvers' checkpoint glue (the file itself: :mod:`.checkpoint`);
 * :func:`resumed_statistics` and :class:`RunClock`, the statistics a run starts from and its
   wall and CPU time across resumed processes;
+* :class:`EventRun`, the set-up the event-driven runs (IDA's and adaptive-modal's) share;
 * :data:`MODE_Q`, :data:`MODE_DQ`, a mode's components in the per-mode step maps of the
   modal solvers.
 
@@ -35,16 +36,16 @@ import numpy as np
 
 from roughvib.model import kernels as kn
 from roughvib.scene import SceneError, scene_to_toml
-from roughvib.solvers.checkpoint import Checkpoint, input_fingerprint
-from roughvib.solvers.events import EventRecord
+from roughvib.solvers.checkpoint import Checkpoint, input_fingerprint, start_state
+from roughvib.solvers.events import EventBook, EventRecord
 
 if TYPE_CHECKING:
     from roughvib.model.regimes import Regime
     from roughvib.model.system import System
     from roughvib.scene import Output, Scene
 
-__all__ = ["ATOL_FLOOR_ULPS", "FIRST_ROW", "MODE_DQ", "MODE_Q", "RawSolution", "RunClock",
-           "RunProgress", "atol_vector", "check_tolerances", "checkpoint_scene",
+__all__ = ["ATOL_FLOOR_ULPS", "FIRST_ROW", "MODE_DQ", "MODE_Q", "EventRun", "RawSolution",
+           "RunClock", "RunProgress", "atol_vector", "check_tolerances", "checkpoint_scene",
            "checkpoint_stride", "make_checkpoint", "output_grid", "progress_bar",
            "resumed_statistics", "tolerance_floors"]
 
@@ -448,3 +449,81 @@ def resumed_statistics(resume: Checkpoint | None) -> tuple[collections.Counter, 
     stats = collections.Counter(prev)
     stats["resumes"] += 1
     return stats, RunClock(wall_before, cpu_before)
+
+
+# --- the event-driven runs ---------------------------------------------------------------------
+
+class EventRun:
+    """The set-up that the event-driven runs (IDA's and adaptive-modal's) share.
+
+    A run's class calls this first. The tolerance check and the step budget stay in each
+    solver's module (``check_tolerances``, ``step_budget`` called through its names, so that
+    a caller can replace them there), as do the progress bar (opened last, once nothing else
+    can fail: ``RunProgress(system, progress, self.t_start, self.k_start, stride)``) and
+    the event book (:meth:`_event_book`, when the run has its state).
+
+    Parameters
+    ----------
+    system : System
+        The assembled model.
+    checkpoint_dir : path or None
+        Where checkpoints are written (None: nowhere).
+    resume : Checkpoint or None
+        The checkpoint the run continues from (checked against the scene and the grid).
+    checkpoint_multiple : int
+        The checkpoint stride is a multiple of this (see :func:`checkpoint_stride`).
+
+    Attributes
+    ----------
+    grid, outs : ndarray
+        From :func:`output_grid`; on a resume, the checkpoint's rows already in ``outs``.
+    n : int
+        The grid's rows.
+    reg, rf : ndarray
+        The kernels' regime arrays, holding the start regime.
+    regime : Regime
+        The start regime.
+    y_start, y_initial : ndarray, shape (n_states,)
+        The state the run starts from and the state at t = 0
+        (:func:`.checkpoint.start_state`).
+    t_start : float
+        The time the run starts at [s] (0, or the checkpoint's).
+    k_start : int
+        The first output row it fills (1, or the checkpoint's next row).
+    args : tuple
+        The kernels' argument tail (:meth:`.System.kernel_args` of ``reg``, ``rf``).
+    cp_stride : int
+        Output rows between checkpoints (:func:`checkpoint_stride`; 0: none).
+    scene_toml : str
+        What the checkpoints store of the scene (:func:`checkpoint_scene`; "": none written).
+    """
+
+    def __init__(self, system: System, checkpoint_dir, resume: Checkpoint | None,
+                 checkpoint_multiple: int = 1) -> None:
+        self.system = system
+        self.checkpoint_dir = checkpoint_dir
+        self.grid, self.outs = output_grid(system)
+        self.n, n_out = self.outs.shape
+        self.reg, self.rf = system.new_regime_arrays()
+        self.regime, self.y_start, self.y_initial = start_state(system, self.reg, self.rf,
+                                                                resume, self.n, n_out)
+        self.t_start, self.k_start = (0.0, 1) if resume is None else (float(resume.t),
+                                                                       int(resume.k))
+        if resume is not None:
+            self.outs[:self.k_start] = resume.outputs
+        self.args = system.kernel_args(self.reg, self.rf)
+        self.cp_stride = checkpoint_stride(system.scene.output, checkpoint_multiple)
+        self.scene_toml = checkpoint_scene(system.scene, self.cp_stride, checkpoint_dir)
+
+    def _event_book(self, resume: Checkpoint | None) -> None:
+        """The run's statistics and clock (:func:`resumed_statistics`) and its event book
+        (``self.book``, ``self.clock``), new or with the checkpoint's events and recent
+        event times."""
+        stats, self.clock = resumed_statistics(resume)
+        events: list[EventRecord] = []
+        recent: collections.deque[float] = collections.deque()
+        if resume is not None:
+            events = list(resume.events)
+            recent = collections.deque(resume.loop["recent"])
+        self.book = EventBook(self.system, self.regime, self.reg, self.rf, events=events,
+                              recent=recent, stats=stats)

@@ -647,28 +647,12 @@ def _all_finite(a, n):
     return True
 
 
-@njit(cache=True, inline="always")
-def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp, phiT, stiff,
-                 spos, prof, reg, wts, ws, iws):
-    """One step of Hermite holds from (y0, dF0, c0) to (y1, dF1, c1); False if Newton fails.
+# --- the steps of hermite_step (inlined: it compiles as one function) -------------------------
 
-    The modes exact under the Hermite hold of their force (``Pm``, ``Cc`` of
-    :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
-    Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
-    at the end. Unknowns: the closed contacts' forces and force rates and the tangential
-    velocity, by Newton from the Hermite predictor (Taylor terms to the second derivative)
-    with the analytic Jacobian, kept from step to step while valid (chord iterations, formed
-    again after ``CHORD_MAX`` of them). The energy integrals by the Hermite quadrature of the
-    powers. ``dF`` (K,): contact force rates [N/s] (0 on open contacts); ``c``: the carried
-    data of the state (c1 is filled for the next step; :func:`carried` gives them for a state
-    made otherwise or after a change of the regime);
-    ``ws``, ``iws``: float and int scratch (lengths of :func:`scratch_sizes`); ``Pm``,
-    ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: the Feldmann law, a
-    force-driven block, no friction moment.
-    """
-    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
-    t1 = t0 + h
-    idx = iws[:K]
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _closed_contacts(y0, dF0, reg, iF, K, idx):
+    """The closed contacts in ``idx`` (their number first), and the start's total normal
+    force [N] and its rate [N/s]: ``(nc, S0, dS0)``."""
     nc = 0
     S0 = 0.0
     dS0 = 0.0
@@ -678,36 +662,29 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         if reg[kn.REG_CLOSED + k] == 1:
             idx[nc] = k
             nc += 1
-    a0 = c0[C_ACC]
-    j0 = c0[C_JERK]
-    az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
-    sq = ws[0:R]
-    sdq = ws[R:2 * R]
-    base = 2 * R
-    wq = ws[base:base + K]
-    wd = ws[base + K:base + 2 * K]
-    iu = N_CARRY + K
-    fold = K <= FOLD_K_MAX
+    return nc, S0, dS0
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _start_motion(Pm, Cc, y0, dF0, c0, phiT, iq, idq, iF, R, K, fold, sq, sdq, wq, wd):
+    """What the end owes to the start: the modes' free response in ``sq``, ``sdq`` (and,
+    unfolded, the start's hold), the plate's displacement and velocity at the contacts from
+    it and from the start's hold in ``wq``, ``wd`` (K,) [m, m/s]."""
     if fold:
         # sq, sdq: the free response only; the start's hold is folded into the end pass
         aq, ad = _free_pass_folded(Pm, y0[iq:iq + R], y0[idq:idq + R], phiT[ONE], sq, sdq)
         wq[ONE] = aq + Cc[CM0_WF, ONE, ONE] * y0[iF] + Cc[CM0_WD, ONE, ONE] * dF0[ONE]
         wd[ONE] = ad + Cc[CM0_VF, ONE, ONE] * y0[iF] + Cc[CM0_VD, ONE, ONE] * dF0[ONE]
     else:
+        iu = N_CARRY + K
         _free_pass(Pm, y0[iq:iq + R], y0[idq:idq + R], c0[iu:iu + R], c0[iu + R:iu + 2 * R],
                    phiT, sq, sdq, wq, wd)
-    base += 2 * K
-    dhs = ws[base:base + 2 * K].reshape((2, K))
-    base += 2 * K
-    cst = ws[base:base + N_CS]
-    _step_constants(t1, h, y0[ix], y0[ivx], a0, j0, y0[iz], y0[ivz], az0, jz0, fp, cst)
-    base += N_CS
-    n = 2 * nc + 1
-    unk = ws[base:base + n]
-    scale = ws[base + n:base + 2 * n]
-    res = ws[base + 2 * n:base + 3 * n]
-    jac = ws[base + 3 * n:base + 3 * n + n * n].reshape((n, n))
-    piv = iws[K:K + n]
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _predict(h, y0, dF0, c0, a0, j0, wts, iF, ivx, nc, idx, unk, scale):
+    """Newton's start ``unk`` (Taylor terms to the second derivative: the Hermite predictor)
+    and the unknowns' scales ``scale`` (their tolerance weights)."""
     for a in range(nc):
         d2F = c0[N_CARRY + idx[a]]
         unk[a] = y0[iF + idx[a]] + h * (dF0[idx[a]] + 0.5 * h * d2F)
@@ -716,7 +693,15 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         scale[nc + a] = wts[iF + idx[a]] / h
     unk[2 * nc] = y0[ivx] + h * a0 + 0.5 * h * h * j0
     scale[2 * nc] = wts[ivx]
-    ok = False
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, fp, stiff, spos, prof,
+            reg, dhs, iws):
+    """Newton on the step's n unknowns ``unk`` from the predictor, with the matrix kept in
+    ``jac`` (``piv``) while ``iws[IWS_JAC_VALID]`` says so and formed again after
+    ``CHORD_MAX`` chord iterations; counts in ``iws[IWS_ITERS]``, ``iws[IWS_JACS]``. False on
+    a runaway iterate, a singular matrix or no convergence in ``HERMITE_NEWTON_MAX``."""
     fresh = iws[IWS_JAC_VALID] == 0  # a Jacobian kept from an earlier step is reused
     since = 0                        # chord iterations with the current Jacobian
     iws[IWS_ITERS] = 0
@@ -749,12 +734,14 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         if not worst < NEWTON_RUNAWAY:  # a singular matrix or a runaway iterate
             return False
         if worst <= NEWTON_TOL_REL:
-            ok = True
-            break
-    if not ok:
-        return False
-    x1, z1, vz1, a1, j1, mu1, dmu1 = _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff,
-                                               spos, prof, reg, jac, False, dhs)
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _end_forces(h, y0, dF0, unk, nc, idx, iF, K, y1, dF1, c1):
+    """The end's contact forces and rates (0 on the open contacts) into ``y1``, ``dF1``, the
+    Hermite cubic's second derivatives into ``c1``; returns their sums ``(S1, dS1)``."""
     S1 = 0.0
     dS1 = 0.0
     for k in range(K):
@@ -770,27 +757,26 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
                            - 6.0 * (unk[a] - y0[iF + k]) / h) / h
         S1 += unk[a]
         dS1 += unk[nc + a]
-    v1 = unk[2 * nc]
-    y1[iz] = z1
-    y1[ivz] = vz1
-    y1[ix] = x1
-    y1[ivx] = v1
-    # the end's modal force and rate, the modes and the plate-damping power in one pass
-    M = fp[kn.FP_MMODAL]
+    return S1, dS1
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _end_modes(Pm, sq, sdq, phiT, y0, dF0, y1, dF1, c1, M, iq, idq, iF, R, K, fold, omega2,
+               cdamp):
+    """The end's modes into ``y1`` (and, unfolded, its modal force and rate into ``c1``);
+    returns the plate-damping power's sums (one pass over the modes)."""
     if fold:
-        pd, pdd = _end_pass_folded(Pm, sq, sdq, phiT[ONE], y0[iF], dF0[ONE], y1[iF], dF1[ONE], M,
-                                   y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp)
-    else:
-        pd, pdd = _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
-                            c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2,
-                            cdamp)
-    # the end's carried data from what the step has (as carried() would give them)
-    az1, _ = vertical_rates(vz1, S1, dS1, fp)
-    c1[C_ACC] = a1
-    c1[C_JERK] = j1
-    _block_powers(c1, cst[CS_TEXC], cst[CS_DTEXC], v1, a1, mu1, dmu1, S1, dS1, vz1, az1, fp)
-    c1[C_POWER + kn.E_PLATE_DAMPING] = M * pd
-    c1[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
+        return _end_pass_folded(Pm, sq, sdq, phiT[ONE], y0[iF], dF0[ONE], y1[iF], dF1[ONE], M,
+                                y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp)
+    iu = N_CARRY + K
+    return _end_pass(Pm, sq, sdq, phiT, y1[iF:iF + K], dF1, M, c1[iu:iu + R],
+                     c1[iu + R:iu + 2 * R], y1[iq:iq + R], y1[idq:idq + R], omega2, cdamp)
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _roughness_power(unk, nc, idx, dhs, v1, a1):
+    """The roughness power [W] at the end and its rate [W/s], from the closed contacts' forces
+    and rates and the profile's slope and curvature the residual left in ``dhs``."""
     pr = 0.0
     prd = 0.0
     for a in range(nc):
@@ -799,11 +785,93 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
         F = unk[a]
         pr += F * dh * v1
         prd += unk[nc + a] * dh * v1 + F * dhs[DH_CURV, k] * v1 * v1 + F * dh * a1
-    c1[C_POWER + kn.E_ROUGHNESS] = pr
-    c1[C_POWER_RATE + kn.E_ROUGHNESS] = prd
-    # energy integrals by the Hermite quadrature: int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12
+    return pr, prd
+
+
+@njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
+def _energy_quadrature(h, y0, c0, y1, c1, iE):
+    """The energy integrals at the end by the Hermite quadrature of the powers:
+    ``int P = h (P0 + P1) / 2 + h^2 (P0' - P1') / 12``."""
     for i in range(kn.N_ENERGY):
         y1[iE + i] = (y0[iE + i] + 0.5 * h * (c0[C_POWER + i] + c1[C_POWER + i])
                       + h * h / 12.0 * (c0[C_POWER_RATE + i] - c1[C_POWER_RATE + i]))
-    return True
 
+
+@njit(cache=True, inline="always")
+def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp, phiT, stiff,
+                 spos, prof, reg, wts, ws, iws):
+    """One step of Hermite holds from (y0, dF0, c0) to (y1, dF1, c1); False if Newton fails.
+
+    The modes exact under the Hermite hold of their force (``Pm``, ``Cc`` of
+    :func:`hermite_slot` for this h); the block's vertical and tangential motion by the
+    Obreschkoff (2,2) rule (values and rates at both ends); the contact relation and its rate
+    at the end. Unknowns: the closed contacts' forces and force rates and the tangential
+    velocity, by Newton from the Hermite predictor (Taylor terms to the second derivative)
+    with the analytic Jacobian, kept from step to step while valid (chord iterations, formed
+    again after ``CHORD_MAX`` of them). The energy integrals by the Hermite quadrature of the
+    powers. ``dF`` (K,): contact force rates [N/s] (0 on open contacts); ``c``: the carried
+    data of the state (c1 is filled for the next step; :func:`carried` gives them for a state
+    made otherwise or after a change of the regime);
+    ``ws``, ``iws``: float and int scratch (lengths of :func:`scratch_sizes`); ``Pm``,
+    ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: the Feldmann law, a
+    force-driven block, no friction moment.
+
+    Its steps, in order (each inlined): ``_closed_contacts``, ``_start_motion``,
+    ``_step_constants``, ``_predict``, ``_newton``, ``_end_forces``, ``_end_modes``, the
+    end's carried data (``_block_powers``, ``_roughness_power``) and ``_energy_quadrature``.
+    """
+    iq, idq, iz, ivz, ix, ivx, iF, iE, R, K = kn.state_offsets(off)
+    t1 = t0 + h
+    idx = iws[:K]
+    nc, S0, dS0 = _closed_contacts(y0, dF0, reg, iF, K, idx)
+    a0 = c0[C_ACC]
+    j0 = c0[C_JERK]
+    az0, jz0 = vertical_rates(y0[ivz], S0, dS0, fp)
+    # the float scratch: the modes' free response, the plate's motion at the contacts, the
+    # profile's slopes, the step's constants, then Newton's unknowns, scales, residual, matrix
+    sq = ws[0:R]
+    sdq = ws[R:2 * R]
+    base = 2 * R
+    wq = ws[base:base + K]
+    wd = ws[base + K:base + 2 * K]
+    fold = K <= FOLD_K_MAX
+    _start_motion(Pm, Cc, y0, dF0, c0, phiT, iq, idq, iF, R, K, fold, sq, sdq, wq, wd)
+    base += 2 * K
+    dhs = ws[base:base + 2 * K].reshape((2, K))
+    base += 2 * K
+    cst = ws[base:base + N_CS]
+    _step_constants(t1, h, y0[ix], y0[ivx], a0, j0, y0[iz], y0[ivz], az0, jz0, fp, cst)
+    base += N_CS
+    n = 2 * nc + 1
+    unk = ws[base:base + n]
+    scale = ws[base + n:base + 2 * n]
+    res = ws[base + 2 * n:base + 3 * n]
+    jac = ws[base + 3 * n:base + 3 * n + n * n].reshape((n, n))
+    piv = iws[K:K + n]
+    _predict(h, y0, dF0, c0, a0, j0, wts, iF, ivx, nc, idx, unk, scale)
+    if not _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, fp, stiff, spos,
+                   prof, reg, dhs, iws):
+        return False
+    x1, z1, vz1, a1, j1, mu1, dmu1 = _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff,
+                                               spos, prof, reg, jac, False, dhs)
+    S1, dS1 = _end_forces(h, y0, dF0, unk, nc, idx, iF, K, y1, dF1, c1)
+    v1 = unk[2 * nc]
+    y1[iz] = z1
+    y1[ivz] = vz1
+    y1[ix] = x1
+    y1[ivx] = v1
+    M = fp[kn.FP_MMODAL]
+    pd, pdd = _end_modes(Pm, sq, sdq, phiT, y0, dF0, y1, dF1, c1, M, iq, idq, iF, R, K, fold,
+                         omega2, cdamp)
+    # the end's carried data from what the step has (as carried() would give them)
+    az1, _ = vertical_rates(vz1, S1, dS1, fp)
+    c1[C_ACC] = a1
+    c1[C_JERK] = j1
+    _block_powers(c1, cst[CS_TEXC], cst[CS_DTEXC], v1, a1, mu1, dmu1, S1, dS1, vz1, az1, fp)
+    c1[C_POWER + kn.E_PLATE_DAMPING] = M * pd
+    c1[C_POWER_RATE + kn.E_PLATE_DAMPING] = 2.0 * M * pdd
+    pr, prd = _roughness_power(unk, nc, idx, dhs, v1, a1)
+    c1[C_POWER + kn.E_ROUGHNESS] = pr
+    c1[C_POWER_RATE + kn.E_ROUGHNESS] = prd
+    _energy_quadrature(h, y0, c0, y1, c1, iE)
+    return True

@@ -20,7 +20,6 @@ exposed by sksundae; see ``_IdaCounters``, which checks the private layout befor
 
 from __future__ import annotations
 
-import collections
 import ctypes
 import glob
 import os
@@ -38,20 +37,16 @@ from roughvib.model.system import System
 from roughvib.scene import SceneError
 from roughvib.solvers.base import (
     FIRST_ROW,
+    EventRun,
     RawSolution,
     RunProgress,
     atol_vector,
     check_tolerances,
-    checkpoint_scene,
-    checkpoint_stride,
     make_checkpoint,
-    output_grid,
-    resumed_statistics,
     tolerance_floors,
 )
-from roughvib.solvers.checkpoint import Checkpoint, start_state, write_checkpoint
+from roughvib.solvers.checkpoint import Checkpoint, write_checkpoint
 from roughvib.solvers.events import (
-    EventBook,
     EventRecord,
     SolverFailure,
     stall_failure,
@@ -424,7 +419,7 @@ def _new_solver(system: System, args: tuple, callbacks: _Callbacks, budget: int)
         return sun.ida.IDA(resfn, **options)
 
 
-class _IdaRun:
+class _IdaRun(EventRun):
     """One run of :func:`solve_ida`: the IDA solver, its callbacks and the event loop's state.
 
     The loop asks IDA for the next output time, one call at a time (:meth:`_next_row`); a
@@ -436,24 +431,13 @@ class _IdaRun:
 
     def __init__(self, system: System, progress: bool | None,
                  checkpoint_dir: str | os.PathLike | None, resume: Checkpoint | None) -> None:
-        self.system = system
-        self.checkpoint_dir = checkpoint_dir
-        scene = system.scene
-        out_cfg = scene.output
-        self.grid, self.outs = output_grid(system)
-        self.n, n_out = self.outs.shape
-        self.reg, self.rf = reg, rf = system.new_regime_arrays()
-        self.regime, y, self.y_initial = start_state(system, reg, rf, resume, self.n, n_out)
-        t_start, k_start = (0.0, 1) if resume is None else (float(resume.t), int(resume.k))
-        if resume is not None:
-            self.outs[:k_start] = resume.outputs
-        self.y, self.yp = system.consistent(t_start, y, reg, rf)
+        super().__init__(system, checkpoint_dir, resume)
+        out_cfg = system.scene.output
+        t_start, k_start = self.t_start, self.k_start
+        self.y, self.yp = system.consistent(t_start, self.y_start, self.reg, self.rf)
         check_tolerances(system, self.y_initial)
-        self.cp_stride = checkpoint_stride(out_cfg)
-        self.scene_toml = checkpoint_scene(scene, self.cp_stride, checkpoint_dir)
 
-        self.args = system.kernel_args(reg, rf)
-        self.ev_args = system.event_args(reg, rf)
+        self.ev_args = system.event_args(self.reg, self.rf)
         self.budget = step_budget(out_cfg.step)
         self.jac_budget = self.budget // JACOBIANS_PER_STEP_BUDGET
         self.jac_count = [0]  # Jacobians within the current step() call
@@ -489,21 +473,15 @@ class _IdaRun:
 
     def _start_loop(self, resume: Checkpoint | None) -> None:
         """The event loop's bookkeeping, new or from the checkpoint, and the run's clock."""
-        stats, self.clock = resumed_statistics(resume)
-        events: list[EventRecord] = []
-        recent: collections.deque[float] = collections.deque()
         self.t_last_restart = 0.0
         self.last_fired: set[int] = set()
         self.refire_ignored = 0
         if resume is not None:
-            events = list(resume.events)
-            recent = collections.deque(resume.loop["recent"])
             self.t_last_restart = float(resume.loop["t_last_restart"])
             self.last_fired = set(resume.loop["last_fired"])
             self.refire_ignored = int(resume.loop["refire_ignored"])
+        self._event_book(resume)
         self.clock.start()
-        self.book = EventBook(self.system, self.regime, self.reg, self.rf, events=events,
-                              recent=recent, stats=stats)
 
     def run(self) -> RawSolution:
         """Integrate to the end of the grid (or a failure) and return the solution."""
