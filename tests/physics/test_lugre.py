@@ -191,3 +191,16 @@ def test_verify_passes_on_the_paper_scene():
     assert acc["verdict"] == "pass", acc["failures"]
     assert acc["representation"]["verdict"] == "pass"
     assert acc["events"]["matched"] >= 4 and acc["events"]["unmatched"] == 0
+
+
+def test_the_laws_keys_round_trip_through_the_scene_file(tmp_path):
+    from roughvib.scene import scene_to_toml
+
+    scene = roughvib.load_scene("paper", {"friction.law": "lugre",
+                                          "friction.parameters.sigma0": 2e5})
+    path = tmp_path / "lugre.toml"
+    path.write_text(scene_to_toml(scene))
+    back = roughvib.load_scene(path)
+    assert back.friction.parameters == {"sigma0": 2e5, "sigma1": 100.0, "sigma2": 0.0,
+                                        "stribeck_velocity": 2e-3}
+    assert back.friction == scene.friction
