@@ -460,7 +460,7 @@ class EventRun:
     solver's module (``check_tolerances``, ``step_budget`` called through its names, so that
     a caller can replace them there), as do the progress bar (opened last, once nothing else
     can fail: ``RunProgress(system, progress, self.t_start, self.k_start, stride)``) and
-    the event book (:meth:`_event_book`, when the run has its state).
+    the event book (``_event_book``, when the run has its state).
 
     Parameters
     ----------
