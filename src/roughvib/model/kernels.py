@@ -631,6 +631,19 @@ def scatter(vals, perm, jj):
 
 
 @njit(cache=True)
+def follow_latch_extremum(v, reg, rf):
+    """Move the latch's running velocity extremum ``rf[RF_VEXT]`` with a new sample ``v``
+    [m/s] (the running maximum after a minimum, ``reg[REG_S] < 0``, else the running minimum),
+    as the solvers do at their output times; returns the extremum."""
+    if reg[REG_S] < 0:
+        if v > rf[RF_VEXT]:
+            rf[RF_VEXT] = v
+    elif v < rf[RF_VEXT]:
+        rf[RF_VEXT] = v
+    return rf[RF_VEXT]
+
+
+@njit(cache=True)
 def latch_margin(y, off, fp, reg, rf):
     """The Feldmann law's latch margin ``eps - s (v - v_ext)`` [m/s] (``events``' entry
     ``K + ROOT_LATCH``): the only margin that depends on the running extremum ``rf[RF_VEXT]``,

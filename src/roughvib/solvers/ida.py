@@ -574,14 +574,7 @@ class _IdaRun(EventRun):
         yk = r.y
         kn.outputs(grid[k], yk, self.outs[k], *self.args)
         if self.vx_i >= 0 and not self.system.set_valued:
-            v = yk[self.vx_i]
-            if regime.latch < 0:
-                if v > rf[kn.RF_VEXT]:
-                    rf[kn.RF_VEXT] = v
-                    regime.v_ext = v
-            elif v < rf[kn.RF_VEXT]:
-                rf[kn.RF_VEXT] = v
-                regime.v_ext = v
+            regime.v_ext = float(kn.follow_latch_extremum(yk[self.vx_i], self.reg, rf))
         self.progress.show(k, grid[k])
         self.k = k = k + 1
         if self.cp_stride and (k - 1) % self.cp_stride == 0 and k < self.n:

@@ -42,12 +42,7 @@ def latch_and_output(t, y, outs, k, args_off, fp, omega2, cdamp, phi, phi_obs, s
     kn.outputs(t, y, outs[k], args_off, fp, omega2, cdamp, phi, phi_obs, stiff, cres, spos,
                prof, reg, rf, work)
     if track_latch:
-        v = y[args_off[kn.OFF_IVX]]
-        if reg[kn.REG_S] < 0:
-            if v > rf[kn.RF_VEXT]:
-                rf[kn.RF_VEXT] = v
-        elif v < rf[kn.RF_VEXT]:
-            rf[kn.RF_VEXT] = v
+        kn.follow_latch_extremum(y[args_off[kn.OFF_IVX]], reg, rf)
 
 
 @njit(cache=True)
