@@ -270,3 +270,18 @@ def test_moreau_time_stepping_matches_closed_form(h):
     assert err < 3 * h
     v = r.dataset["block_tangential_velocity"].values
     assert np.mean(v == 0.0) > 0.3  # exact stick, no creep
+
+
+@pytest.mark.parametrize("method", ["moreau", "ida", "auto"])
+def test_every_solver_starts_in_stick_with_the_static_friction_force(method):
+    """At t = 0 the block is at rest below the break-away bound (T0 < mu_stick F_N): stick,
+    and the friction force balances the drive, lambda = T0 cos(0) - r2 * 0 = T0 (closed form).
+    The fixed-step Moreau scheme once wrote the Feldmann law's initial branch into its first
+    output row (-mu_slip F_N)."""
+    T0 = 0.8  # below mu_stick F_N = 0.867 N
+    r = simulate(_scene(**{"excitation.force_amplitude": T0, "solver.method": method,
+                           "solver.step": 1e-5, "output.duration": 0.01}))
+    assert r.ok, r.summary["message"]
+    ds = r.dataset
+    assert ds["friction_force"].values[0] == pytest.approx(T0, rel=1e-12)
+    assert ds["friction_coefficient"].values[0] == pytest.approx(T0 / FN, rel=1e-9)

@@ -605,7 +605,8 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     Phi, G0, G1 = modal_propagators(omega, zeta, h, "exact-modal" if moreau else method)
 
     y0, closed = system.static_equilibrium()
-    regime = initial_regime(closed, system.fp, lay.tangential, False)
+    # the law's own initial regime (the Coulomb law: stick unless the block cannot hold)
+    regime = initial_regime(closed, system.fp, lay.tangential, system.set_valued)
     reg, rf = system.new_regime_arrays()
     regime.pack(reg, rf)
     y, _ = system.consistent(0.0, y0, reg, rf)
@@ -617,8 +618,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
     zv[ZV_VZ] = y[lay.index("block.vz")]
     zv[ZV_AZ] = system.fp[kn.FP_GRAV] - Fv.sum() / system.fp[kn.FP_MASS]
     # initial phase as IDA's: stick at rest; with the Coulomb law only if the block cannot move
-    start_stick = initial_regime(closed, system.fp, lay.tangential, True).stick \
-        if system.set_valued else True
+    start_stick = regime.stick
     tang = np.zeros(N_TANG)
     tang[TG_LATCH] = float(regime.latch)
     tang[TG_STICK] = 1.0 if start_stick else 0.0
