@@ -167,7 +167,7 @@ class ScipyEvents:
         """
         s = self.system
         y0, closed = s.static_equilibrium()
-        regime = initial_regime(closed, s.fp, s.tangential, s.coulomb)
+        regime = initial_regime(closed, s.fp, s.tangential, s.set_valued)
         regime.pack(self.reg, self.rf)
         self._factor()
         return regime, y0
@@ -224,8 +224,8 @@ class ScipyEvents:
         atol = self.atol(rtol)
         cls = getattr(integrate, method)
         vx_i = self.vx_i
-        feldmann = vx_i >= 0 and not s.coulomb
-        dwell = scene.friction.dwell_time
+        feldmann = vx_i >= 0 and not s.set_valued
+        dwell = scene.friction.parameters.get("dwell_time", 0.0)
 
         regime, y0 = self._reset()
         y, _ = s.consistent(0.0, y0, reg, rf)

@@ -14,11 +14,13 @@ EVENT_KINDS: dict[str, str] = {
     "slip": "the block starts to slide (also a reversal of the sliding direction)",
     "friction_branch": "Feldmann law: the branch b = sign(v + s v_h) changes",
     "latch_flip": "Feldmann law: the hysteresis latch s flips at a velocity extremum",
-    "hysteresis_hold": "guard (Coulomb law): stick held within friction.switching_hysteresis "
-                       "above mu_stick F_N",
-    "dwell_hold": "guard (Coulomb law): break-away held until friction.dwell_time in stick",
-    "chatter_guard": "guard (Coulomb law): stick held for friction.chatter_window after more "
-                     "than friction.chatter_switches stick/slip switches within that window",
+    "hysteresis_hold": "guard (Coulomb law): stick held within "
+                       "friction.parameters.switching_hysteresis above mu_stick F_N",
+    "dwell_hold": "guard (Coulomb law): break-away held until friction.parameters.dwell_time "
+                  "in stick",
+    "chatter_guard": "guard (Coulomb law): stick held for friction.parameters.chatter_window "
+                     "after more than friction.parameters.chatter_switches stick/slip "
+                     "switches within that window",
     "event_storm": "guard: too many events within solver.event_window; the run stops",
 }
 
@@ -30,7 +32,7 @@ regime columns (regime_before, regime_after; empty for the fixed-step schemes):
   closed=...  one digit per contact, contact 0 first: 1 closed (touching,
               spring loaded), 0 open (lifted off)
   b=+1/-1     branch of the Feldmann law: the sign of v + s v_h (v the block's
-              tangential velocity, v_h = friction.hysteresis_velocity)
+              tangential velocity, v_h = friction.parameters.hysteresis_velocity)
   s=+1/-1     hysteresis latch: +1 after a velocity maximum (decelerating),
               -1 after a velocity minimum (accelerating)
   stick/slip  the block's phase: stick while |v| < friction.stick_velocity

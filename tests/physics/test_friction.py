@@ -198,7 +198,8 @@ def test_latch_ignores_noise_below_eps():
 FC = 0.650
 THRESHOLD = math.sqrt(1.0 + math.pi**2 / 4.0)
 # constant mu = F_c / F_N, a1 irrelevant, a2 large (plateau within 5/a2 = 5 um/s), no hysteresis
-COULOMB = Friction(mu_slip=FC / FN, mu_stick=FC / FN, a1=0.0, a2=1e6, hysteresis_velocity=0.0)
+COULOMB = Friction(mu_slip=FC / FN, mu_stick=FC / FN,
+                   parameters={"a1": 0.0, "a2": 1e6, "hysteresis_velocity": 0.0})
 
 
 def den_hartog_velocity(theta, T0, fc, m, w):
@@ -283,7 +284,7 @@ def test_den_hartog_stop_threshold():
         assert _longest_stick(v[last], dt) == pytest.approx(ref_stick, abs=0.5e-3)
         # a slow breakaway through the regularised law costs a velocity offset of a few 1/a2
         err = np.max(np.abs(v[last] - ref))
-        assert err < 10.0 / COULOMB.a2
+        assert err < 10.0 / COULOMB.parameters["a2"]
 
 
 # --------------------------------------------------------------------------------------------

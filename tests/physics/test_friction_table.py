@@ -200,7 +200,8 @@ def test_a_table_that_is_not_utf8_is_refused_naming_the_byte(tmp_path):
     path.write_bytes("velocity,mu\n0,0.3\n1,0.3 \u00e9\n".encode("latin-1"))
     with pytest.raises(SceneError) as info:
         load_friction_table(path, 0.4)
-    assert str(info.value) == (f"friction.table {str(path)!r} must be UTF-8 text (save it as "
+    assert str(info.value) == (f"friction.parameters.table {str(path)!r} must be UTF-8 text "
+                               f"(save it as "
                                f"UTF-8 CSV), got byte 0xe9 at byte 24 on line 3")
 
 
@@ -216,11 +217,15 @@ def test_a_byte_order_mark_is_not_part_of_the_header(tmp_path):
 
 def test_scene_and_solvers_refuse_what_they_cannot_do(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(SceneError, match=r"^friction.table must name a CSV file"):
+    with pytest.raises(SceneError, match=r"^friction.parameters.table must name a CSV file of "
+                                         r"the kinetic curve, .* when friction.law = 'table', "
+                                         r"got none$"):
         roughvib.load_scene("paper", {"friction.law": "table"})
-    with pytest.raises(SceneError, match=r"^friction.table is read by friction.law = 'table'"):
+    with pytest.raises(SceneError, match=r"^friction.parameters.table is a key of friction.law "
+                                         r"= 'table', not of friction.law = 'feldmann'"):
         roughvib.load_scene("paper", {"friction.table": "x.csv"})
-    with pytest.raises(SceneError, match="friction.table 'missing.csv' must be a readable"):
+    with pytest.raises(SceneError, match="friction.parameters.table 'missing.csv' must be a "
+                                         "readable"):
         law_table(roughvib.load_scene("paper", {"friction.law": "table",
                                                 "friction.table": "missing.csv"}).friction)
     sc = _table_scene(tmp_path, [0.0, 1.0], [0.3, 0.3], **{

@@ -150,7 +150,7 @@ def test_scene_keys_and_solvers():
                                       "solver.method": "adaptive-modal"})
     with pytest.raises(SceneError, match=r"friction.parameters.sigma0 is a key of "
                                          r"friction.law = 'lugre', not of"):
-        roughvib.load_scene("paper", {"friction.parameters.sigma0": 1e5})
+        roughvib.load_scene("paper", {"friction.parameters.sigma0": 2e5})
     with pytest.raises(SceneError, match=r"friction.parameters.sigma1 .* must be in \[0, "):
         roughvib.load_scene("paper", {"friction.law": "lugre",
                                       "friction.parameters.sigma1": -1.0})

@@ -58,7 +58,7 @@ def test_malformed_friction_tables(tmp_path, capsys, case):
                       f"friction.table='{path}'", "--set", "excitation.force_amplitude=1.0",
                       "--set", "excitation.target_rms_velocity=none", "--set",
                       "output.transient=0", *QUIET, "--out", tmp_path / "run"],
-             f"friction.table '{path}'", rule)
+             f"friction.parameters.table '{path}'", rule)
     assert not (tmp_path / "run").exists()
 
 

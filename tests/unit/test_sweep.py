@@ -163,7 +163,7 @@ def test_a_laws_own_key_is_swept_and_checked_against_the_base_law():
     assert scenes[1].friction.parameters["sigma1"] == 100.0  # the others keep their defaults
     with pytest.raises(SceneError, match=r"^grid.friction.parameters.sigma0 is not a known key "
                                          r"of friction.parameters for this base scene \(known: "
-                                         r"none\)$"):
+                                         r"a1, a2, hysteresis_velocity, latch_velocity\)$"):
         sw.load_sweep({"base": "paper", "grid": {"friction.parameters.sigma0": [1e5]}})
 
 

@@ -141,6 +141,11 @@ FP_DX = 18      # profile: spacing [m]
 FP_VSTRIB = 19  # coulomb: Stribeck velocity [m/s], 0 = constant kinetic coefficient
 FP_HYST = 20    # coulomb: relative switching hysteresis of the break-away [-]
 N_FP = 21
+#: the scalar slots of the friction laws' own keys (``friction.parameters``) by key name: a
+#: law's key of this name is packed here (0 where the scene's law has no such key); FP_EPS is
+#: derived, max(latch_velocity, hysteresis_velocity)
+FP_LAW_KEYS = {"a1": FP_A1, "a2": FP_A2, "hysteresis_velocity": FP_VH,
+               "stribeck_velocity": FP_VSTRIB, "switching_hysteresis": FP_HYST}
 
 REG_B = 0
 REG_S = 1

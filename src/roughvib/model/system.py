@@ -518,11 +518,10 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_OMEGA] = exc.omega
     fp[kn.FP_MU_SLIP] = fr.mu_slip
     fp[kn.FP_MU_STICK] = fr.mu_stick
-    fp[kn.FP_A1] = fr.a1
-    fp[kn.FP_A2] = fr.a2
-    # the hysteresis shift is the Feldmann law's; a dynamic law's branch is the sign of v
-    fp[kn.FP_VH] = fr.hysteresis_velocity if law.kind != "dynamic" else 0.0
-    fp[kn.FP_EPS] = fr.effective_latch_velocity
+    par = fr.parameters  # the law's own keys, in their slots (0 where it has none)
+    for key, slot in kn.FP_LAW_KEYS.items():
+        fp[slot] = par.get(key) or 0.0
+    fp[kn.FP_EPS] = max(par.get("latch_velocity", 0.0), par.get("hysteresis_velocity", 0.0))
     fp[kn.FP_VSTICK] = fr.stick_velocity
     fp[kn.FP_PV] = exc.velocity if not tangential else 0.0
     fp[kn.FP_PA] = exc.amplitude if not tangential else 0.0
@@ -530,8 +529,6 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     fp[kn.FP_MMODAL] = 1.0  # mass-normalised shapes (physics/structures)
     fp[kn.FP_S0] = 0.0  # the windows' own coordinate (input_windows)
     fp[kn.FP_DX] = profile.dx
-    fp[kn.FP_VSTRIB] = fr.stribeck_velocity or 0.0
-    fp[kn.FP_HYST] = fr.switching_hysteresis
     fp = np.concatenate([fp, table])  # the law's own parameters follow the scalars (N_FP on)
     off = layout.offsets(law.law_id)
     if scene.contact.friction_moment and tangential and R > 0:

@@ -80,11 +80,13 @@ from roughvib.scene.files import (
 )
 from roughvib.scene.forces import (
     FRICTION_LAWS,  # noqa: F401
+    LAW_KEYS,  # noqa: F401
     SET_VALUED_LAWS,  # noqa: F401
     Excitation,
     Friction,
     LawDeclaration,  # noqa: F401
     LawKey,  # noqa: F401
+    law_key_path,  # noqa: F401
 )
 from roughvib.scene.solver_output import (
     _TOLERANCE_KEYS,  # noqa: F401

@@ -18,7 +18,13 @@ from typing import Any
 
 from roughvib.scene.bodies import Block, Contact, Plate, Roughness
 from roughvib.scene.checks import MAX_FIXED_STEPS, MAX_PROFILE_SAMPLES, SceneError, _file_name, _fmt
-from roughvib.scene.forces import Excitation, Friction
+from roughvib.scene.forces import (
+    FRICTION_LAWS,
+    Excitation,
+    Friction,
+    fold_law_keys,
+    law_key_path,
+)
 from roughvib.scene.solver_output import _TOLERANCE_KEYS, Output, Solver
 from roughvib.solvers import registry as _registry
 
@@ -108,6 +114,12 @@ class Scene:
         data = scene_to_dict(self)
         items = dict(overrides or {})
         items.update({k.replace("__", "."): v for k, v in kw.items()})
+        law = items.get("friction.law", self.friction.law)
+        if law != self.friction.law:  # another law: its keys, not the defaults of this one's
+            own = FRICTION_LAWS[self.friction.law].keys
+            data["friction"]["parameters"] = {
+                k: v for k, v in data["friction"].get("parameters", {}).items()
+                if k not in own or v != own[k].default}
         for key, value in items.items():
             _assign(data, key, value)
         return scene_from_dict(data, base_dir=self.base_dir)
@@ -153,7 +165,7 @@ _TOP_KEYS = ("name", "description")
 
 
 def _assign(data: dict, key: str, value: Any) -> None:
-    parts = key.split(".")
+    parts = law_key_path(key).split(".")  # friction.a1 is friction.parameters.a1
     if len(parts) == 1 and parts[0] in _TOP_KEYS:
         data[parts[0]] = value
         return
@@ -182,7 +194,8 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
             if v is None or (isinstance(v, Mapping) and not v):
                 continue
             d[f.name] = (list(v) if isinstance(v, tuple) else
-                         dict(v) if isinstance(v, Mapping) else v)
+                         {k: x for k, x in v.items() if x is not None}
+                         if isinstance(v, Mapping) else v)
         out[sec] = d
     return out
 
@@ -208,6 +221,8 @@ def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scen
         cls = _SECTIONS[key]
         if not isinstance(value, dict):
             raise SceneError(f"{key} must be a table [{key}], got {_fmt(value)}")
+        if cls is Friction:  # the flat law keys of earlier scene files (friction.a1)
+            value = fold_law_keys(value)
         known = {f.name for f in fields(cls)}
         for k in value:
             if k not in known:
@@ -221,8 +236,7 @@ def scene_from_dict(data: dict[str, Any], *, base_dir: str | Path = ".") -> Scen
         # "none" clears an optional value (TOML has no null)
         for k, v in list(sec.items()):
             if v == "none" and (k in ("force_amplitude", "target_rms_velocity",
-                                      "summit_density", "summit_radius", "summit_std",
-                                      "stribeck_velocity")
+                                      "summit_density", "summit_radius", "summit_std")
                                 or (cls is Solver and k in _TOLERANCE_KEYS)):
                 sec[k] = None
         try:

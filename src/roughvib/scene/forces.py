@@ -7,8 +7,9 @@ Frozen dataclasses in SI units, each validated in ``__post_init__`` with the hel
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from roughvib.scene.checks import (
     SceneError,
@@ -18,9 +19,7 @@ from roughvib.scene.checks import (
     _integer,
     _nonneg,
     _number,
-    _opt_positive,
     _positive,
-    _range,
     _set,
 )
 
@@ -31,26 +30,34 @@ class LawKey:
 
     Attributes
     ----------
-    default : float
-        Its value when the scene does not give it.
+    default : float, int, str or None
+        Its value when the scene does not give it (``None``: off, or required for a file).
     unit : str
         SI unit ("" for none).
     lowest, highest : float
-        The physically sane range (inclusive).
+        The physically sane range (inclusive; a ``file`` key has none).
     meaning : str
         What it is, in a few words (the refusal and docs/friction.md say it).
+    kind : {"real", "integer", "optional", "file"}
+        ``real``: a number; ``integer``: a whole number; ``optional``: a number or ``None``
+        (``"none"`` in TOML: off); ``file``: the name of a file relative to the scene file's
+        folder (required: no default).
+    positive : bool
+        The lowest value is excluded (the key must be > ``lowest``).
     """
 
-    default: float
+    default: float | int | str | None
     unit: str
     lowest: float
     highest: float
     meaning: str
+    kind: str = "real"
+    positive: bool = False
 
 
 @dataclass(frozen=True)
 class LawDeclaration:
-    """What the scene knows of a friction law: its kind and its own keys.
+    """What the scene knows of a friction law: its kind, its own keys and their joint rule.
 
     Attributes
     ----------
@@ -60,21 +67,61 @@ class LawDeclaration:
         (coulomb, table); ``dynamic``: internal states with their own rate equations (lugre).
         The solvers declare which kinds they run (``roughvib.solvers.registry``).
     keys : mapping
-        ``{name: LawKey}``: the law's own keys, given in ``friction.parameters`` (the laws
-        that predate that table read their keys from the section itself and declare none
-        here).
+        ``{name: LawKey}``: the law's own keys, given in ``friction.parameters``.
+    rule : callable or None
+        ``rule(parameters) -> str | None``: a rule between the law's keys (the checked and
+        completed ``parameters``), returning the one-line refusal or None.
     """
 
     kind: str
     keys: Mapping[str, LawKey] = field(default_factory=dict)
+    rule: Callable[[Mapping[str, Any]], str | None] | None = None
 
+
+def _feldmann_rule(par: Mapping[str, Any]) -> str | None:
+    if par["a2"] <= par["a1"]:
+        return (f"friction.parameters.a2 must be > friction.parameters.a1 ({par['a1']} s/m), "
+                f"got {par['a2']} s/m")
+    return None
+
+
+#: the guards of the set-valued laws (coulomb and table share them)
+_SET_VALUED_GUARDS = {
+    "switching_hysteresis": LawKey(
+        0.0, "", 0.0, 1.0, "relative break-away hysteresis (opt-in guard, 0: off)"),
+    "dwell_time": LawKey(0.0, "s", 0.0, 1e3, "least time in stick (opt-in guard, 0: off)"),
+    "chatter_switches": LawKey(
+        20, "", 0, 1e9, "stick/slip switches within chatter_window that engage the "
+        "chatter guard (0: off)", kind="integer"),
+    "chatter_window": LawKey(1e-3, "s", 0.0, 1e3, "window and hold of the chatter guard",
+                             positive=True),
+}
 
 #: the friction laws a scene can name (``friction.law``), in the order of
 #: ``roughvib.physics.friction.LAWS`` (the registration checks it), with their kinds and keys
 FRICTION_LAWS: dict[str, LawDeclaration] = {
-    "feldmann": LawDeclaration("single-valued"),
-    "coulomb": LawDeclaration("set-valued"),
-    "table": LawDeclaration("set-valued"),
+    # Eq. 10 of the paper: a1, a2 its exponential constants; v_h the hysteresis shift of the
+    # zero crossing and epsilon_v the latch's margin (docs/theory.md)
+    "feldmann": LawDeclaration("single-valued", {
+        "a1": LawKey(500.0, "s/m", 0.0, 1e8, "Eq. 10's first exponential constant"),
+        "a2": LawKey(2e4, "s/m", 0.0, 1e8, "Eq. 10's second exponential constant (> a1)",
+                     positive=True),
+        "hysteresis_velocity": LawKey(5e-5, "m/s", 0.0, 100.0,
+                                      "v_h, the shift of the zero crossing"),
+        "latch_velocity": LawKey(1e-4, "m/s", 0.0, 100.0, "epsilon_v, the latch's margin",
+                                 positive=True),
+    }, _feldmann_rule),
+    "coulomb": LawDeclaration("set-valued", {
+        "stribeck_velocity": LawKey(None, "m/s", 0.0, 100.0, "Stribeck velocity v_s of the "
+                                    "kinetic coefficient (none: constant mu_slip)",
+                                    kind="optional", positive=True),
+        **_SET_VALUED_GUARDS,
+    }),
+    "table": LawDeclaration("set-valued", {
+        "table": LawKey(None, "", 0.0, 0.0, "a CSV file of the kinetic curve, velocity [m/s] "
+                        "and mu [-]", kind="file"),
+        **_SET_VALUED_GUARDS,
+    }),
     # LuGre (Canudas de Wit et al. 1995). mu_c, mu_s are friction.mu_slip, mu_stick; v_s the
     # decay of the paper's law's Stribeck term (1 / a1 = 2 mm/s); sigma1 damps the block's
     # pre-sliding oscillation on its own weight, sqrt(sigma0 g), to a damping ratio of about
@@ -89,11 +136,17 @@ FRICTION_LAWS: dict[str, LawDeclaration] = {
 }
 #: the set-valued laws (stick held at v = 0)
 SET_VALUED_LAWS = tuple(n for n, d in FRICTION_LAWS.items() if d.kind == "set-valued")
+#: every key some law declares (a flat ``friction.<key>`` is read as ``friction.parameters``)
+LAW_KEYS = frozenset(k for d in FRICTION_LAWS.values() for k in d.keys)
 
 
 @dataclass(frozen=True)
 class Friction:
     """Friction law between block and plate.
+
+    The keys every law reads are attributes; each law's own keys are in ``parameters``
+    (``[friction.parameters]`` in a scene file; the flat form ``friction.a1`` of earlier
+    scene files is read into it).
 
     Attributes
     ----------
@@ -102,103 +155,64 @@ class Friction:
         (a smooth regularisation: stick is a steep slope). ``coulomb``: set-valued
         Coulomb friction with regimes slip+, slip-, stick; in stick the velocity is held at
         zero and the friction force is an algebraic unknown (docs/theory.md). ``table``: the
-        same set-valued law with the kinetic coefficient read from ``table``
-        (docs/friction.md). ``lugre``: the LuGre dynamic law with one bristle state, its
-        constants in ``parameters`` (docs/friction.md).
+        same set-valued law with the kinetic coefficient read from a CSV file
+        (docs/friction.md). ``lugre``: the LuGre dynamic law with one bristle state
+        (docs/friction.md).
     parameters : mapping
-        The law's own keys (``roughvib.scene.FRICTION_LAWS``), completed with their
-        defaults; empty for a law that declares none. A key of another law is refused.
-    table : str or None
-        ``table``: CSV file of the kinetic curve, columns ``velocity`` [m/s] (from 0,
-        increasing) and ``mu`` [-], relative to the scene file's folder.
+        The law's own keys (``roughvib.scene.FRICTION_LAWS``, listed in docs/friction.md),
+        completed with their defaults. A key of another law is refused unless it holds that
+        law's default (as scene files written before the keys moved here do).
+
+        * feldmann: ``a1``, ``a2`` (Eq. 10's exponential constants [s/m]),
+          ``hysteresis_velocity`` (v_h, the shift of the zero crossing [m/s]),
+          ``latch_velocity`` (epsilon_v: the latch flips once the velocity has moved back
+          from its running extremum by more than this [m/s]; the effective value is
+          max(latch_velocity, hysteresis_velocity)).
+        * coulomb: ``stribeck_velocity`` (kinetic coefficient mu_slip + (mu_stick - mu_slip)
+          exp(-``|v|`` / v_s) with this v_s [m/s]; ``None``, the default, gives a constant
+          mu_slip), and the guards below.
+        * table: ``table`` (CSV file of the kinetic curve, columns ``velocity`` [m/s], from 0,
+          increasing, and ``mu`` [-], relative to the scene file's folder), and the guards.
+        * the guards of coulomb and table, all off or inactive by default:
+          ``switching_hysteresis`` (break-away needs ``|friction|`` > mu_stick F_N (1 + this)
+          [-]; each hold is logged as ``hysteresis_hold``), ``dwell_time`` (least time in
+          stick before break-away [s]; holds logged as ``dwell_hold``), ``chatter_switches``
+          and ``chatter_window`` (a stick phase that begins when more than this many
+          stick/slip switches lie within the last window [s] is held for the window, logged
+          as ``chatter_guard``; it acts only on such chatter; 0 switches turns it off).
+        * lugre: ``sigma0`` [1/m], ``sigma1``, ``sigma2`` [s/m], ``stribeck_velocity`` [m/s].
     mu_slip, mu_stick : float
         Quasi-static kinetic and static coefficients [-].
-    a1, a2 : float
-        Exponential constants of Eq. 10 [s/m].
-    hysteresis_velocity : float
-        v_h, the shift of the zero crossing [m/s].
-    latch_velocity : float
-        epsilon_v: the latch flips once the velocity has moved back from its running extremum
-        by more than this [m/s]; the effective value is max(latch_velocity, hysteresis_velocity).
     stick_velocity : float
         ``|v|`` below this counts as stick for phase logging and the stick fraction [m/s].
-    stribeck_velocity : float or None
-        ``coulomb``: kinetic coefficient mu_slip + (mu_stick - mu_slip) exp(-``|v|`` / v_s) with
-        this v_s [m/s]; ``None`` (default) gives a constant mu_slip.
-    switching_hysteresis : float
-        ``coulomb``: break-away needs ``|friction|`` > mu_stick F_N (1 + this) [-]. 0
-        (default): the exact law, break-away when ``|friction|`` reaches mu_stick F_N. A value
-        > 0 is an opt-in guard that changes the law everywhere: each time it holds the block in
-        stick is logged (``hysteresis_hold``) and counted.
-    dwell_time : float
-        ``coulomb``: minimum time in stick before break-away is allowed [s]. 0 (default): off.
-        Like the hysteresis an opt-in guard; each hold is logged (``dwell_hold``) and counted.
-    chatter_switches : int
-        ``coulomb``: chatter guard. A stick phase that begins when more than this many
-        stick/slip switches lie within the last ``chatter_window`` is held for
-        ``chatter_window`` (logged as ``chatter_guard``, counted as ``guard_chatter``;
-        break-away attempts during the hold as ``dwell_hold``). It acts only on such
-        chatter, never on ordinary stick-slip; 0 turns it off (then the event-storm guard
-        ``solver.max_events`` is the only limit).
-    chatter_window : float
-        ``coulomb``: window of the chatter guard and the length of its hold [s].
     """
 
     law: str = "feldmann"
-    parameters: Mapping[str, float] = field(default_factory=dict)
-    table: str | None = None
+    parameters: Mapping[str, Any] = field(default_factory=dict)
     mu_slip: float = 0.30
     mu_stick: float = 0.40
-    a1: float = 500.0
-    a2: float = 2e4
-    hysteresis_velocity: float = 5e-5
-    latch_velocity: float = 1e-4
     stick_velocity: float = 5e-4
-    stribeck_velocity: float | None = None
-    switching_hysteresis: float = 0.0
-    dwell_time: float = 0.0
-    chatter_switches: int = 20
-    chatter_window: float = 1e-3
 
     def __post_init__(self) -> None:
         p = "friction"
         _set(self, "law", _choice(f"{p}.law", self.law, tuple(FRICTION_LAWS)))
         _set(self, "parameters", _law_parameters(self.law, self.parameters))
-        if self.law == "table":
-            if not isinstance(self.table, str) or not self.table.strip():
-                raise SceneError(f"{p}.table must name a CSV file (velocity [m/s], mu [-]) when "
-                                 f"friction.law = 'table', got {_fmt(self.table)}")
-        elif self.table is not None:
-            raise SceneError(f"{p}.table is read by friction.law = 'table' only, got law "
-                             f"{self.law!r} with table {self.table!r}")
-        _set(self, "stribeck_velocity",
-             _opt_positive(f"{p}.stribeck_velocity", self.stribeck_velocity, "m/s"))
-        _set(self, "switching_hysteresis",
-             _range(f"{p}.switching_hysteresis", self.switching_hysteresis, 0.0, 1.0, ""))
-        _set(self, "dwell_time", _nonneg(f"{p}.dwell_time", self.dwell_time, "s"))
-        _set(self, "chatter_switches",
-             _integer(f"{p}.chatter_switches", self.chatter_switches, 0))
-        _set(self, "chatter_window",
-             _positive(f"{p}.chatter_window", self.chatter_window, "s"))
         _set(self, "mu_slip", _nonneg(f"{p}.mu_slip", self.mu_slip, ""))
         _set(self, "mu_stick", _nonneg(f"{p}.mu_stick", self.mu_stick, ""))
-        _set(self, "a1", _nonneg(f"{p}.a1", self.a1, "s/m"))
-        _set(self, "a2", _positive(f"{p}.a2", self.a2, "s/m"))
-        _set(self, "hysteresis_velocity",
-             _nonneg(f"{p}.hysteresis_velocity", self.hysteresis_velocity, "m/s"))
-        _set(self, "latch_velocity", _positive(f"{p}.latch_velocity", self.latch_velocity, "m/s"))
         _set(self, "stick_velocity", _positive(f"{p}.stick_velocity", self.stick_velocity, "m/s"))
         _check_bounds(self, "friction")
         if self.mu_stick < self.mu_slip:
             raise SceneError(f"{p}.mu_stick must be >= friction.mu_slip ({self.mu_slip}), "
                              f"got {self.mu_stick}")
-        if self.a2 <= self.a1:
-            raise SceneError(f"{p}.a2 must be > friction.a1 ({self.a1} s/m), got {self.a2} s/m")
+        rule = FRICTION_LAWS[self.law].rule
+        refusal = rule(self.parameters) if rule is not None else None
+        if refusal is not None:
+            raise SceneError(refusal)
 
     @property
     def effective_latch_velocity(self) -> float:
-        """epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s]."""
-        return max(self.latch_velocity, self.hysteresis_velocity)
+        """The Feldmann law's epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s]."""
+        return max(self.parameters["latch_velocity"], self.parameters["hysteresis_velocity"])
 
     @property
     def kind(self) -> str:
@@ -211,9 +225,83 @@ class Friction:
         return self.kind == "set-valued"
 
 
-def _law_parameters(law: str, given) -> dict[str, float]:
+def law_key_path(key: str) -> str:
+    """The dotted scene key as it is stored: ``friction.a1`` (the flat form of earlier scene
+    files) is ``friction.parameters.a1``; any other key is returned unchanged.
+
+    Parameters
+    ----------
+    key : str
+        A dotted scene key.
+
+    Returns
+    -------
+    str
+    """
+    section, _, name = key.partition(".")
+    if section == "friction" and name in LAW_KEYS:
+        return f"friction.parameters.{name}"
+    return key
+
+
+def fold_law_keys(section: Mapping[str, Any]) -> dict[str, Any]:
+    """A friction section with its flat law keys (``a1 = 600``, the form of earlier scene
+    files) moved into ``parameters``; one line if both forms give a key different values.
+
+    Parameters
+    ----------
+    section : mapping
+        The ``[friction]`` table as read from TOML.
+
+    Returns
+    -------
+    dict
+    """
+    out = dict(section)
+    flat = {k: out.pop(k) for k in list(out) if k in LAW_KEYS}
+    if not flat:
+        return out
+    table = out.get("parameters", {})
+    if not isinstance(table, Mapping):
+        return out  # refused by the section's own check, naming the key
+    table = dict(table)
+    for k, v in flat.items():
+        if k in table and table[k] != v:
+            raise SceneError(f"friction.{k} and friction.parameters.{k} give different "
+                             f"values; give it once, in [friction.parameters], got {_fmt(v)} "
+                             f"and {_fmt(table[k])}")
+        table[k] = v
+    out["parameters"] = table
+    return out
+
+
+def _law_value(path: str, key: LawKey, value: Any) -> Any:
+    """One law key checked against its kind and sane range (one line otherwise)."""
+    if key.kind == "file":
+        if not isinstance(value, str) or not value.strip():
+            raise SceneError(f"{path} must name {key.meaning}, got {_fmt(value)}")
+        return value
+    if key.kind == "optional" and (value is None or value == "none"):
+        return None
+    if key.kind == "integer":
+        v = _integer(path, value, int(key.lowest))
+    else:
+        v = _number(path, value, key.unit)
+    below = v <= key.lowest if key.positive else v < key.lowest
+    if below or v > key.highest:
+        unit = f" {key.unit}" if key.unit else ""
+        low = "(" if key.positive else "["
+        raise SceneError(f"{path} ({key.meaning}) must be in {low}{key.lowest:g}, "
+                         f"{key.highest:g}]{unit} (the physically sane range), got "
+                         f"{_fmt(value)}")
+    return int(v) if key.kind == "integer" else float(v)
+
+
+def _law_parameters(law: str, given) -> dict[str, Any]:
     """``friction.parameters`` checked against the law's own keys and completed with their
-    defaults (one line naming the key, rule, unit and value otherwise)."""
+    defaults (one line naming the key, rule, unit and value otherwise). A key of another law
+    that holds that law's default is dropped (scene files written before the keys moved here
+    list every law's keys)."""
     keys = FRICTION_LAWS[law].keys
     if given is None:
         given = {}
@@ -224,22 +312,27 @@ def _law_parameters(law: str, given) -> dict[str, float]:
     for name, value in given.items():
         if name not in keys:
             owners = [n for n, d in FRICTION_LAWS.items() if name in d.keys]
+            if owners and all(_is_default(FRICTION_LAWS[o].keys[name], value)
+                              for o in owners):
+                continue
             whose = (f"a key of friction.law = {owners[0]!r}" if owners else "no law's key")
             known = ", ".join(keys) if keys else "none"
             raise SceneError(f"friction.parameters.{name} is {whose}, not of friction.law = "
                              f"{law!r} (its keys: {known}), got {_fmt(value)}")
-        key = keys[name]
-        path = f"friction.parameters.{name}"
-        v = _number(path, value, key.unit)
-        if not (key.lowest <= v <= key.highest):
-            unit = f" {key.unit}" if key.unit else ""
-            raise SceneError(f"{path} ({key.meaning}) must be in [{key.lowest:g}, "
-                             f"{key.highest:g}]{unit} (the physically sane range), got "
-                             f"{_fmt(value)}")
-        out[name] = float(v)
+        out[name] = _law_value(f"friction.parameters.{name}", keys[name], value)
     for name, key in keys.items():
-        out.setdefault(name, float(key.default))
+        if name not in out:
+            if key.kind == "file":
+                raise SceneError(f"friction.parameters.{name} must name {key.meaning} when "
+                                 f"friction.law = {law!r}, got none")
+            out[name] = key.default
     return out
+
+
+def _is_default(key: LawKey, value: Any) -> bool:
+    if key.default is None:
+        return value is None or value == "none"
+    return value == key.default
 
 
 @dataclass(frozen=True)

@@ -194,7 +194,9 @@ class EventBook:
         kn.events(te, ye, evbuf, *ev_args)
         kn.outputs(te, ye, outbuf, *args)
         fric_before = float(outbuf[kn.OUT_FRICTION])
-        fr = system.scene.friction
+        par = system.scene.friction.parameters  # the set-valued laws' guards (0: off)
+        guards = (par.get("dwell_time", 0.0), par.get("chatter_switches", 0),
+                  par.get("chatter_window", 0.0))
         kinds = []
 
         self.switched = set()
@@ -202,8 +204,7 @@ class EventBook:
         def switch_root(idx: int) -> None:
             self.switched.add(idx)
             for tr in switch(regime, idx, te, ye, system.fp, K, lay.index("block.vx"),
-                             lay.slice("contact.force"), fr.dwell_time, fr.chatter_switches,
-                             fr.chatter_window):
+                             lay.slice("contact.force"), *guards):
                 kinds.append((tr.kind, tr.contact, idx))
                 if tr.guard:
                     self.stats[f"guard_{tr.guard}"] += 1
@@ -254,7 +255,7 @@ class EventBook:
                 f"grazing contact (roughness much smaller than the static "
                 f"compression changes)"
                 + ("; for stick/slip chatter of the Coulomb law, lower "
-                   "friction.chatter_switches" if any(kd in ("stick", "slip")
+                   "friction.parameters.chatter_switches" if any(kd in ("stick", "slip")
                                                       for kd, _, _ in kinds) else "")
                 + ".", te)
         self.stats["restarts"] += 1

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from roughvib._cache import cached_values, code_fingerprint
-from roughvib.physics.friction.laws import LAWS
+from roughvib.physics.friction.laws import LAWS, model_keys
 from roughvib.physics.friction.table import TAB_HEAD, TAB_N
 from roughvib.scene import Friction
 
@@ -29,12 +29,13 @@ __all__ = ["calibrate_force_amplitude", "calibrated_force_amplitude", "law_param
 _CODE = sorted(Path(__file__).parent.glob("*.py"))
 
 
-
-
 def law_parameters(friction: Friction) -> tuple[float, float, float, float]:
-    """``(mu_slip, mu_stick, a1, a2)`` of a :class:`~roughvib.scene.Friction` as floats."""
-    return (float(friction.mu_slip), float(friction.mu_stick), float(friction.a1),
-            float(friction.a2))
+    """``(mu_slip, mu_stick, a1, a2)`` of the Feldmann law's model of a
+    :class:`~roughvib.scene.Friction` as floats (a1, a2: the section's own for the Feldmann
+    law, that law's defaults otherwise)."""
+    par = model_keys(friction, "feldmann")
+    return (float(friction.mu_slip), float(friction.mu_stick), float(par["a1"]),
+            float(par["a2"]))
 
 
 def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, omega: float,
@@ -52,7 +53,7 @@ def simulate_tangential(T0: float, mass: float, r2: float, normal_force: float, 
     the latch on the accelerating branch (``s = -1``, running maximum 0). The regularised law is
     stiff (slope ~ mu_stick a2 F_N), so each step is the trapezoidal rule (second order,
     A-stable) solved for v by Newton; the latch is updated after each step with
-    ``friction.effective_latch_velocity``.
+    epsilon_v = max(latch_velocity, hysteresis_velocity) (``friction.parameters``).
 
     Parameters
     ----------
@@ -255,25 +256,20 @@ def calibrated_force_amplitude(target_rms: float, mass: float, r2: float, normal
         Read from the cache, computed now, or computed with the cache switched off
         (``ROUGHVIB_CACHE=off``).
     """
-    mu_slip, mu_stick, a1, a2 = law_parameters(friction)
+    model = LAWS[friction.law].calibration
     inputs = {"target_rms": float(target_rms), "mass": float(mass), "r2": float(r2),
               "normal_force": float(normal_force), "omega": float(omega),
-              "mu_slip": mu_slip, "mu_stick": mu_stick, "a1": a1, "a2": a2,
-              "hysteresis_velocity": float(friction.hysteresis_velocity),
-              "effective_latch_velocity": float(friction.effective_latch_velocity)}
-    if friction.parameters:
-        # a law with its own keys (friction.parameters): its name and every key
-        inputs["law"] = friction.law
-        inputs.update({f"parameters.{k}": float(v) for k, v in sorted(friction.parameters.items())})
-    elif LAWS[friction.law].calibration == "set-valued":
-        # keys only a set-valued calibration has: the Feldmann law's cache keys stay as they were
-        inputs["law"] = friction.law
-        inputs["stribeck_velocity"] = float(friction.stribeck_velocity or 0.0)
-        if table is not None and table.size:
-            import hashlib
+              "mu_slip": float(friction.mu_slip), "mu_stick": float(friction.mu_stick),
+              "law": friction.law, "model": model}
+    # the numbers of the keys the model reads (a file by its packed curve's hash, below)
+    keys = model_keys(friction, model if model in LAWS else friction.law)
+    inputs.update({f"parameters.{k}": float(v) for k, v in sorted(keys.items())
+                   if isinstance(v, int | float) and not isinstance(v, bool)})
+    if table is not None and table.size:
+        import hashlib
 
-            inputs["table_sha256"] = hashlib.sha256(
-                np.ascontiguousarray(table, dtype=float).tobytes()).hexdigest()
+        inputs["table_sha256"] = hashlib.sha256(
+            np.ascontiguousarray(table, dtype=float).tobytes()).hexdigest()
 
     def compute() -> dict[str, float]:
         return {"T0": calibrate_force_amplitude(target_rms, mass, r2, normal_force, omega,

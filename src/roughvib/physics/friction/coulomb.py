@@ -2,7 +2,7 @@
 
 Stick is a regime with the velocity held at zero (the solvers own that part, shared with every
 set-valued law); in slip the coefficient is :func:`coulomb_kinetic`, constant ``mu_slip`` or
-decaying from ``mu_stick`` with the Stribeck velocity ``friction.stribeck_velocity``.
+decaying from ``mu_stick`` with the Stribeck velocity ``friction.parameters.stribeck_velocity``.
 """
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ from roughvib.solvers import registry
 
 __all__ = ["KIND_DYNAMIC", "KIND_SET_VALUED", "KIND_SINGLE_VALUED", "LAWS", "LAW_COULOMB",
            "LAW_FELDMANN", "LAW_LUGRE", "LAW_TABLE", "FrictionLaw", "dynamic_law",
-           "is_set_valued", "kinetic_coefficient", "law_kind", "single_valued_mu"]
+           "is_set_valued", "kinetic_coefficient", "law_kind", "model_keys",
+           "single_valued_mu"]
 
 #: ids of the friction laws as the kernels see them (``off[OFF_LAW]``, roughvib.model.layout)
 LAW_FELDMANN = feldmann.LAW_ID
@@ -61,20 +62,43 @@ def _lugre_parameters(friction, base_dir) -> np.ndarray:
     return lugre.pack_parameters(friction.parameters)
 
 
+def model_keys(friction, model: str) -> dict:
+    """The own keys the tangential model of law ``model`` reads for this friction section:
+    the section's ``parameters`` when it is that law, else that law's defaults (the coulomb
+    law is calibrated in the Feldmann law's model, with that law's default keys).
+
+    Parameters
+    ----------
+    friction : roughvib.scene.Friction
+    model : str
+        A law's name.
+
+    Returns
+    -------
+    dict
+        ``{key: value}``.
+    """
+    if friction.law == model:
+        return dict(friction.parameters)
+    return {k: key.default for k, key in FRICTION_LAWS[model].keys.items()}
+
+
 # the tangential-only models, tangential(T0, mass, r2, normal_force, omega, friction, dt, n,
 # v, x, table): fill v, x (length n + 1) from rest
 def _feldmann_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table):
+    par = model_keys(friction, "feldmann")
+    vh = float(par["hysteresis_velocity"])
     tangential_feldmann(T0, mass, r2, normal_force, omega, float(friction.mu_slip),
-                        float(friction.mu_stick), float(friction.a1), float(friction.a2),
-                        float(friction.hysteresis_velocity),
-                        float(friction.effective_latch_velocity), dt, n, v, x)
+                        float(friction.mu_stick), float(par["a1"]), float(par["a2"]), vh,
+                        max(float(par["latch_velocity"]), vh), dt, n, v, x)
 
 
 def _set_valued_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, curve):
     tab = np.zeros(0) if curve is None else np.asarray(curve, dtype=float)
     tangential_set_valued(T0, mass, r2, normal_force, omega, LAWS[friction.law].law_id,
                           float(friction.mu_slip), float(friction.mu_stick),
-                          float(friction.stribeck_velocity or 0.0), tab, dt, n, v, x)
+                          float(friction.parameters.get("stribeck_velocity") or 0.0), tab, dt,
+                          n, v, x)
 
 
 def _lugre_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table):
@@ -146,7 +170,7 @@ LAWS = {
     "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, 0, "feldmann", _no_parameters,
                             _feldmann_tangential),
     # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
-    # mu_slip / mu_stick), so that its runs stay bit-identical
+    # mu_slip / mu_stick and that law's default keys), so that its runs stay bit-identical
     "coulomb": FrictionLaw("coulomb", LAW_COULOMB, 0, "feldmann", _no_parameters,
                            _feldmann_tangential),
     "table": FrictionLaw("table", LAW_TABLE, 0, "set-valued", _table_parameters,

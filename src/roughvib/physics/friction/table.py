@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from roughvib.scene import SANE_BOUNDS, Friction, SceneError
+from roughvib.scene import FRICTION_LAWS, SANE_BOUNDS, Friction, SceneError
 
 __all__ = ["LAW_ID", "TAB_HEAD", "TAB_N", "law_table", "load_friction_table", "pchip_slopes",
            "table_kinetic"]
@@ -132,13 +132,13 @@ def pchip_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 #: what a friction table may hold (its values are read as the keys they stand for are): a
 #: coefficient in the sane range of friction.mu_slip / mu_stick, a sliding speed in that of
-#: friction.stribeck_velocity
+#: the coulomb law's stribeck_velocity
 _, _TABLE_MU_MAX, _ = SANE_BOUNDS["friction.mu_stick"]
-_, _TABLE_V_MAX, _ = SANE_BOUNDS["friction.stribeck_velocity"]
+_TABLE_V_MAX = FRICTION_LAWS["coulomb"].keys["stribeck_velocity"].highest
 #: the steepest slope |d mu / d v| of a friction table [s/m]: that of the steepest Feldmann
 #: curve within the keys' sane ranges (a coefficient step of 10 decaying at a2 = 1e8 s/m); a
 #: step of 0.05 within 1e-300 m/s made the solver divide by zero
-_, _A2_MAX, _ = SANE_BOUNDS["friction.a2"]
+_A2_MAX = FRICTION_LAWS["feldmann"].keys["a2"].highest
 _TABLE_SLOPE_MAX = _TABLE_MU_MAX * _A2_MAX
 
 
@@ -202,18 +202,18 @@ def load_friction_table(path: str | Path, mu_stick: float) -> tuple[np.ndarray, 
         One line naming the file and, for a bad value, the row (data rows count from 1; the
         header is line 1 of the file): a missing file, bytes that are not UTF-8, a separator
         other than a comma, a missing column, fewer than two rows, a value that is not a finite
-        number, a velocity outside [0, 100] m/s (the sane range of
-        ``friction.stribeck_velocity``) or not increasing, a first velocity other than 0, a
-        coefficient outside [0, 10] (the sane range of ``friction.mu_stick``), a slope
-        between rows steeper than 1e9 s/m (the steepest Feldmann curve in the sane ranges of
-        ``friction.mu_stick`` and ``friction.a2``), or a coefficient at v = 0 above
+        number, a velocity outside [0, 100] m/s (the sane range of the coulomb law's
+        ``stribeck_velocity``) or not increasing, a first velocity other than 0, a
+        coefficient outside [0, 10] (the sane range of ``friction.mu_stick``), a slope between
+        rows steeper than 1e9 s/m (the steepest Feldmann curve in the sane ranges of
+        ``friction.mu_stick`` and the Feldmann law's ``a2``), or a coefficient at v = 0 above
         mu_stick.
     """
     import csv
     import io
 
     path = Path(path)
-    where = f"friction.table {str(path)!r}"
+    where = f"friction.parameters.table {str(path)!r}"
     text = _table_text(path, where)
     try:
         rows = list(csv.reader(io.StringIO(text, newline="")))
@@ -273,6 +273,7 @@ def law_table(friction: Friction, base_dir: str | Path = ".") -> np.ndarray:
     """
     if friction.law != "table":
         return np.zeros(0)
-    v, mu = load_friction_table(Path(base_dir) / friction.table, friction.mu_stick)
+    v, mu = load_friction_table(Path(base_dir) / friction.parameters["table"],
+                               friction.mu_stick)
     return np.concatenate([[float(v.size)], v, mu, pchip_slopes(v, mu)])
 

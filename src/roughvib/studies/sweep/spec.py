@@ -19,7 +19,14 @@ from pathlib import Path
 from typing import Any
 
 from roughvib.rundir import write_file
-from roughvib.scene import Scene, SceneError, load_scene, read_toml_file, scene_to_dict
+from roughvib.scene import (
+    Scene,
+    SceneError,
+    law_key_path,
+    load_scene,
+    read_toml_file,
+    scene_to_dict,
+)
 
 __all__ = ["CASES_DIR", "SUCCESS", "Case", "Sweep", "adopt_old_case_names", "builtin_sweeps",
            "case_name", "load_sweep", "old_case_name"]
@@ -108,7 +115,7 @@ class Sweep:
     def base_value(self, key: str) -> Any:
         """Value of a dotted key in the base scene (None if unset)."""
         value: Any = scene_to_dict(self.base)
-        for part in key.split("."):  # section.key, or section.table.key
+        for part in law_key_path(key).split("."):  # section.key, or section.table.key
             value = value.get(part) if isinstance(value, dict) else None
         return value
 
@@ -156,7 +163,7 @@ def _flatten(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 def _check_key(base: Scene, key: str, where: str) -> None:
     sections = [f.name for f in dataclasses.fields(Scene)
                 if dataclasses.is_dataclass(getattr(base, f.name))]
-    section, dot, field = key.partition(".")
+    section, dot, field = law_key_path(key).partition(".")  # friction.a1: in parameters
     if key in ("name", "description"):
         raise SceneError(f"{where}{key} cannot be swept (each case is named by the sweep)")
     name, inner_dot, inner = field.partition(".")
