@@ -167,7 +167,7 @@ class ScipyEvents:
         """
         s = self.system
         y0, closed = s.static_equilibrium()
-        regime = initial_regime(closed, s.fp, s.tangential, s.set_valued)
+        regime = initial_regime(closed, s.fp, s.tangential, s.scene.friction.law)
         regime.pack(self.reg, self.rf)
         self._factor()
         return regime, y0

@@ -168,7 +168,7 @@ def _add_regimes(ds: RunData, system: System, events) -> None:
     from roughvib.model.regimes import initial_regime
 
     _, closed0 = system.static_equilibrium()  # the start of every solver
-    start = initial_regime(closed0, system.fp, system.tangential, system.set_valued)
+    start = initial_regime(closed0, system.fp, system.tangential, system.scene.friction.law)
     closed, stick = regime_series(events, ds["time"], closed0,
                                   start.stick and system.tangential)
     for name, dims, values, meanings in (("contact_closed", ("time", "contact"), closed,

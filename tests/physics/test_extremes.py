@@ -351,7 +351,7 @@ def test_ida_failure_message_names_the_contact_closest_to_switching():
     y0, closed = system.static_equilibrium()
     from roughvib.model.regimes import initial_regime
 
-    initial_regime(closed, system.fp, True, system.set_valued).pack(reg, rf)
+    initial_regime(closed, system.fp, True, scene.friction.law).pack(reg, rf)
     text = _closest_contact(0.0, y0, 3, system.event_args(reg, rf))
     forces = y0[system.layout.slice("contact.force")]
     k = int(np.argmin(np.abs(forces)))

@@ -149,9 +149,12 @@ def test_unknown_kind_is_one_line_listing_the_kinds(failed_run, capsys):
 def test_every_kind_a_solver_logs_is_documented():
     from roughvib.solvers.fixed_step import EV_KINDS
 
-    written = set(re.findall(r'Transition\("(\w+)"', (SRC / "model/regimes.py").read_text()))
-    written |= set(re.findall(r'"(\w+)" if regime\.stick else "(\w+)"',
-                              (SRC / "model/regimes.py").read_text())[0])
+    # the contacts' transitions are the model's, the friction roots' each law module's
+    sources = [SRC / "model/regimes.py", *(SRC / "physics/friction").glob("*.py")]
+    text = "\n".join(p.read_text() for p in sources)
+    written = set(re.findall(r'Transition\("(\w+)"', text))
+    for pair in re.findall(r'"(\w+)" if regime\.stick else "(\w+)"', text):
+        written |= set(pair)
     written |= set(EV_KINDS) | {"event_storm"}
     assert "event_storm" in (SRC / "solvers/events.py").read_text()
     assert written == set(EVENT_KINDS)

@@ -2,9 +2,12 @@
 
 The solver owns *when* a root fires; this module owns *what it means*: which regime follows,
 what the event is called in the log, and which guard acted. Root indices follow
-:func:`roughvib.model.kernels.events`: ``0..K-1`` contacts, then three friction roots whose
-meaning depends on the law (feldmann: branch, latch, phase; set-valued laws: break-away or
-velocity zero, bare threshold, dwell timer; dynamic laws: the velocity's sign, none, phase).
+:func:`roughvib.model.kernels.events`: ``0..K-1`` contacts, switched here, then three friction
+roots whose meaning and transitions are the friction law's (``LAWS[law].roots`` and
+``.transition``, in the law's module of ``roughvib.physics.friction``: feldmann's branch,
+latch and phase; the set-valued laws' break-away or velocity zero, bare threshold and dwell
+timer; a dynamic law's velocity sign, none and phase). This module builds what a law reads
+(``RootValues``, ``StartValues``) from the packed parameters and the state.
 """
 
 from __future__ import annotations
@@ -15,10 +18,25 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from roughvib.model import kernels as kn
+from roughvib.physics.friction.laws import LAWS, FrictionLaw
+from roughvib.physics.friction.regime import NO_DWELL, RootValues, StartValues, Transition
 
-__all__ = ["Regime", "Transition", "initial_regime", "switch"]
+__all__ = ["NO_DWELL", "Regime", "Transition", "initial_regime", "switch"]
 
-NO_DWELL = -1.0
+#: the law a caller that still gives only the kind (``set_valued``, a bool) gets, and the law
+#: of a regime pickled before the regime carried its law (a checkpoint stored ``set_valued``):
+#: each has its kind's start, transitions and notation (``table`` has ``coulomb``'s; a dynamic
+#: law's roots 0 and 2 switch as ``feldmann``'s do, its root 1 never fires)
+_LAW_OF_KIND = {False: "feldmann", True: "coulomb"}
+
+
+def _law(name: str) -> FrictionLaw:
+    """The registered law ``name``; ValueError for a name no law is registered under."""
+    try:
+        return LAWS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"friction law {name!r}: no law is registered under this name "
+                         f"(registered: {', '.join(LAWS)})") from None
 
 
 @dataclass
@@ -40,11 +58,10 @@ class Regime:
         Stick phase (feldmann: ``|v|`` < friction.stick_velocity, for logging; coulomb: the regime).
     dwell_end : float
         coulomb: break-away is held until this time [s] (``NO_DWELL`` when inactive).
-    set_valued : bool
-        Whether the law is set-valued (``coulomb`` or ``table``: stick is a regime with an
-        algebraic friction force); False for the single-valued and dynamic laws, whose
-        regimes are the branch (the sign of the velocity for a dynamic law), the latch and the
-        logged stick phase.
+    law : str or None
+        The friction law (``friction.law``), whose ``LAWS`` entry starts and switches the
+        friction part of the regime; None without tangential dynamics (no friction regime:
+        the friction roots never fire).
     switch_times : list of float
         coulomb: times of the recent stick/slip switches [s], for the chatter guard (only
         those within its window are kept).
@@ -56,8 +73,25 @@ class Regime:
     v_ext: float = 0.0
     stick: bool = True
     dwell_end: float = NO_DWELL
-    set_valued: bool = False
+    law: str | None = None
     switch_times: list = field(default_factory=list)
+
+    @property
+    def set_valued(self) -> bool:
+        """Whether the law is set-valued (``coulomb`` or ``table``: stick is a regime with an
+        algebraic friction force); False for the single-valued and dynamic laws, whose
+        regimes are the branch (the sign of the velocity for a dynamic law), the latch and the
+        logged stick phase, and without a friction regime (``law`` None)."""
+        return self.law is not None and _law(self.law).set_valued
+
+    def __setstate__(self, state: dict) -> None:
+        """Unpickle; a regime pickled before it carried its law (a checkpoint that stored
+        ``set_valued``) gets the law of that kind (``_LAW_OF_KIND``)."""
+        state = dict(state)
+        legacy = state.pop("set_valued", None)
+        if "law" not in state:
+            state["law"] = _LAW_OF_KIND[bool(legacy)]
+        self.__dict__.update(state)
 
     def pack(self, reg: np.ndarray, rf: np.ndarray) -> None:
         """Write into the kernels' ``reg``/``rf`` arrays."""
@@ -78,37 +112,41 @@ class Regime:
                 f"{'stick' if self.stick else 'slip'}")
 
 
-@dataclass
-class Transition:
-    """One logged consequence of a root: event kind, contact (-1: block level), guard."""
-
-    kind: str
-    contact: int
-    guard: str = ""
-
-
 def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
-                   set_valued: bool) -> Regime:
-    """Regime at t = 0: the static contact set, block at rest.
+                   law: str | bool) -> Regime:
+    """Regime at t = 0: the static contact set, block at rest, the law's friction regime.
 
-    feldmann: latch s = -1 (accelerating branch), branch from sign(s v_h) (or of T0 when
-    v_h = 0), stick phase. coulomb: stick unless ``|T0|`` exceeds the break-away bound with the
-    static normal force m g, then slip in the direction of T0.
+    The friction part is the law's (``LAWS[law].initial``): feldmann, latch s = -1
+    (accelerating branch), branch from sign(s v_h) (or of T0 when v_h = 0), stick phase; the
+    set-valued laws, stick unless ``|T0|`` exceeds the break-away bound with the static normal
+    force m g, then slip in the direction of T0. Without tangential dynamics only the contacts
+    (``Regime.law`` None).
+
+    Parameters
+    ----------
+    closed : ndarray of int, shape (K,)
+        The static contact set (1: closed).
+    fp : ndarray
+        The kernels' packed parameters (``kernels.FP_*``).
+    tangential : bool
+        Whether the block moves tangentially.
+    law : str or bool
+        The friction law's name (``friction.law``). A bool is the law's kind alone
+        (``set_valued``, as older callers pass it): a law of that kind with the same start.
+
+    Returns
+    -------
+    Regime
     """
-    reg = Regime(closed=closed.astype(np.int64), set_valued=set_valued)
+    name = _LAW_OF_KIND[bool(law)] if isinstance(law, bool | np.bool_) else law
+    entry = _law(name)
     if not tangential:
-        return reg
-    t0 = fp[kn.FP_T0]
-    if set_valued:
-        bound = fp[kn.FP_MU_STICK] * fp[kn.FP_MASS] * fp[kn.FP_GRAV] * (1 + fp[kn.FP_HYST])
-        reg.branch = 0 if abs(t0) <= bound else int(math.copysign(1, t0))
-        reg.stick = reg.branch == 0
-        return reg
-    reg.latch = -1 if t0 >= 0 else 1
-    x0 = reg.latch * fp[kn.FP_VH]
-    reg.branch = int(np.sign(x0)) if x0 != 0 else (1 if t0 >= 0 else -1)
-    reg.v_ext = 0.0
-    reg.stick = True
+        return Regime(closed=closed.astype(np.int64))
+    reg = Regime(closed=closed.astype(np.int64), law=name)
+    entry.initial(reg, StartValues(
+        force_amplitude=fp[kn.FP_T0], mass=fp[kn.FP_MASS], gravity=fp[kn.FP_GRAV],
+        mu_stick=fp[kn.FP_MU_STICK], hysteresis=fp[kn.FP_HYST],
+        hysteresis_velocity=fp[kn.FP_VH]))
     return reg
 
 
@@ -117,9 +155,11 @@ def switch(regime: Regime, idx: int, t: float, y: np.ndarray, fp: np.ndarray,
            chatter_switches: int = 0, chatter_window: float = 0.0) -> list[Transition]:
     """Apply the transition for root ``idx`` fired at time ``t`` with state ``y`` (in place).
 
-    ``dwell_time`` [s] holds every stick phase of the Coulomb law (0: off). The chatter guard
-    holds a stick phase for ``chatter_window`` [s] only when it begins with more than
-    ``chatter_switches`` stick/slip switches within the last ``chatter_window`` (0: off).
+    A contact root opens or closes its contact; a friction root ``K + j`` is the law's
+    (``LAWS[regime.law].transition``), given the values at the root. ``dwell_time`` [s] holds
+    every stick phase of a set-valued law (0: off). The chatter guard holds a stick phase for
+    ``chatter_window`` [s] only when it begins with more than ``chatter_switches`` stick/slip
+    switches within the last ``chatter_window`` (0: off).
 
     Returns the transitions to log (possibly none: a guard held the regime).
     """
@@ -130,64 +170,12 @@ def switch(regime: Regime, idx: int, t: float, y: np.ndarray, fp: np.ndarray,
             return [Transition("lift_off", idx)]
         regime.closed[idx] = 1
         return [Transition("touch_down", idx)]
-    j = idx - K
-    vx = float(y[i_vx])
-    if not regime.set_valued:
-        if j == 0:
-            regime.branch = -regime.branch
-            return [Transition("friction_branch", -1)]
-        if j == 1:
-            regime.latch = -regime.latch
-            regime.v_ext = vx
-            return [Transition("latch_flip", -1)]
-        regime.stick = not regime.stick
-        return [Transition("stick" if regime.stick else "slip", -1)]
-    # set-valued Coulomb law
-    fsum = float(np.sum(y[i_force] * regime.closed))
-    texc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t)
-    mu_st = fp[kn.FP_MU_STICK]
-    if regime.branch != 0:
-        if j != 0:
-            return []
-        # velocity zero in slip: stick if the static bound holds, else slip the other way
-        chatter = _count_switch(regime, t, chatter_switches, chatter_window)
-        if abs(texc) <= mu_st * fsum:
-            regime.branch = 0
-            regime.stick = True
-            regime.dwell_end = t + dwell_time if dwell_time > 0 else NO_DWELL
-            if chatter:
-                regime.dwell_end = max(regime.dwell_end, t + chatter_window)
-                return [Transition("stick", -1),
-                        Transition("chatter_guard", -1, guard="chatter")]
-            return [Transition("stick", -1)]
-        regime.branch = int(math.copysign(1, texc))
-        return [Transition("slip", -1, guard="")]
-    if j == 0:  # break-away margin
-        if regime.dwell_end != NO_DWELL and t < regime.dwell_end:
-            return [Transition("dwell_hold", -1, guard="dwell")]
-        return _break_away(regime, texc, t)
-    if j == 1:  # bare threshold crossed while the hysteresis still holds
-        return [Transition("hysteresis_hold", -1, guard="hysteresis")]
-    # dwell timer expired: break away now if the bound is already exceeded
-    regime.dwell_end = NO_DWELL
-    lam = texc - fp[kn.FP_R2] * vx
-    if abs(lam) > mu_st * fsum * (1 + fp[kn.FP_HYST]):
-        return _break_away(regime, lam, t)
-    return []
-
-
-def _count_switch(regime: Regime, t: float, n_max: int, window: float) -> bool:
-    """Record a stick/slip switch at ``t``; True when more than ``n_max`` (> 0) lie within
-    the last ``window`` [s] (chatter)."""
-    times = [s for s in regime.switch_times if s > t - window] if n_max > 0 else []
-    times.append(t)
-    regime.switch_times = times
-    return n_max > 0 and len(times) > n_max
-
-
-def _break_away(regime: Regime, direction: float, t: float) -> list[Transition]:
-    regime.switch_times.append(t)
-    regime.branch = int(math.copysign(1, direction))
-    regime.stick = False
-    regime.dwell_end = NO_DWELL
-    return [Transition("slip", -1)]
+    entry = _law(regime.law)
+    at = RootValues(
+        t=t, vx=float(y[i_vx]),
+        exciting_force=fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t),
+        normal_force=float(np.sum(y[i_force] * regime.closed)),
+        mu_stick=fp[kn.FP_MU_STICK], hysteresis=fp[kn.FP_HYST], r2=fp[kn.FP_R2],
+        dwell_time=dwell_time, chatter_switches=chatter_switches,
+        chatter_window=chatter_window)
+    return entry.transition(regime, idx - K, at)

@@ -330,7 +330,8 @@ def start_state(system: System, reg: np.ndarray, rf: np.ndarray, resume: Checkpo
         from roughvib.model.regimes import initial_regime
 
         y0, closed = system.static_equilibrium()
-        regime = initial_regime(closed, system.fp, system.layout.tangential, system.set_valued)
+        regime = initial_regime(closed, system.fp, system.layout.tangential,
+                                system.scene.friction.law)
         regime.pack(reg, rf)
         y, _ = system.consistent(0.0, y0, reg, rf)
         return regime, y, y.copy()

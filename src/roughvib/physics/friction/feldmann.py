@@ -11,6 +11,10 @@ friction law"); it owns
 * the law's tangential-only model (block under a constant normal force, no roughness), the
   trapezoidal rule with a scalar Newton iteration per step, in which T0 is calibrated
   (``roughvib.physics.friction.calibration``).
+* the law's regimes (``roughvib.physics.friction.regime``): its start
+  :func:`regime_at_start` and the transitions of its three friction roots (:data:`ROOTS`:
+  branch, latch, phase) :func:`regime_transition`, which the model's
+  ``roughvib.model.regimes.switch`` calls.
 
 Conventions (docs/theory.md): the friction force on the block is ``-mu(v + s v_h) F_N``, with
 ``s = +1`` after a velocity maximum (decelerating branch) and ``s = -1`` after a velocity minimum
@@ -24,9 +28,11 @@ import math
 
 from numba import njit
 
-__all__ = ["EXP_ZERO_BELOW", "LAW_ID", "exp_or_zero", "feldmann_mu", "feldmann_mu_d2",
+from roughvib.physics.friction.regime import RootValues, StartValues, Transition
+
+__all__ = ["EXP_ZERO_BELOW", "LAW_ID", "ROOTS", "exp_or_zero", "feldmann_mu", "feldmann_mu_d2",
            "feldmann_mu_law", "latch_margin", "latch_update", "mu_reference",
-           "tangential_feldmann"]
+           "regime_at_start", "regime_transition", "tangential_feldmann"]
 
 #: the law's id in the kernels (``off[OFF_LAW]``; ``roughvib.physics.friction.laws``)
 LAW_ID = 0
@@ -221,6 +227,71 @@ def tangential_feldmann(t0_amp, mass, r2, normal_force, omega, mu_slip, mu_stick
         x0 = x1
         f0 = f1
     return flips, max_iter
+
+# --------------------------------------------------------------------------------------------
+# the law's regimes: its start and its three friction roots (docs/architecture.md)
+# --------------------------------------------------------------------------------------------
+
+#: the law's friction roots ``K + j`` (``kernels.events``): the branch b = sign(X) with
+#: X = v + s v_h, the latch's velocity extremum, the logged stick/slip phase
+ROOTS = ("branch", "latch", "phase")
+
+
+def regime_at_start(regime, start: StartValues) -> None:
+    """The law's regime at t = 0, block at rest, set in ``regime`` (in place).
+
+    Latch s = -1 (accelerating branch) when T0 >= 0, else +1; branch b = sign(s v_h), or the
+    sign of T0 when v_h = 0; the running extremum 0 m/s; the logged phase stick.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Its ``latch``, ``branch``, ``v_ext`` and ``stick`` are set.
+    start : StartValues
+        T0 [N] and v_h [m/s] are read.
+    """
+    t0 = start.force_amplitude
+    regime.latch = -1 if t0 >= 0 else 1
+    x0 = regime.latch * start.hysteresis_velocity
+    regime.branch = int(math.copysign(1, x0)) if x0 != 0 else (1 if t0 >= 0 else -1)
+    regime.v_ext = 0.0
+    regime.stick = True
+
+
+def regime_transition(regime, j: int, at: RootValues) -> list[Transition]:
+    """The law's transition for its friction root ``j`` (0, 1, 2; see ``ROOTS``), in place.
+
+    Root 0 (X = v + s v_h crosses zero) flips the branch b; root 1 (the latch margin) flips
+    the latch s and records the velocity at the flip as the new running extremum v_ext; root
+    2 (``|v|`` crosses ``friction.stick_velocity``) flips the logged phase.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Switched in place.
+    j : int
+        The friction root that fired.
+    at : RootValues
+        The velocity ``vx`` [m/s] is read (root 1).
+
+    Returns
+    -------
+    list of Transition
+        The one event to log: ``friction_branch``, ``latch_flip``, ``stick`` or ``slip``.
+    """
+    if j == 0:
+        regime.branch = -regime.branch
+        return [Transition("friction_branch", -1)]
+    if j == 1:
+        regime.latch = -regime.latch
+        regime.v_ext = at.vx
+        return [Transition("latch_flip", -1)]
+    if j == 2:
+        regime.stick = not regime.stick
+        return [Transition("stick" if regime.stick else "slip", -1)]
+    raise ValueError(f"feldmann friction law: no friction root {j} (its roots: "
+                     f"{', '.join(ROOTS)})")
+
 
 # --------------------------------------------------------------------------------------------
 # plain-Python reference

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from roughvib.physics.friction import coulomb, feldmann, lugre, table
+from roughvib.physics.friction import coulomb, feldmann, lugre, setvalued, table
 from roughvib.physics.friction.feldmann import feldmann_mu, tangential_feldmann
 from roughvib.physics.friction.setvalued import kinetic_coefficient, tangential_set_valued
 from roughvib.scene import FRICTION_LAWS
@@ -132,6 +132,18 @@ class FrictionLaw:
         ``tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table)``: the
         tangential-only model (constant normal force, from rest), filling ``v`` [m/s] and
         ``x`` [m] (length n + 1) on the grid ``k dt``.
+    initial : callable
+        ``initial(regime, start)``: sets the law's regime at t = 0 (block at rest) in the
+        ``roughvib.model.regimes.Regime`` from a ``regime.StartValues``; the law module's
+        ``regime_at_start``.
+    transition : callable
+        ``transition(regime, j, at) -> list[Transition]``: switches the regime in place for
+        the law's friction root ``j`` (0, 1, 2) from a ``regime.RootValues`` and returns the
+        events to log (none when a guard holds the regime); the law module's
+        ``regime_transition``.
+    roots : tuple of str
+        The meanings of its three friction roots (``kernels.events``' roots ``K + j``), the
+        law module's ``ROOTS``.
     """
 
     name: str
@@ -140,6 +152,9 @@ class FrictionLaw:
     calibration: str
     pack: Callable
     tangential: Callable
+    initial: Callable
+    transition: Callable
+    roots: tuple[str, ...]
 
     @property
     def kind(self) -> str:
@@ -168,15 +183,19 @@ class FrictionLaw:
 #: the friction laws by the name a scene uses (``friction.law``)
 LAWS = {
     "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, 0, "feldmann", _no_parameters,
-                            _feldmann_tangential),
+                            _feldmann_tangential, feldmann.regime_at_start,
+                            feldmann.regime_transition, feldmann.ROOTS),
     # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
     # mu_slip / mu_stick and that law's default keys), so that its runs stay bit-identical
     "coulomb": FrictionLaw("coulomb", LAW_COULOMB, 0, "feldmann", _no_parameters,
-                           _feldmann_tangential),
+                           _feldmann_tangential, setvalued.regime_at_start,
+                           setvalued.regime_transition, setvalued.ROOTS),
     "table": FrictionLaw("table", LAW_TABLE, 0, "set-valued", _table_parameters,
-                         _set_valued_tangential),
+                         _set_valued_tangential, setvalued.regime_at_start,
+                         setvalued.regime_transition, setvalued.ROOTS),
     "lugre": FrictionLaw("lugre", LAW_LUGRE, 1, "dynamic", _lugre_parameters,
-                         _lugre_tangential),
+                         _lugre_tangential, lugre.regime_at_start, lugre.regime_transition,
+                         lugre.ROOTS),
 }
 if len({law.law_id for law in LAWS.values()}) != len(LAWS):  # pragma: no cover
     raise ImportError("two friction laws have the same LAW_ID")

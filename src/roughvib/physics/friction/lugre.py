@@ -22,6 +22,8 @@ Closed forms (the tests assert both):
 The state z is one differential state of the DAE (``friction.state``); ``|v|`` is written
 ``b v`` with the sign b of the velocity held as the regime (``REG_B``) and switched by the root
 ``b v`` at every reversal, so the right-hand side is smooth within a regime.
+The law's regimes are that sign and the logged stick/slip phase (:data:`ROOTS`,
+:func:`regime_at_start`, :func:`regime_transition`); it has no latch.
 
 All kernels take floats and arrays only and run unchanged with ``NUMBA_DISABLE_JIT=1``.
 """
@@ -33,8 +35,11 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["LAW_ID", "N_PARAMETERS", "P_SIGMA0", "P_SIGMA1", "P_SIGMA2", "P_VS", "bristle_law",
-           "pack_parameters", "steady_coefficient", "stribeck_curve", "tangential_lugre"]
+from roughvib.physics.friction.regime import RootValues, StartValues, Transition
+
+__all__ = ["LAW_ID", "N_PARAMETERS", "P_SIGMA0", "P_SIGMA1", "P_SIGMA2", "P_VS", "ROOTS",
+           "bristle_law", "pack_parameters", "regime_at_start", "regime_transition",
+           "steady_coefficient", "stribeck_curve", "tangential_lugre"]
 
 #: the law's id in the kernels (``off[OFF_LAW]``; ``roughvib.physics.friction.laws``)
 LAW_ID = 3
@@ -194,3 +199,66 @@ def tangential_lugre(t0_amp, mass, r2, normal_force, omega, mu_c, mu_s, p, dt, n
         f0 = f1
         zd0 = zd1
     return max_iter
+
+
+# --------------------------------------------------------------------------------------------
+# the law's regimes: the velocity's sign and the logged phase (docs/architecture.md)
+# --------------------------------------------------------------------------------------------
+
+#: the law's friction roots ``K + j`` (``kernels.events``): the velocity's sign (margin b v),
+#: none (a constant margin: the law has no latch), the logged stick/slip phase
+ROOTS = ("velocity sign", "none", "phase")
+
+
+def regime_at_start(regime, start: StartValues) -> None:
+    """The law's regime at t = 0, block at rest, set in ``regime`` (in place).
+
+    The sign b of the velocity is that of T0 (+1 for T0 = 0), the block's first motion; the
+    logged phase is stick and the running extremum 0 m/s. The law has no latch: ``latch``
+    keeps the value the event logs have always shown for it, -1 when T0 >= 0, else +1.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Its ``branch``, ``latch``, ``v_ext`` and ``stick`` are set.
+    start : StartValues
+        T0 [N] is read.
+    """
+    forward = start.force_amplitude >= 0
+    regime.latch = -1 if forward else 1
+    regime.branch = 1 if forward else -1
+    regime.v_ext = 0.0
+    regime.stick = True
+
+
+def regime_transition(regime, j: int, at: RootValues) -> list[Transition]:
+    """The law's transition for its friction root ``j`` (0, 1, 2; see ``ROOTS``), in place.
+
+    Root 0 (the velocity reverses, margin b v) flips the sign b; root 1 has a constant margin
+    and never fires (nothing to switch); root 2 (``|v|`` crosses
+    ``friction.stick_velocity``) flips the logged phase.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Switched in place.
+    j : int
+        The friction root that fired.
+    at : RootValues
+        Not read: the law's transitions depend on the regime alone.
+
+    Returns
+    -------
+    list of Transition
+        The event to log: ``friction_branch``, ``stick`` or ``slip`` (none for root 1).
+    """
+    if j == 0:
+        regime.branch = -regime.branch
+        return [Transition("friction_branch", -1)]
+    if j == 1:
+        return []
+    if j == 2:
+        regime.stick = not regime.stick
+        return [Transition("stick" if regime.stick else "slip", -1)]
+    raise ValueError(f"lugre friction law: no friction root {j} (its roots: "
+                     f"{', '.join(ROOTS)})")

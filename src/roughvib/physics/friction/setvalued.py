@@ -1,10 +1,12 @@
-"""What the set-valued laws share: their kinetic curves' dispatch and the tangential model.
+"""What the set-valued laws share: their curves' dispatch, their regimes and tangential model.
 
 A set-valued law (``coulomb``, ``table``) holds the block in stick at v = 0 with the friction
 force an algebraic unknown, breaks away at ``mu_stick F_N`` and slides on its kinetic curve;
-the solvers own the stick regime, each law module its curve. :func:`kinetic_coefficient` is
+the solvers hold the stick regime, each law module its curve. :func:`kinetic_coefficient` is
 the one place that dispatches on the set-valued law's id; :func:`tangential_set_valued` is
-their tangential-only model (the calibration of T0).
+their tangential-only model (the calibration of T0); :func:`regime_at_start` and
+:func:`regime_transition` are their regimes (stick, slip+ and slip-) with the dwell,
+hysteresis and chatter guards, switched at their three friction roots (:data:`ROOTS`).
 """
 
 from __future__ import annotations
@@ -14,8 +16,15 @@ import math
 from numba import njit
 
 from roughvib.physics.friction import coulomb, table
+from roughvib.physics.friction.regime import NO_DWELL, RootValues, StartValues, Transition
 
-__all__ = ["kinetic_coefficient", "tangential_set_valued"]
+__all__ = ["ROOTS", "kinetic_coefficient", "regime_at_start", "regime_transition",
+           "tangential_set_valued"]
+
+#: the set-valued laws' friction roots ``K + j`` (``kernels.events``): in stick the break-away
+#: margin (in slip b v, the velocity's zero), in stick the bare threshold without the switching
+#: hysteresis, in stick the dwell timer
+ROOTS = ("break-away or v = 0", "threshold", "dwell timer")
 
 
 @njit(cache=True)
@@ -100,3 +109,105 @@ def tangential_set_valued(t0_amp, mass, r2, normal_force, omega, law, mu_slip, m
         v0 = v1
         x0 = x1
     return breaks
+
+
+# --------------------------------------------------------------------------------------------
+# the regimes: stick (branch 0), slip+ and slip- (branch +1 / -1), and their guards
+# --------------------------------------------------------------------------------------------
+
+
+def regime_at_start(regime, start: StartValues) -> None:
+    """The regime at t = 0, block at rest, set in ``regime`` (in place).
+
+    Stick (branch 0) unless ``|T0|`` exceeds the break-away bound with the static normal force,
+    ``mu_stick m g (1 + hysteresis)``; then slip in the direction of T0.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Its ``branch`` and ``stick`` are set.
+    start : StartValues
+        T0 [N], the mass [kg], gravity [m/s^2], ``mu_stick`` [-] and the hysteresis [-].
+    """
+    t0 = start.force_amplitude
+    bound = start.mu_stick * start.mass * start.gravity * (1 + start.hysteresis)
+    regime.branch = 0 if abs(t0) <= bound else int(math.copysign(1, t0))
+    regime.stick = regime.branch == 0
+
+
+def regime_transition(regime, j: int, at: RootValues) -> list[Transition]:
+    """The transition for friction root ``j`` (0, 1, 2; see ``ROOTS``), in place.
+
+    In slip only root 0 fires (the velocity reaches zero): stick when the static bound holds,
+    ``|T_exc| <= mu_stick F_N`` with the exciting force T_exc and the closed contacts' normal
+    force F_N, else slip in the direction of T_exc. A stick phase is held for
+    ``dwell_time`` [s] (0: off), and for ``chatter_window`` [s] when it begins with more than
+    ``chatter_switches`` stick/slip switches within the last ``chatter_window`` (the chatter
+    guard; 0: off). In stick, root 0 (the break-away margin with the hysteresis) breaks away
+    in the direction of T_exc unless the dwell holds; root 1 (the bare threshold) is only
+    logged as a hysteresis hold; root 2 (the dwell timer) ends the hold and breaks away at
+    once when ``|T_exc - r2 v| > mu_stick F_N (1 + hysteresis)``.
+
+    Parameters
+    ----------
+    regime : roughvib.model.regimes.Regime
+        Switched in place (``branch``, ``stick``, ``dwell_end`` [s], ``switch_times`` [s]).
+    j : int
+        The friction root that fired.
+    at : RootValues
+        The values at the root.
+
+    Returns
+    -------
+    list of Transition
+        The events to log, possibly none (a guard held the regime).
+    """
+    if j not in (0, 1, 2):
+        raise ValueError(f"set-valued friction law: no friction root {j} (its roots: "
+                         f"{', '.join(ROOTS)})")
+    t, texc, fsum, mu_st = at.t, at.exciting_force, at.normal_force, at.mu_stick
+    if regime.branch != 0:
+        if j != 0:
+            return []
+        # velocity zero in slip: stick if the static bound holds, else slip the other way
+        chatter = _count_switch(regime, t, at.chatter_switches, at.chatter_window)
+        if abs(texc) <= mu_st * fsum:
+            regime.branch = 0
+            regime.stick = True
+            regime.dwell_end = t + at.dwell_time if at.dwell_time > 0 else NO_DWELL
+            if chatter:
+                regime.dwell_end = max(regime.dwell_end, t + at.chatter_window)
+                return [Transition("stick", -1),
+                        Transition("chatter_guard", -1, guard="chatter")]
+            return [Transition("stick", -1)]
+        regime.branch = int(math.copysign(1, texc))
+        return [Transition("slip", -1, guard="")]
+    if j == 0:  # break-away margin
+        if regime.dwell_end != NO_DWELL and t < regime.dwell_end:
+            return [Transition("dwell_hold", -1, guard="dwell")]
+        return _break_away(regime, texc, t)
+    if j == 1:  # bare threshold crossed while the hysteresis still holds
+        return [Transition("hysteresis_hold", -1, guard="hysteresis")]
+    # dwell timer expired: break away now if the bound is already exceeded
+    regime.dwell_end = NO_DWELL
+    lam = texc - at.r2 * at.vx
+    if abs(lam) > mu_st * fsum * (1 + at.hysteresis):
+        return _break_away(regime, lam, t)
+    return []
+
+
+def _count_switch(regime, t: float, n_max: int, window: float) -> bool:
+    """Record a stick/slip switch at ``t``; True when more than ``n_max`` (> 0) lie within
+    the last ``window`` [s] (chatter)."""
+    times = [s for s in regime.switch_times if s > t - window] if n_max > 0 else []
+    times.append(t)
+    regime.switch_times = times
+    return n_max > 0 and len(times) > n_max
+
+
+def _break_away(regime, direction: float, t: float) -> list[Transition]:
+    regime.switch_times.append(t)
+    regime.branch = int(math.copysign(1, direction))
+    regime.stick = False
+    regime.dwell_end = NO_DWELL
+    return [Transition("slip", -1)]
