@@ -301,3 +301,19 @@ def test_a_regime_pickled_with_set_valued_gets_a_law_of_that_kind(set_valued, br
     # and it switches as its kind does at friction root 0 (stick: break-away, else the branch)
     out = switch(back, 2, 0.0, np.array([0.0, 1.0, 1.0]), _fp(), 2, 0, slice(1, 3), 0.0)
     assert [tr.kind for tr in out] == [first]
+
+
+def test_each_law_writes_its_regime_in_the_logs_notation():
+    """docs/events.md: ``closed=1111011111 b=+1 s=-1 slip`` (Feldmann; LuGre the same form)
+    and ``closed=111 slip+`` (the set-valued laws)."""
+    closed = np.array([1, 1, 0], dtype=np.int64)
+    assert Regime(closed=closed, law="feldmann", branch=1, latch=-1, stick=False
+                  ).describe() == "closed=110 b=+1 s=-1 slip"
+    assert Regime(closed=closed, law="lugre", branch=-1, latch=-1, stick=True
+                  ).describe() == "closed=110 b=-1 s=-1 stick"
+    for law in ("coulomb", "table"):
+        assert [Regime(closed=closed, law=law, branch=b).describe() for b in (0, 1, -1)] == [
+            "closed=110 stick", "closed=110 slip+", "closed=110 slip-"]
+    assert Regime(closed=closed).describe() == "closed=110 b=-1 s=-1 stick"  # no friction
+    with pytest.raises(ValueError, match="no law is registered"):
+        Regime(closed=closed, law="amontons").describe()

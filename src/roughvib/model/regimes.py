@@ -105,11 +105,9 @@ class Regime:
     def describe(self) -> str:
         """Short text, e.g. ``closed=1111111011 slip+`` or ``... b=+1 s=-1 slip``."""
         c = "".join(str(int(v)) for v in self.closed)
-        if self.set_valued:
-            phase = "stick" if self.branch == 0 else ("slip+" if self.branch > 0 else "slip-")
-            return f"closed={c} {phase}"
-        return (f"closed={c} b={self.branch:+d} s={self.latch:+d} "
-                f"{'stick' if self.stick else 'slip'}")
+        # the law's notation; without a friction regime the single-valued one (as always)
+        law = _law(self.law if self.law is not None else _LAW_OF_KIND[False])
+        return f"closed={c} {law.notation(self)}"
 
 
 def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,

@@ -32,7 +32,8 @@ from roughvib.physics.friction.regime import RootValues, StartValues, Transition
 
 __all__ = ["EXP_ZERO_BELOW", "LAW_ID", "ROOTS", "exp_or_zero", "feldmann_mu", "feldmann_mu_d2",
            "feldmann_mu_law", "latch_margin", "latch_update", "mu_reference",
-           "regime_at_start", "regime_transition", "tangential_feldmann"]
+           "regime_at_start", "regime_notation", "regime_transition",
+           "tangential_feldmann"]
 
 #: the law's id in the kernels (``off[OFF_LAW]``; ``roughvib.physics.friction.laws``)
 LAW_ID = 0
@@ -256,6 +257,12 @@ def regime_at_start(regime, start: StartValues) -> None:
     regime.branch = int(math.copysign(1, x0)) if x0 != 0 else (1 if t0 >= 0 else -1)
     regime.v_ext = 0.0
     regime.stick = True
+
+
+def regime_notation(regime) -> str:
+    """The friction part of the regime as the event log writes it, e.g. ``b=+1 s=-1 slip``
+    (branch, latch, logged phase)."""
+    return f"b={regime.branch:+d} s={regime.latch:+d} {'stick' if regime.stick else 'slip'}"
 
 
 def regime_transition(regime, j: int, at: RootValues) -> list[Transition]:

@@ -144,6 +144,10 @@ class FrictionLaw:
     roots : tuple of str
         The meanings of its three friction roots (``kernels.events``' roots ``K + j``), the
         law module's ``ROOTS``.
+    notation : callable
+        ``notation(regime) -> str``: the friction part of the regime as the event log's
+        ``regime_before``/``regime_after`` write it (``b=+1 s=-1 slip``, ``slip+``); the law
+        module's ``regime_notation``.
     """
 
     name: str
@@ -155,6 +159,7 @@ class FrictionLaw:
     initial: Callable
     transition: Callable
     roots: tuple[str, ...]
+    notation: Callable
 
     @property
     def kind(self) -> str:
@@ -184,18 +189,21 @@ class FrictionLaw:
 LAWS = {
     "feldmann": FrictionLaw("feldmann", LAW_FELDMANN, 0, "feldmann", _no_parameters,
                             _feldmann_tangential, feldmann.regime_at_start,
-                            feldmann.regime_transition, feldmann.ROOTS),
+                            feldmann.regime_transition, feldmann.ROOTS,
+                            feldmann.regime_notation),
     # the Coulomb law keeps the calibration it always had (the Feldmann model with the same
     # mu_slip / mu_stick and that law's default keys), so that its runs stay bit-identical
     "coulomb": FrictionLaw("coulomb", LAW_COULOMB, 0, "feldmann", _no_parameters,
                            _feldmann_tangential, setvalued.regime_at_start,
-                           setvalued.regime_transition, setvalued.ROOTS),
+                           setvalued.regime_transition, setvalued.ROOTS,
+                           setvalued.regime_notation),
     "table": FrictionLaw("table", LAW_TABLE, 0, "set-valued", _table_parameters,
                          _set_valued_tangential, setvalued.regime_at_start,
-                         setvalued.regime_transition, setvalued.ROOTS),
+                         setvalued.regime_transition, setvalued.ROOTS,
+                         setvalued.regime_notation),
     "lugre": FrictionLaw("lugre", LAW_LUGRE, 1, "dynamic", _lugre_parameters,
                          _lugre_tangential, lugre.regime_at_start, lugre.regime_transition,
-                         lugre.ROOTS),
+                         lugre.ROOTS, lugre.regime_notation),
 }
 if len({law.law_id for law in LAWS.values()}) != len(LAWS):  # pragma: no cover
     raise ImportError("two friction laws have the same LAW_ID")

@@ -35,11 +35,16 @@ import math
 import numpy as np
 from numba import njit
 
+from roughvib.physics.friction.feldmann import regime_notation as feldmann_regime_notation
 from roughvib.physics.friction.regime import RootValues, StartValues, Transition
 
+#: the regime as the event log writes it: the Feldmann law's form ``b=+1 s=-1 slip``, b the
+#: sign of the velocity (the latch s is held at its start)
+regime_notation = feldmann_regime_notation
+
 __all__ = ["LAW_ID", "N_PARAMETERS", "P_SIGMA0", "P_SIGMA1", "P_SIGMA2", "P_VS", "ROOTS",
-           "bristle_law", "pack_parameters", "regime_at_start", "regime_transition",
-           "steady_coefficient", "stribeck_curve", "tangential_lugre"]
+           "bristle_law", "pack_parameters", "regime_at_start", "regime_notation",
+           "regime_transition", "steady_coefficient", "stribeck_curve", "tangential_lugre"]
 
 #: the law's id in the kernels (``off[OFF_LAW]``; ``roughvib.physics.friction.laws``)
 LAW_ID = 3

@@ -18,8 +18,8 @@ from numba import njit
 from roughvib.physics.friction import coulomb, table
 from roughvib.physics.friction.regime import NO_DWELL, RootValues, StartValues, Transition
 
-__all__ = ["ROOTS", "kinetic_coefficient", "regime_at_start", "regime_transition",
-           "tangential_set_valued"]
+__all__ = ["ROOTS", "kinetic_coefficient", "regime_at_start", "regime_notation",
+           "regime_transition", "tangential_set_valued"]
 
 #: the set-valued laws' friction roots ``K + j`` (``kernels.events``): in stick the break-away
 #: margin (in slip b v, the velocity's zero), in stick the bare threshold without the switching
@@ -133,6 +133,12 @@ def regime_at_start(regime, start: StartValues) -> None:
     bound = start.mu_stick * start.mass * start.gravity * (1 + start.hysteresis)
     regime.branch = 0 if abs(t0) <= bound else int(math.copysign(1, t0))
     regime.stick = regime.branch == 0
+
+
+def regime_notation(regime) -> str:
+    """The friction part of the regime as the event log writes it: ``stick``, ``slip+`` or
+    ``slip-``."""
+    return "stick" if regime.branch == 0 else ("slip+" if regime.branch > 0 else "slip-")
 
 
 def regime_transition(regime, j: int, at: RootValues) -> list[Transition]:
