@@ -117,6 +117,7 @@ from roughvib.physics.friction import (
     law_kind,
     single_valued_mu,
 )
+from roughvib.physics.friction.regime import N_ROOTS
 from roughvib.physics.surface.interp import profile_eval
 
 FP_MASS = 0
@@ -160,7 +161,7 @@ N_RF = 2
 ROOT_BRANCH = 0  # feldmann: branch b X; set-valued: break-away margin (stick), b v (slip)
 ROOT_LATCH = 1   # feldmann: latch margin; set-valued: threshold without hysteresis (stick)
 ROOT_PHASE = 2   # feldmann: stick/slip phase margin; set-valued: dwell timer (stick)
-N_LAW_ROOTS = 3
+N_LAW_ROOTS = N_ROOTS  # every law's three roots (roughvib.physics.friction.regime)
 
 # the outputs (names, units, descriptions, columns) are declared in roughvib.model.variables;
 # their columns are re-exported here for the kernels and the solvers

@@ -74,6 +74,9 @@ _VF_REF = 0.01
 _VF_EXPONENT = math.log10(0.33)
 
 _DISTRIBUTIONS = ("gaussian", "exponential")
+#: the log of a vanishing contact integral in the root search for the separation: far below
+#: any log(load / c), so a separation where the integral vanishes carries less than the load
+LOG_OF_ZERO = -1e300
 
 
 # --------------------------------------------------------------------------------------------
@@ -274,7 +277,7 @@ def solve_contact(load: float, density: float, radius: float, std: float, area: 
 
     def f(h: float) -> float:
         v = gw_integral(order, h, distribution)
-        return (math.log(v) if v > 0 else -1e300) - target
+        return (math.log(v) if v > 0 else LOG_OF_ZERO) - target
 
     lo, hi = -8.0, 8.0
     if f(lo) < 0:
