@@ -35,15 +35,17 @@ from roughvib.physics.friction import single_valued_mu, single_valued_mu_d2
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.solvers.base import MODE_DQ, MODE_Q
 
-#: the law's dispatch and the profile inlined (numba IR) into the step's Newton residual, and the
-#: residual and the step into their callers (``inline="always"``): each call of a compiled
-#: function that is not inlined increments and decrements the reference count of every array
-#: it is passed (about 6 ns per array; ``perf``: 16 % of a default solve's reference
-#: counting came from ``_residual``'s calls alone). Same Python functions, same results to
-#: the bit; the first compilation takes about 13 s longer.
+#: the friction law's dispatch (laws.py) and the profile inlined (numba IR) into the step's
+#: Newton residual (the dispatch into carried() too), and the residual and the step into their
+#: callers (``inline="always"``): each call of a compiled function that is not inlined
+#: increments and decrements the reference count of every array it is passed (about 6 ns per
+#: array; ``perf``: 16 % of a default solve's reference counting came from ``_residual``'s
+#: calls alone). Same Python functions, same results to the bit; the first compilation takes
+#: about 13 s longer.
 # (``py_func``: the Python function of a dispatcher; with NUMBA_DISABLE_JIT it is the function)
 _mu_d2_inline = njit(inline="always")(getattr(single_valued_mu_d2, "py_func",
                                               single_valued_mu_d2))
+_mu_inline = njit(inline="always")(getattr(single_valued_mu, "py_func", single_valued_mu))
 _profile_inline = njit(inline="always")(getattr(profile_eval, "py_func", profile_eval))
 
 __all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "carried", "carry_size",
@@ -612,9 +614,8 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     v = y[ivx]
     x = y[ix]
     vz = y[ivz]
-    mu, dmu = single_valued_mu(off[kn.OFF_LAW], v + reg[kn.REG_S] * fp[kn.FP_VH],
-                               reg[kn.REG_B], fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK],
-                               fp[kn.FP_A1], fp[kn.FP_A2])
+    mu, dmu = _mu_inline(off[kn.OFF_LAW], v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                         fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     texc = fp[kn.FP_T0] * math.cos(w * t)
     dtexc = -fp[kn.FP_T0] * w * math.sin(w * t)
     a, j = _tangential(texc, dtexc, v, mu, dmu, S, dS, fp)
