@@ -175,9 +175,10 @@ if tuple(LAWS) != tuple(FRICTION_LAWS):  # pragma: no cover - a registration err
 #: the Feldmann law's second-derivative form and its own-branch form inlined (numba IR) into
 #: their dispatch, so that a caller that inlines the dispatch (the Hermite step's residual,
 #: ``njit(inline="always")`` on its ``py_func``) has the law's expressions in place, as it had
-#: when it inlined the law itself (with the law called from the dispatch, a default solve took
-#: about 3 % more CPU). Same Python functions, same results to the bit. (``py_func``: the
-#: Python function of a dispatcher; with NUMBA_DISABLE_JIT it is the function)
+#: when it inlined the law itself (with the law called from the dispatch instead, a default
+#: solve took about 2 % more CPU). Same Python functions, same results to the bit.
+#: (``py_func``: the Python function of a dispatcher; with NUMBA_DISABLE_JIT it is the
+#: function)
 _feldmann_mu_d2 = njit(inline="always")(getattr(feldmann_mu_d2, "py_func", feldmann_mu_d2))
 _feldmann_mu_law = njit(inline="always")(getattr(feldmann_mu_law, "py_func", feldmann_mu_law))
 
