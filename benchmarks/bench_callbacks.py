@@ -425,7 +425,8 @@ def _timed_once(fn, k):
 def part2(system, repeats: int) -> tuple[dict, tuple]:
     reg, rf = system.new_regime_arrays()
     y0, closed = system.static_equilibrium()
-    initial_regime(closed, system.fp, system.layout.tangential, system.set_valued).pack(reg, rf)
+    initial_regime(closed, system.fp, system.layout.tangential,
+                   system.scene.friction.law).pack(reg, rf)
     y, yp = system.consistent(0.0, y0, reg, rf)
     args = system.kernel_args(reg, rf)
     ev_args = system.event_args(reg, rf)

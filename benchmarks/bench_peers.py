@@ -63,7 +63,7 @@ def _scipy(scene, method, rtol, budget):
     lay = system.layout
     reg, rf = system.new_regime_arrays()
     y0, closed = system.static_equilibrium()
-    initial_regime(closed, system.fp, lay.tangential, system.set_valued).pack(reg, rf)
+    initial_regime(closed, system.fp, lay.tangential, system.scene.friction.law).pack(reg, rf)
     y0, _ = system.consistent(0.0, y0, reg, rf)
     alg = np.zeros(lay.size, dtype=bool)
     alg[lay.algebraic_indices] = True

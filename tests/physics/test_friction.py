@@ -21,17 +21,23 @@ from scipy.optimize import brentq
 
 from roughvib.physics.friction import (
     EXP_ZERO_BELOW,
+    LAW_FELDMANN,
+    LAWS,
     calibrate_force_amplitude,
     exp_or_zero,
     feldmann_mu,
+    feldmann_mu_d2,
     feldmann_mu_law,
     latch_margin,
     latch_update,
     mu_reference,
     rms_over_periods,
     simulate_tangential,
+    single_valued_mu,
+    single_valued_mu_d2,
+    single_valued_mu_law,
 )
-from roughvib.scene import Friction
+from roughvib.scene import Friction, SceneError
 
 G = 9.81
 OMEGA = 2.0 * math.pi * 7.0
@@ -105,6 +111,46 @@ def test_exp_or_zero_is_math_exp_to_the_bit():
         assert exp_or_zero(a) == math.exp(a), a
     assert math.exp(EXP_ZERO_BELOW) == 0.0 and math.exp(-745.13) > 0.0
     assert math.isnan(exp_or_zero(math.nan))
+
+
+def test_the_dispatch_is_the_feldmann_law_to_the_bit():
+    """The kernels' dispatch (laws.py) on the Feldmann id gives the law's own values, bit for
+    bit: the branch, its second derivative and the law's own branch choice."""
+    for x in np.concatenate([XS, [0.0, -0.0]]):
+        for b in (1.0, -1.0):
+            assert single_valued_mu(LAW_FELDMANN, x, b, *LAW) == feldmann_mu(x, b, *LAW)
+            assert single_valued_mu_d2(LAW_FELDMANN, x, b, *LAW) == feldmann_mu_d2(x, b, *LAW)
+        assert single_valued_mu_law(LAW_FELDMANN, x, *LAW) == feldmann_mu_law(x, *LAW)
+
+
+@pytest.mark.parametrize("name", [n for n, law in LAWS.items() if law.kind != "single-valued"])
+def test_the_dispatch_refuses_a_law_that_is_not_single_valued(name):
+    law_id = LAWS[name].law_id
+    for call, args in ((single_valued_mu, (0.1, 1.0)), (single_valued_mu_d2, (0.1, 1.0)),
+                       (single_valued_mu_law, (0.1,))):
+        with pytest.raises(ValueError, match=f"^friction law: {call.__name__} of a law that "
+                                             f"is not single-valued$"):
+            call(law_id, *args, *LAW)
+    with pytest.raises(ValueError, match="not single-valued"):
+        single_valued_mu_law(max(law.law_id for law in LAWS.values()) + 7, 0.1, *LAW)
+
+
+def test_the_paper_scheme_refuses_a_system_of_another_law():
+    """The paper's scheme calls the Feldmann law itself: called directly with a system whose
+    kernels would read another law's id, it refuses in one line."""
+    import roughvib
+    from roughvib.model import kernels as kn
+    from roughvib.model.system import assemble
+    from roughvib.solvers.paper_scheme import solve_paper_scheme
+
+    system = assemble(roughvib.load_scene("paper", {"solver.method": "paper",
+                                                    "output.duration": 0.001,
+                                                    "output.progress": False}), warn=False)
+    system.off[kn.OFF_LAW] = LAWS["coulomb"].law_id
+    with pytest.raises(SceneError, match=r"^solver.method = 'paper' runs the paper's law only "
+                                         r"\(friction.law = 'feldmann'\), got friction.law = "
+                                         r"'feldmann' \(law id \d+ in the kernels\)$"):
+        solve_paper_scheme(system, progress=False)
 
 
 def test_derivative_against_finite_differences():

@@ -93,6 +93,25 @@ def test_newton_solve_on_a_leading_block_matches_numpy():
 
 
 @pytest.mark.short_run
+@pytest.mark.parametrize(("R", "K"), [(0, 1), (1, 1), (37, 1), (5, 4), (120, 9)])
+def test_the_trapezoidal_steps_scratch_slices_tile_it(R, K):
+    """The named slices of implicit_step's float scratch follow each other without gap or
+    overlap, in WS_* order, and fill the scratch (3 R + 6 K + 3 long, as before it had
+    names)."""
+    from roughvib.solvers.adaptive import trapezoidal as tz
+
+    ws = np.arange(float(tz.ws_size(R, K)))
+    assert ws.size == 3 * R + 6 * K + 3
+    cut = [tz.ws_slice(ws, i, R, K) for i in range(tz.N_WS)]
+    np.testing.assert_array_equal(np.concatenate(cut), ws)
+    for i, piece in enumerate(cut):
+        assert piece.size == tz.ws_length(i, R, K)
+        assert piece.size == 0 or piece[0] == tz.ws_start(i, R, K)
+    assert [cut[i].size for i in (tz.WS_SQ, tz.WS_SDQ, tz.WS_UM)] == [R] * 3
+    assert [cut[i].size for i in (tz.WS_RHS, tz.WS_IDX, tz.WS_NOISE)] == [K + 1] * 3
+    assert [cut[i].size for i in (tz.WS_WFREE, tz.WS_F, tz.WS_WM)] == [K] * 3
+
+
 def test_kernels_without_jit_match_compiled(run_without_jit):
     """The whole solver in plain Python (NUMBA_DISABLE_JIT=1) gives the compiled result."""
     over = {**SMALL_SCENE, "output.duration": 3e-4, "output.progress": False,

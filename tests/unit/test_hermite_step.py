@@ -205,8 +205,9 @@ def test_the_newton_matrix_is_the_residuals_derivative(paper, v1):
 
     def residual(u, with_jac=False):
         res = np.zeros(n)
-        hm._residual(cst, h, u, res, nc, idx, wq, wd, Cc, system.fp, system.stiff,
-                     system.input_s, system.prof, reg, jac, with_jac, dhs)
+        hm._residual(cst, h, u, res, nc, idx, wq, wd, Cc, int(system.off[kn.OFF_LAW]),
+                     system.fp, system.stiff, system.input_s, system.prof, reg, jac, with_jac,
+                     dhs)
         return res
 
     residual(unk, True)

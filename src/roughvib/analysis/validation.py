@@ -299,9 +299,53 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
         A bad option (signal, margin, both noise options), or a run without a complete
         record.
     """
-    from roughvib.analysis import figures_data as fd
     from roughvib.analysis.spectra import narrowband_psd
 
+    _check_options(result, signal, margin_db, noise, noise_rms)
+    w = _windows(result, record, signal, start)
+    fs_run, fs_rec = w.fs_run, record.fs
+    a, n_run = w.run_start, w.n_run
+    # the filters run from each signal's first sample and average over the window only
+    fc_s, l_s = _band_levels(w.x_run[:a + n_run], fs_run, settle=a / fs_run)
+    ok_s = np.isfinite(l_s)
+    top = float(_nominal(fc_s[ok_s][-1])[0]) if ok_s.any() else fs_run / 2
+    fmax = top if fmax is None else float(fmax)
+    if not fmax > 0:
+        raise ValueError(f"fmax must be > 0 Hz, got {fmax}")
+    if fs_rec < 2.0 * fmax:
+        raise RecordError(f"{record.path}: sample rate {fs_rec:g} Hz is below 2 x the highest "
+                          f"band ({fmax:g} Hz); give --fmax below {fs_rec / 2:g} Hz to compare "
+                          f"the bands under the record's Nyquist frequency")
+    fc_m, l_m = _band_levels(record.signal[:w.i0 + w.n_rec], fs_rec, settle=w.i0 / fs_rec)
+    k_s, k_m = _band_index(fc_s), _band_index(fc_m)
+    sim = dict(zip(k_s.tolist(), l_s, strict=True))
+    mea = dict(zip(k_m.tolist(), l_m, strict=True))
+    noise_levels, noise_text = _noise_floor(noise, noise_rms, w.n_rec, fc_m, k_m, fs_rec)
+    table, left_out = _band_table(sim, mea, k_s, k_m, fmax, fs_run, fs_rec, noise_levels,
+                                  noise_text, margin_db)
+    o_s = _energy_sum(table["simulated_db"].to_numpy())
+    o_m = _energy_sum(table["measured_db"].to_numpy())
+    notes = w.notes
+    if abs(fs_rec - fs_run) > 1e-9 * fs_run:
+        notes.append(f"record sampled at {fs_rec:g} Hz, run at {fs_run:g} Hz")
+    xs = w.x_run[a:a + n_run]
+    xm = record.signal[w.i0:w.i0 + w.n_rec]
+    f_s, p_s = narrowband_psd(xs, fs_run, resolution=resolution, ref=REFERENCE)
+    f_m, p_m = narrowband_psd(xm, fs_rec, resolution=resolution, ref=REFERENCE)
+    return Validation(
+        signal=signal, record=record.path, table=table, left_out=left_out,
+        overall_simulated_db=o_s, overall_measured_db=o_m, overall_difference_db=o_m - o_s,
+        window_s=w.window_s, run_window=(float(w.t[a]), float(w.t[a + n_run - 1])),
+        record_window=(w.i0 / fs_rec, (w.i0 + w.n_rec - 1) / fs_rec), fs_run=fs_run,
+        fs_record=fs_rec, frequency_run=f_s, psd_run=p_s, frequency_record=f_m,
+        psd_record=p_m, noise=noise_text, margin_db=margin_db, notes=notes,
+        info=_validation_info(result, record, signal))
+
+
+def _check_options(result: Result, signal: str, margin_db: float, noise: Record | None,
+                   noise_rms: float | None) -> None:
+    """Refuse a bad option of :func:`compare_record` or a run without a complete record
+    (``ValueError``, one line)."""
     if signal not in SIGNALS:
         raise ValueError(f"signal must be one of {', '.join(SIGNALS)}, got {signal!r}")
     if not (margin_db > 0 and math.isfinite(margin_db)):
@@ -311,8 +355,35 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
     if not result.ok:
         raise ValueError(f"the run did not complete (status {result.status}): nothing to "
                          f"compare")
-    scene = fd.scene_of(result)
-    period = scene.period
+
+
+@dataclass(frozen=True)
+class _Windows:
+    """The compared windows of a run and a record (:func:`_windows`)."""
+
+    t: np.ndarray        #: the run's output times [s]
+    fs_run: float        #: the run's sample rate [Hz]
+    x_run: np.ndarray    #: the run's signal [m/s^2], all of it
+    run_start: int       #: first sample of the run's window
+    n_run: int           #: samples of the run's window
+    window_s: float      #: length of both windows [s]
+    i0: int              #: first sample of the record's window
+    n_rec: int           #: samples of the record's window
+    notes: list          #: what differs from a like-for-like comparison
+
+
+def _windows(result: Result, record: Record, signal: str, start: float | None) -> _Windows:
+    """The run's analysis window and the record's window of the same length (cut to the
+    record's whole periods where it is shorter; the module docstring).
+
+    Raises
+    ------
+    RecordError
+        The record (from ``start`` [s]) is shorter than one excitation period.
+    """
+    from roughvib.analysis import figures_data as fd
+
+    period = fd.scene_of(result).period
     ds = result.dataset
     t = ds["time"].values
     fs_run = 1.0 / float(t[1] - t[0])
@@ -330,59 +401,65 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
     if n_rec < int(round(window_s * fs_rec)):
         n_run = int(round(n_rec / fs_rec * fs_run))
         window_s = n_rec / fs_rec
-    xs = x_run[win.start:win.start + n_run]
-    xm = record.signal[i0:i0 + n_rec]
+    return _Windows(t=t, fs_run=fs_run, x_run=x_run, run_start=win.start, n_run=n_run,
+                    window_s=window_s, i0=i0, n_rec=n_rec, notes=notes)
 
-    # the filters run from each signal's first sample and average over the window only
-    fc_s, l_s = _band_levels(x_run[:win.start + n_run], fs_run, settle=win.start / fs_run)
-    ok_s = np.isfinite(l_s)
-    top = float(_nominal(fc_s[ok_s][-1])[0]) if ok_s.any() else fs_run / 2
-    fmax = top if fmax is None else float(fmax)
-    if not fmax > 0:
-        raise ValueError(f"fmax must be > 0 Hz, got {fmax}")
-    if fs_rec < 2.0 * fmax:
-        raise RecordError(f"{record.path}: sample rate {fs_rec:g} Hz is below 2 x the highest "
-                          f"band ({fmax:g} Hz); give --fmax below {fs_rec / 2:g} Hz to compare "
-                          f"the bands under the record's Nyquist frequency")
-    fc_m, l_m = _band_levels(record.signal[:i0 + n_rec], fs_rec, settle=i0 / fs_rec)
-    k_s, k_m = _band_index(fc_s), _band_index(fc_m)
-    sim = dict(zip(k_s.tolist(), l_s, strict=True))
-    mea = dict(zip(k_m.tolist(), l_m, strict=True))
-    k_max = int(_band_index(np.array([fmax]))[0])
 
-    noise_levels: dict[int, float] = {}
-    noise_text = ""
+def _noise_floor(noise: Record | None, noise_rms: float | None, n_rec: int, fc_m: np.ndarray,
+                 k_m: np.ndarray, fs_rec: float) -> tuple[dict[int, float], str]:
+    """The noise floor's band levels [dB re 1e-6 m/s^2] by band index (of a noise record's
+    first ``n_rec`` samples, or of white noise at ``noise_rms`` [m/s^2] in the record's bands
+    ``fc_m`` [Hz], indices ``k_m``) and what it is (empty, with no levels, without one)."""
     if noise is not None:
         xn = noise.signal[:min(noise.signal.size, n_rec)]
         fc_n, l_n = _band_levels(xn, noise.fs)
-        noise_levels = dict(zip(_band_index(fc_n).tolist(), l_n, strict=True))
-        noise_text = f"record {noise.path} ({xn.size / noise.fs:.4g} s)"
-    elif noise_rms is not None:
+        return (dict(zip(_band_index(fc_n).tolist(), l_n, strict=True)),
+                f"record {noise.path} ({xn.size / noise.fs:.4g} s)")
+    if noise_rms is not None:
         l_n = noise_rms_band_levels(fc_m, noise_rms, fs_rec)
-        noise_levels = dict(zip(k_m.tolist(), l_n, strict=True))
-        noise_text = f"white noise {noise_rms:g} m/s^2 rms (0 to {fs_rec / 2:g} Hz)"
+        return (dict(zip(k_m.tolist(), l_n, strict=True)),
+                f"white noise {noise_rms:g} m/s^2 rms (0 to {fs_rec / 2:g} Hz)")
+    return {}, ""
 
+
+def _left_out_reason(k: int, ls, lm, k_s: np.ndarray, k_m: np.ndarray, k_max: int,
+                     fmax: float, fs_run: float, fs_rec: float) -> str | None:
+    """Why band k is not compared (levels ``ls`` of the run, ``lm`` of the record [dB], None
+    where a side has no such band), "" for a band to skip silently (below the window's
+    resolution on both sides), None for a band to compare."""
+    if k > k_max:
+        if ls is not None and np.isfinite(ls):
+            return f"above the highest band compared, {fmax:g} Hz"
+        return ""
+    if lm is None:
+        return (f"above the record's Nyquist frequency {_hz(fs_rec / 2)}"
+                if k > k_m.max() else "not in the record's bands")
+    if ls is None:
+        return (f"above the run's Nyquist frequency {_hz(fs_run / 2)}"
+                if k > k_s.max() else "not in the run's bands")
+    if not (np.isfinite(ls) and np.isfinite(lm)):
+        if np.isnan(ls) and np.isnan(lm):
+            return ""  # below the window's resolution on both sides: not a band here
+        return ("too few FFT bins in the window" if (np.isnan(ls) or np.isnan(lm))
+                else "no power")
+    return None
+
+
+def _band_table(sim: dict, mea: dict, k_s: np.ndarray, k_m: np.ndarray, fmax: float,
+                fs_run: float, fs_rec: float, noise_levels: dict, noise_text: str,
+                margin_db: float) -> tuple[pd.DataFrame, list]:
+    """The compared bands (the rows of :attr:`Validation.table`) and the left-out bands
+    (nominal centre [Hz], reason), from the run's and the record's levels by band index
+    [dB re 1e-6 m/s^2]."""
+    k_max = int(_band_index(np.array([fmax]))[0])
     rows, left_out = [], []
     for k in sorted(set(sim) | set(mea)):
         f_nom = float(_nominal(1000.0 * 10.0 ** (k / 10.0))[0])
         ls, lm = sim.get(k), mea.get(k)
-        if k > k_max:
-            if ls is not None and np.isfinite(ls):
-                left_out.append((f_nom, f"above the highest band compared, {fmax:g} Hz"))
-            continue
-        if lm is None:
-            left_out.append((f_nom, f"above the record's Nyquist frequency {_hz(fs_rec / 2)}"
-                             if k > k_m.max() else "not in the record's bands"))
-            continue
-        if ls is None:
-            left_out.append((f_nom, f"above the run's Nyquist frequency {_hz(fs_run / 2)}"
-                             if k > k_s.max() else "not in the run's bands"))
-            continue
-        if not (np.isfinite(ls) and np.isfinite(lm)):
-            if np.isnan(ls) and np.isnan(lm):
-                continue  # below the window's resolution on both sides: not a band here
-            left_out.append((f_nom, "too few FFT bins in the window" if
-                             (np.isnan(ls) or np.isnan(lm)) else "no power"))
+        why = _left_out_reason(k, ls, lm, k_s, k_m, k_max, fmax, fs_run, fs_rec)
+        if why is not None:
+            if why:
+                left_out.append((f_nom, why))
             continue
         ln = noise_levels.get(k, math.nan)
         rows.append({"band_hz": f_nom, "simulated_db": float(ls), "measured_db": float(lm),
@@ -393,27 +470,21 @@ def compare_record(result: Result, record: Record, *, signal: str = "plate",
                                         "difference_db", "noise_db", "at_noise_floor"])
     if noise_text:
         table["at_noise_floor"] = table["at_noise_floor"].astype("boolean")
-    o_s = _energy_sum(table["simulated_db"].to_numpy())
-    o_m = _energy_sum(table["measured_db"].to_numpy())
-    if abs(fs_rec - fs_run) > 1e-9 * fs_run:
-        notes.append(f"record sampled at {fs_rec:g} Hz, run at {fs_run:g} Hz")
-    f_s, p_s = narrowband_psd(xs, fs_run, resolution=resolution, ref=REFERENCE)
-    f_m, p_m = narrowband_psd(xm, fs_rec, resolution=resolution, ref=REFERENCE)
+    return table, left_out
+
+
+def _validation_info(result: Result, record: Record, signal: str) -> dict:
+    """:attr:`Validation.info`: the record's units and channel, the run's id, scene,
+    friction velocity ``v_rms`` [m/s] and the summary's broadband level of the signal
+    [dB re 1e-6 m/s^2]."""
     m = result.summary.get("metrics", {})
-    info = {"record_units": record.units, "record_units_from": record.units_from,
+    return {"record_units": record.units, "record_units_from": record.units_from,
             "record_channel": record.channel, "run_id": result.summary.get("run_id"),
             "scene": result.summary.get("scene"),
             "v_rms": m.get("block_tangential_velocity_rms"),
-            # the summary's level: the rms of the whole signal over the run's window, not a sum
-            # of bands (the filters' overlapping skirts count some power twice)
+            # the summary's level: the rms of the whole signal over the run's window, not a
+            # sum of bands (the filters' overlapping skirts count some power twice)
             "simulated_broadband_db": m.get(f"{SIGNALS[signal]}_level_db_re_1e-6")}
-    return Validation(
-        signal=signal, record=record.path, table=table, left_out=left_out,
-        overall_simulated_db=o_s, overall_measured_db=o_m, overall_difference_db=o_m - o_s,
-        window_s=window_s, run_window=(float(t[win.start]), float(t[win.start + n_run - 1])),
-        record_window=(i0 / fs_rec, (i0 + n_rec - 1) / fs_rec), fs_run=fs_run,
-        fs_record=fs_rec, frequency_run=f_s, psd_run=p_s, frequency_record=f_m,
-        psd_record=p_m, noise=noise_text, margin_db=margin_db, notes=notes, info=info)
 
 
 def validation_velocity_exponent(summaries: list[dict]) -> dict:

@@ -23,9 +23,9 @@ from roughvib.physics.friction.regime import NO_DWELL, RootValues, StartValues, 
 
 __all__ = ["NO_DWELL", "Regime", "Transition", "initial_regime", "switch"]
 
-#: the law a caller that still gives only the kind (``set_valued``, a bool) gets, and the law
-#: of a regime pickled before the regime carried its law (a checkpoint stored ``set_valued``):
-#: each has its kind's start, transitions and notation (``table`` has ``coulomb``'s; a dynamic
+#: the law of a regime pickled before the regime carried its law (a checkpoint stored
+#: ``set_valued``), and the notation of a regime without friction (False): each has its
+#: kind's start, transitions and notation (``table`` has ``coulomb``'s; a dynamic
 #: law's roots 0 and 2 switch as ``feldmann``'s do, its root 1 never fires)
 _LAW_OF_KIND = {False: "feldmann", True: "coulomb"}
 
@@ -111,7 +111,7 @@ class Regime:
 
 
 def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
-                   law: str | bool) -> Regime:
+                   law: str) -> Regime:
     """Regime at t = 0: the static contact set, block at rest, the law's friction regime.
 
     The friction part is the law's (``LAWS[law].initial``): feldmann, latch s = -1
@@ -128,19 +128,17 @@ def initial_regime(closed: np.ndarray, fp: np.ndarray, tangential: bool,
         The kernels' packed parameters (``kernels.FP_*``).
     tangential : bool
         Whether the block moves tangentially.
-    law : str or bool
-        The friction law's name (``friction.law``). A bool is the law's kind alone
-        (``set_valued``, as older callers pass it): a law of that kind with the same start.
+    law : str
+        The friction law's name (``friction.law``).
 
     Returns
     -------
     Regime
     """
-    name = _LAW_OF_KIND[bool(law)] if isinstance(law, bool | np.bool_) else law
-    entry = _law(name)
+    entry = _law(law)
     if not tangential:
         return Regime(closed=closed.astype(np.int64))
-    reg = Regime(closed=closed.astype(np.int64), law=name)
+    reg = Regime(closed=closed.astype(np.int64), law=law)
     entry.initial(reg, StartValues(
         force_amplitude=fp[kn.FP_T0], mass=fp[kn.FP_MASS], gravity=fp[kn.FP_GRAV],
         mu_stick=fp[kn.FP_MU_STICK], hysteresis=fp[kn.FP_HYST],

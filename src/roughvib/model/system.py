@@ -22,12 +22,18 @@ from roughvib.model import kernels as kn
 from roughvib.model.jacobian import jacobian_pattern
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
-from roughvib.physics.friction import LAWS, calibrated_force_amplitude
+from roughvib.physics.friction import LAWS, FrictionLaw, calibrated_force_amplitude
 from roughvib.physics.structures import Structure, build_structure
-from roughvib.physics.surface.contact import contact_layout, scene_input
+from roughvib.physics.surface.contact import (
+    ContactLayout,
+    SceneInput,
+    contact_layout,
+    scene_input,
+)
 from roughvib.physics.surface.interp import cached_coefficients
 from roughvib.physics.surface.roughness import Profile
 from roughvib.scene import (
+    Block,
     ModelValidityWarning,
     Scene,
     SceneError,
@@ -402,6 +408,155 @@ def _check_travel(scene: Scene, profile: Profile, contact_s: np.ndarray, travel:
             f"beyond the block window, got {r.trace_length} m")
 
 
+def _checked_contacts(scene: Scene, travel: float | None, warn: bool
+                      ) -> tuple[SceneInput, ContactLayout, list[str]]:
+    """The scene's input profile and contact points, checked before any expensive step.
+
+    Parameters
+    ----------
+    scene : Scene
+    travel : float or None
+        Tangential travel of the contacts the profile must cover [m] (not checked if None).
+    warn : bool
+        Issue the validity notes as :class:`~roughvib.scene.ModelValidityWarning`.
+
+    Returns
+    -------
+    inp : SceneInput
+        The kinematic input (``inp.profile``) and its statistical contact.
+    layout : ContactLayout
+        The contact points [m] and the total contact stiffness [N/m]
+        (:func:`~roughvib.physics.surface.contact.contact_layout`).
+    notes : list of str
+        The profile's plausibility notes (:func:`check_profile`), the scene's validity
+        warnings and the contact filter's note, one line each.
+
+    Raises
+    ------
+    SceneError
+        An implausible profile (:func:`check_profile`), or one that does not cover
+        ``travel``.
+    """
+    inp = scene_input(scene)
+    profile = inp.profile
+    notes = check_profile(scene, profile) + validity_warnings(scene)
+    if profile.stats.get("contact_filter_note"):
+        notes.append(profile.stats["contact_filter_note"])
+    # contact points and s_total, as given or from the statistical contact (docs/theory.md);
+    # a measured profile brings its own spectrum, synthetic ones use the model PSD
+    cl = contact_layout(scene, profile, inp.statistical)
+    if travel is not None:
+        _check_travel(scene, profile, cl.positions, travel)
+    for note in notes if warn else ():
+        warnings.warn(note, ModelValidityWarning, stacklevel=user_stacklevel())
+    return inp, cl, notes
+
+
+def _vertical_damping(block: Block, s_total: float) -> float:
+    """The block's vertical damper r1 [N s/m]: ``block.vertical_damping`` as given, or for
+    ``"auto"`` ``2 zeta sqrt(s_total m)``, zeta = ``block.vertical_damping_ratio``, of the
+    total contact stiffness ``s_total`` [N/m] and the block's mass m [kg]."""
+    if isinstance(block.vertical_damping, str):
+        return 2.0 * block.vertical_damping_ratio * math.sqrt(s_total * block.mass)
+    return float(block.vertical_damping)
+
+
+def _structure_at_contacts(scene: Scene, structure: Structure, contact_xy: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The structure's mode shapes, their x-slopes and its residual compliance at the
+    contacts (point values, or area means for ``contact.patch = "area"``), and its shapes at
+    the observation point.
+
+    Parameters
+    ----------
+    scene : Scene
+    structure : Structure
+        Mass-normalised shapes [1/sqrt(kg)].
+    contact_xy : ndarray, shape (K, 2)
+        Plate coordinates of the contacts [m].
+
+    Returns
+    -------
+    phi : ndarray, shape (R, K)
+        Shapes at the contacts [1/sqrt(kg)], C-contiguous.
+    phi_dx : ndarray, shape (R, K)
+        Their x-slopes [1/(m sqrt(kg))].
+    cres : ndarray, shape (K, K)
+        Residual compliance [m/N] (symmetric; zero without ``plate.residual_compliance``).
+    phi_obs : ndarray, shape (R,)
+        Shapes at ``plate.observation_position`` [1/sqrt(kg)].
+    """
+    blk, plt = scene.block, scene.plate
+    K = contact_xy.shape[0]
+    x0, y0 = plt.block_position
+    obs = np.array([plt.observation_position])
+    if scene.contact.patch == "area":
+        # every contact force spread evenly over the block's nominal contact area, which stays
+        # centred at plate.block_position (the contacts hold their plate points)
+        patch = ((x0, y0), (blk.length, blk.width))
+        psi = structure.patch_shapes(*patch)
+        phi = np.repeat(psi[:, None], K, axis=1)
+        phi_dx = np.repeat(structure.patch_slopes(*patch)[:, None], K, axis=1)
+        c = structure.patch_residual_compliance(*patch) if plt.residual_compliance else None
+        cres = np.full((K, K), 0.0 if c is None else c)
+    else:
+        phi = structure.shapes(contact_xy)
+        phi_dx = structure.slopes(contact_xy)
+        c = structure.residual_compliance(contact_xy) if plt.residual_compliance else None
+        cres = np.zeros((K, K)) if c is None else 0.5 * (c + c.T)
+    phi = np.ascontiguousarray(phi, dtype=float)
+    phi_obs = np.ascontiguousarray(structure.shapes(obs)[:, 0], dtype=float)
+    return phi, phi_dx, cres, phi_obs
+
+
+def _force_amplitude(scene: Scene, law: FrictionLaw, table: np.ndarray,
+                     force_amplitude: float | None) -> tuple[float, dict]:
+    """The excitation force amplitude T0 [N] and how it was found.
+
+    Parameters
+    ----------
+    scene : Scene
+    law : FrictionLaw
+        The scene's friction law (``LAWS[friction.law]``).
+    table : ndarray
+        The law's packed parameters (:attr:`FrictionLaw.pack`).
+    force_amplitude : float or None
+        A T0 given to :func:`assemble` [N]; it wins over the scene's.
+
+    Returns
+    -------
+    T0 : float
+        [N]; 0 under prescribed motion.
+    calibration : dict
+        ``method`` (``given``, ``scene`` or the calibration's tangential model) and, when
+        calibrated, ``target_rms_velocity`` [m/s] and ``cache``; empty under prescribed
+        motion.
+
+    Raises
+    ------
+    SceneError
+        The calibration cannot reach ``excitation.target_rms_velocity``.
+    """
+    blk, exc, fr = scene.block, scene.excitation, scene.friction
+    if exc.kind != "force":
+        return 0.0, {}
+    if force_amplitude is not None:
+        return float(force_amplitude), {"method": "given"}
+    if exc.force_amplitude is not None:
+        return float(exc.force_amplitude), {"method": "scene"}
+    try:
+        T0, cache = calibrated_force_amplitude(
+            exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
+            exc.omega, fr, table)
+    except (RuntimeError, ValueError) as err:
+        raise SceneError(
+            f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
+            f"friction law ({err}); check the friction keys or give "
+            f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
+    return T0, {"method": _CALIBRATION_MODELS[law.calibration],
+                "target_rms_velocity": exc.target_rms_velocity, "cache": cache}
+
+
 def assemble(scene: Scene, *, force_amplitude: float | None = None,
              travel: float | None = None, warn: bool = True) -> System:
     """Turn a validated scene into a :class:`System` (preprocessing happens here, once).
@@ -431,23 +586,11 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     blk, plt, exc, fr = scene.block, scene.plate, scene.excitation, scene.friction
     tangential = exc.kind == "force"
 
-    inp = scene_input(scene)
+    inp, cl, notes = _checked_contacts(scene, travel, warn)
     profile = inp.profile
-    notes = check_profile(scene, profile) + validity_warnings(scene)
-    if profile.stats.get("contact_filter_note"):
-        notes.append(profile.stats["contact_filter_note"])
-    # contact points and s_total, as given or from the statistical contact (docs/theory.md);
-    # a measured profile brings its own spectrum, synthetic ones use the model PSD
-    cl = contact_layout(scene, profile, inp.statistical)
     spos, s_total, K = cl.positions, cl.stiffness_total, cl.n
-    stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
-    if travel is not None:
-        _check_travel(scene, profile, spos, travel)
-    for note in notes if warn else ():
-        warnings.warn(note, ModelValidityWarning, stacklevel=user_stacklevel())
     stiff = np.full(K, s_total / K)
-    r1 = (2.0 * blk.vertical_damping_ratio * math.sqrt(s_total * blk.mass)
-          if isinstance(blk.vertical_damping, str) else float(blk.vertical_damping))
+    r1 = _vertical_damping(blk, s_total)
     x0, y0 = plt.block_position
     contact_xy = np.column_stack([x0 + (spos - profile.s_centre), np.full(K, y0)])
 
@@ -456,23 +599,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
         notes.append(note)
         if warn:
             warnings.warn(note, ModelValidityWarning, stacklevel=user_stacklevel())
-    obs = np.array([plt.observation_position])
-    if scene.contact.patch == "area":
-        # every contact force spread evenly over the block's nominal contact area, which stays
-        # centred at plate.block_position (the contacts hold their plate points)
-        patch = ((x0, y0), (blk.length, blk.width))
-        psi = structure.patch_shapes(*patch)
-        phi = np.repeat(psi[:, None], K, axis=1)
-        phi_dx = np.repeat(structure.patch_slopes(*patch)[:, None], K, axis=1)
-        c = structure.patch_residual_compliance(*patch) if plt.residual_compliance else None
-        cres = np.full((K, K), 0.0 if c is None else c)
-    else:
-        phi = structure.shapes(contact_xy)
-        phi_dx = structure.slopes(contact_xy)
-        c = structure.residual_compliance(contact_xy) if plt.residual_compliance else None
-        cres = np.zeros((K, K)) if c is None else 0.5 * (c + c.T)
-    phi = np.ascontiguousarray(phi, dtype=float)
-    phi_obs = np.ascontiguousarray(structure.shapes(obs)[:, 0], dtype=float)
+    phi, phi_dx, cres, phi_obs = _structure_at_contacts(scene, structure, contact_xy)
     omega2 = structure.omega**2
     cdamp = 2.0 * structure.damping_ratio * structure.omega
     R = phi.shape[0]
@@ -483,27 +610,8 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     # calibration needs it; a dynamic law's constants)
     table = law.pack(fr, scene.base_dir) if tangential else np.zeros(0)
 
-    calibration: dict = {}
-    if not tangential:
-        T0 = 0.0
-    elif force_amplitude is not None:
-        T0 = float(force_amplitude)
-        calibration = {"method": "given"}
-    elif exc.force_amplitude is not None:
-        T0 = float(exc.force_amplitude)
-        calibration = {"method": "scene"}
-    else:
-        try:
-            T0, cache = calibrated_force_amplitude(
-                exc.target_rms_velocity, blk.mass, blk.tangential_damping, blk.mass * GRAVITY,
-                exc.omega, fr, table)
-        except (RuntimeError, ValueError) as err:
-            raise SceneError(
-                f"excitation.target_rms_velocity cannot be reached by calibrating T0 with this "
-                f"friction law ({err}); check the friction keys or give "
-                f"excitation.force_amplitude [N], got {exc.target_rms_velocity} m/s") from None
-        calibration = {"method": _CALIBRATION_MODELS[law.calibration],
-                       "target_rms_velocity": exc.target_rms_velocity, "cache": cache}
+    T0, calibration = _force_amplitude(scene, law, table, force_amplitude)
+    stiff_info = cl.statistical.as_dict() if cl.statistical is not None else {}
     if stiff_info:
         calibration["contact_stiffness"] = stiff_info
 

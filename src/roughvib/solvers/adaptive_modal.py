@@ -186,8 +186,8 @@ def _check_scene(system: System) -> None:
 
 
 def hermite_applies(system: System) -> bool:
-    """Whether the Hermite step covers the scene: the Feldmann law (not set-valued), a
-    force-driven block, no friction moment."""
+    """Whether the Hermite step covers the scene: a single-valued law (the Feldmann law; not
+    set-valued, not dynamic), a force-driven block, no friction moment."""
     off = system.off
     return bool(off[kn.OFF_IX] >= 0 and not kn.set_valued(off) and not kn.dynamic(off)
                 and not kn.moment_on(off))

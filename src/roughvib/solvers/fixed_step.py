@@ -30,7 +30,12 @@ from scipy.linalg import expm
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.physics.friction import LAWS, feldmann_mu_law, kinetic_coefficient, latch_update
+from roughvib.physics.friction import (
+    LAWS,
+    kinetic_coefficient,
+    latch_update,
+    single_valued_mu_law,
+)
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.base import FIRST_ROW, MODE_DQ, MODE_Q, RawSolution
@@ -265,7 +270,7 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
     pw = np.empty(kn.N_ENERGY)
     qw = np.empty(kn.N_ENERGY)
     _start_powers(tangential, moreau, v0, S0, zv[ZV_VZ], tang[TG_LATCH], Fv, dhk, dq, cdamp,
-                  fp, pw)
+                  law, fp, pw)
     lam = 0.0
     row = 0
     for n in range(n_steps):
@@ -276,7 +281,7 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
             v1, lam = _moreau_velocity(t1, h, v0, S0, law, fp)
             x1 = x0 + h * v1
         elif tangential:
-            v1, ok = _trapezoidal_velocity(t0, t1, h, v0, S0, tang[TG_LATCH], fp)
+            v1, ok = _trapezoidal_velocity(t0, t1, h, v0, S0, tang[TG_LATCH], law, fp)
             if not ok:
                 return n_ev, 1, n
             x1 = x0 + 0.5 * h * (v0 + v1)
@@ -297,7 +302,7 @@ def _step_loop(h, n_steps, out_every, Phi, G0, G1, phi, phi_obs, omega2, cdamp, 
                                moreau, not moreau, eps, ev_t, ev_kind, ev_contact, n_ev,
                                tangential)
         fric1, mu1 = _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam,
-                                 tang[TG_LATCH], Fn, dhk, dq, cdamp, fp, qw)
+                                 tang[TG_LATCH], Fn, dhk, dq, cdamp, law, fp, qw)
         _add_energy(energy, h, tangential, pw, qw)
         pw, qw = qw, pw
         # advance
@@ -359,8 +364,9 @@ def _start(q, Fv, zv, tang, phi, cres, spos, prof, fp, u, comp_old, dhk):
 
 
 @njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
-def _start_powers(tangential, moreau, v0, S0, vz0, latch, Fv, dhk, dq, cdamp, fp, pw):
-    """The powers [W] at the start into ``pw``, at the energy integrals' positions ``E_*``."""
+def _start_powers(tangential, moreau, v0, S0, vz0, latch, Fv, dhk, dq, cdamp, law, fp, pw):
+    """The powers [W] at the start into ``pw``, at the energy integrals' positions ``E_*``
+    (``law``: the friction law's id, ``off[OFF_LAW]``)."""
     M = fp[kn.FP_MMODAL]
     m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     p_exc = 0.0
@@ -368,7 +374,7 @@ def _start_powers(tangential, moreau, v0, S0, vz0, latch, Fv, dhk, dq, cdamp, fp
     if tangential and moreau:
         p_exc = fp[kn.FP_T0] * v0
     elif tangential:
-        mu0, _ = feldmann_mu_law(v0 + latch * vh, mu_sl, mu_st, a1, a2)
+        mu0, _ = single_valued_mu_law(law, v0 + latch * vh, mu_sl, mu_st, a1, a2)
         p_exc = fp[kn.FP_T0] * v0
         p_fric = mu0 * S0 * v0
     p_r2 = r2 * v0 * v0
@@ -422,17 +428,18 @@ def _moreau_velocity(t1, h, v0, S0, law, fp):
 
 
 @njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
-def _trapezoidal_velocity(t0, t1, h, v0, S0, s_l, fp):
-    """The Feldmann law's velocity at t1 [m/s] by the trapezoidal rule, Newton on v1 with
-    the latch s_l and the normal force S0 [N] of the step's start; ``(v1, converged)``."""
+def _trapezoidal_velocity(t0, t1, h, v0, S0, s_l, law, fp):
+    """The velocity at t1 [m/s] under a single-valued law (id ``law``) by the trapezoidal
+    rule, Newton on v1 with the latch s_l and the normal force S0 [N] of the step's start;
+    ``(v1, converged)``."""
     m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     t_old = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t0)
     t_new = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1)
-    mu0, _ = feldmann_mu_law(v0 + s_l * vh, mu_sl, mu_st, a1, a2)
+    mu0, _ = single_valued_mu_law(law, v0 + s_l * vh, mu_sl, mu_st, a1, a2)
     f0 = t_old - mu0 * S0 - r2 * v0
     v1 = v0
     for _it in range(60):
-        mu1, dmu1 = feldmann_mu_law(v1 + s_l * vh, mu_sl, mu_st, a1, a2)
+        mu1, dmu1 = single_valued_mu_law(law, v1 + s_l * vh, mu_sl, mu_st, a1, a2)
         gval = m * (v1 - v0) / h - 0.5 * f0 - 0.5 * (t_new - mu1 * S0 - r2 * v1)
         dg = m / h + 0.5 * (dmu1 * S0 + r2)
         dv = gval / dg
@@ -499,10 +506,11 @@ def _end_modes(Fn, phi, G1, M, sq, sdq, u_new, q, dq, u):
 
 
 @njit(cache=True, inline="always")  # a step of the loop, as fast as if written there
-def _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam, latch, Fn, dhk, dq, cdamp, fp,
-                qw):
+def _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam, latch, Fn, dhk, dq, cdamp, law,
+                fp, qw):
     """The friction force [N] and coefficient [-] at the step's end, ``(fric1, mu1)``, and
-    the powers [W] there into ``qw`` (at the positions ``E_*``)."""
+    the powers [W] there into ``qw`` (at the positions ``E_*``; ``law``: the friction law's
+    id, ``off[OFF_LAW]``)."""
     M = fp[kn.FP_MMODAL]
     m, g, r1, r2, mu_sl, mu_st, a1, a2, vh, eps, vst = kn.block_parameters(fp)
     q_exc = 0.0
@@ -515,7 +523,7 @@ def _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam, latch, Fn, dhk, dq
         q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
         q_fric = lam * v1
     elif tangential:
-        mu1, _ = feldmann_mu_law(v1 + latch * vh, mu_sl, mu_st, a1, a2)
+        mu1, _ = single_valued_mu_law(law, v1 + latch * vh, mu_sl, mu_st, a1, a2)
         fric1 = mu1 * S1
         q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
         q_fric = mu1 * S1 * v1
@@ -606,7 +614,7 @@ def solve_fixed_step(system: System, *, progress: bool | None = None) -> RawSolu
 
     y0, closed = system.static_equilibrium()
     # the law's own initial regime (the Coulomb law: stick unless the block cannot hold)
-    regime = initial_regime(closed, system.fp, lay.tangential, system.set_valued)
+    regime = initial_regime(closed, system.fp, lay.tangential, system.scene.friction.law)
     reg, rf = system.new_regime_arrays()
     regime.pack(reg, rf)
     y, _ = system.consistent(0.0, y0, reg, rf)

@@ -31,18 +31,21 @@ from numba import njit
 
 from roughvib.model import kernels as kn
 from roughvib.model.krylov import lu_factor_checked, lu_solve
-from roughvib.physics.friction import feldmann_mu, feldmann_mu_d2
+from roughvib.physics.friction import single_valued_mu, single_valued_mu_d2
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.solvers.base import MODE_DQ, MODE_Q
 
-#: the law and the profile inlined (numba IR) into the step's Newton residual, and the
-#: residual and the step into their callers (``inline="always"``): each call of a compiled
-#: function that is not inlined increments and decrements the reference count of every array
-#: it is passed (about 6 ns per array; ``perf``: 16 % of a default solve's reference
-#: counting came from ``_residual``'s calls alone). Same Python functions, same results to
-#: the bit; the first compilation takes about 13 s longer.
+#: the friction law's dispatch (laws.py) and the profile inlined (numba IR) into the step's
+#: Newton residual (the dispatch into carried() too), and the residual and the step into their
+#: callers (``inline="always"``): each call of a compiled function that is not inlined
+#: increments and decrements the reference count of every array it is passed (about 6 ns per
+#: array; ``perf``: 16 % of a default solve's reference counting came from ``_residual``'s
+#: calls alone). Same Python functions, same results to the bit; the first compilation takes
+#: about 13 s longer.
 # (``py_func``: the Python function of a dispatcher; with NUMBA_DISABLE_JIT it is the function)
-_mu_d2_inline = njit(inline="always")(getattr(feldmann_mu_d2, "py_func", feldmann_mu_d2))
+_mu_d2_inline = njit(inline="always")(getattr(single_valued_mu_d2, "py_func",
+                                              single_valued_mu_d2))
+_mu_inline = njit(inline="always")(getattr(single_valued_mu, "py_func", single_valued_mu))
 _profile_inline = njit(inline="always")(getattr(profile_eval, "py_func", profile_eval))
 
 __all__ = ["HOLD_DU0", "HOLD_DU1", "HOLD_U0", "HOLD_U1", "N_HOLD", "carried", "carry_size",
@@ -181,7 +184,7 @@ def hermite_maps(omega2, cdamp, h, Phi, H):
             H[r, HOLD_DU1, i] = -w2k / h + w3 / (h * h)
 
 
-# --- the whole step (Feldmann law, force-driven block, no friction moment) -----------------
+# --- the whole step (a single-valued law, force-driven block, no friction moment) ----------
 
 #: rows of a slot's per-mode maps ``Pm`` (shape (N_PMAP, R)): the free propagator and the
 #: four hold maps, each on q and q'
@@ -327,11 +330,12 @@ def _step_constants(t1, h, x0, v0, a0, j0, z0, vz0, az0, jz0, fp, cst):
 
 
 @njit(cache=True, inline="always")
-def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg, jac, with_jac,
-              dhs):
+def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, law, fp, stiff, spos, prof, reg, jac,
+              with_jac, dhs):
     """Residuals of the Hermite step's unknowns ``unk = [F_c (nc), dF_c (nc), v1]``, and with
     ``with_jac`` their Jacobian in ``jac`` (n, n), for the step's constants ``cst``; the
-    profile's slope and curvature at the closed contacts in ``dhs`` (2, K).
+    profile's slope and curvature at the closed contacts in ``dhs`` (2, K). ``law``: the
+    friction law's id (``off[OFF_LAW]``; a single-valued law, :func:`single_valued_mu_d2`).
     Returns x1, z1, vz1 and the tangential a1, j1, mu, dmu at v1."""
     m = fp[kn.FP_MASS]
     r2 = fp[kn.FP_R2]
@@ -341,7 +345,7 @@ def _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg,
     for a in range(nc):
         S1 += unk[a]
         dS1 += unk[nc + a]
-    mu, dmu, d2mu = _mu_d2_inline(v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+    mu, dmu, d2mu = _mu_d2_inline(law, v1 + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
                                   fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1],
                                   fp[kn.FP_A2])
     a1, j1 = _tangential(cst[CS_TEXC], cst[CS_DTEXC], v1, mu, dmu, S1, dS1, fp)
@@ -589,7 +593,7 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     """Fill ``c`` with what a step needs of its start state (and the next step of its end):
     the six energy powers [W] (order of ``ENERGY_TERMS``), their rates [W/s], the block's
     tangential acceleration [m/s^2] and its rate [m/s^3], the modal force [m/s^2] and its rate
-    [m/s^3] (Feldmann law, force-driven block, no friction moment). A step fills its end's;
+    [m/s^3] (a single-valued law, force-driven block, no friction moment). A step fills its end's;
     the caller calls this for a state it made or changed otherwise, and after a change of the
     regime (the powers and the acceleration depend on it).
     ``with_force=False``: the modal force and rate in ``c`` are already those of ``y``."""
@@ -610,8 +614,8 @@ def carried(t, y, dF, c, off, fp, omega2, cdamp, phiT, spos, prof, reg, with_for
     v = y[ivx]
     x = y[ix]
     vz = y[ivz]
-    mu, dmu = feldmann_mu(v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B], fp[kn.FP_MU_SLIP],
-                          fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
+    mu, dmu = _mu_inline(off[kn.OFF_LAW], v + reg[kn.REG_S] * fp[kn.FP_VH], reg[kn.REG_B],
+                         fp[kn.FP_MU_SLIP], fp[kn.FP_MU_STICK], fp[kn.FP_A1], fp[kn.FP_A2])
     texc = fp[kn.FP_T0] * math.cos(w * t)
     dtexc = -fp[kn.FP_T0] * w * math.sin(w * t)
     a, j = _tangential(texc, dtexc, v, mu, dmu, S, dS, fp)
@@ -696,8 +700,8 @@ def _predict(h, y0, dF0, c0, a0, j0, wts, iF, ivx, nc, idx, unk, scale):
 
 
 @njit(cache=True, inline="always")  # a step of hermite_step, as fast as if written there
-def _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, fp, stiff, spos, prof,
-            reg, dhs, iws):
+def _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, law, fp, stiff, spos,
+            prof, reg, dhs, iws):
     """Newton on the step's n unknowns ``unk`` from the predictor, with the matrix kept in
     ``jac`` (``piv``) while ``iws[IWS_JAC_VALID]`` says so and formed again after
     ``CHORD_MAX`` chord iterations; counts in ``iws[IWS_ITERS]``, ``iws[IWS_JACS]``. False on
@@ -709,8 +713,8 @@ def _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, fp, stiff
     for _it in range(HERMITE_NEWTON_MAX):
         iws[IWS_ITERS] += 1
         form = fresh or since >= CHORD_MAX
-        _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff, spos, prof, reg, jac, form,
-                  dhs)
+        _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, law, fp, stiff, spos, prof, reg, jac,
+                  form, dhs)
         if not _all_finite(res, n):  # a runaway iterate: the caller takes a shorter step
             return False
         if form:
@@ -813,8 +817,9 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     data of the state (c1 is filled for the next step; :func:`carried` gives them for a state
     made otherwise or after a change of the regime);
     ``ws``, ``iws``: float and int scratch (lengths of :func:`scratch_sizes`); ``Pm``,
-    ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: the Feldmann law, a
-    force-driven block, no friction moment.
+    ``Cc`` of the shapes of :func:`slot_shapes`. Scope of this version: a single-valued law
+    (``off[OFF_LAW]``, through ``laws.single_valued_mu_d2``), a force-driven block, no
+    friction moment.
 
     Its steps, in order (each inlined): ``_closed_contacts``, ``_start_motion``,
     ``_step_constants``, ``_predict``, ``_newton``, ``_end_forces``, ``_end_modes``, the
@@ -849,11 +854,12 @@ def hermite_step(t0, h, y0, dF0, c0, y1, dF1, c1, Pm, Cc, off, fp, omega2, cdamp
     jac = ws[base + 3 * n:base + 3 * n + n * n].reshape((n, n))
     piv = iws[K:K + n]
     _predict(h, y0, dF0, c0, a0, j0, wts, iF, ivx, nc, idx, unk, scale)
-    if not _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, fp, stiff, spos,
-                   prof, reg, dhs, iws):
+    law = off[kn.OFF_LAW]
+    if not _newton(cst, h, unk, scale, res, jac, piv, n, nc, idx, wq, wd, Cc, law, fp, stiff,
+                   spos, prof, reg, dhs, iws):
         return False
-    x1, z1, vz1, a1, j1, mu1, dmu1 = _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, fp, stiff,
-                                               spos, prof, reg, jac, False, dhs)
+    x1, z1, vz1, a1, j1, mu1, dmu1 = _residual(cst, h, unk, res, nc, idx, wq, wd, Cc, law, fp,
+                                               stiff, spos, prof, reg, jac, False, dhs)
     S1, dS1 = _end_forces(h, y0, dF0, unk, nc, idx, iF, K, y1, dF1, c1)
     v1 = unk[2 * nc]
     y1[iz] = z1

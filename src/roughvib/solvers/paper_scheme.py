@@ -32,7 +32,7 @@ from numba import njit
 from roughvib.model import kernels as kn
 from roughvib.model.regimes import initial_regime
 from roughvib.model.system import System
-from roughvib.physics.friction import LAWS, feldmann_mu_law
+from roughvib.physics.friction import LAW_FELDMANN, LAWS, feldmann_mu_law
 from roughvib.physics.surface.interp import profile_eval
 from roughvib.scene import SceneError
 from roughvib.solvers.base import FIRST_ROW, RawSolution
@@ -236,6 +236,12 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     if system.tangential and "paper" not in law.solvers:
         raise SceneError(f"solver.method = 'paper' does not run friction.law = {law.name!r} "
                          f"({law.kind}; it runs with {', '.join(law.solvers)})")
+    # the paper's scheme calls the paper's law itself (feldmann_mu_law), not the kernels'
+    # dispatch: a system of any other law, single-valued or not, is refused here
+    if system.tangential and int(system.off[kn.OFF_LAW]) != LAW_FELDMANN:
+        raise SceneError(f"solver.method = 'paper' runs the paper's law only (friction.law = "
+                         f"'feldmann'), got friction.law = {law.name!r} (law id "
+                         f"{int(system.off[kn.OFF_LAW])} in the kernels)")
     if system.n_modes == 0:
         if scene.plate.kind == "rigid":
             raise SceneError("solver.method = 'paper' needs a structure with modes (the plate "
@@ -256,7 +262,7 @@ def solve_paper_scheme(system: System, *, progress: bool | None = None) -> RawSo
     G, Ga = impulse_responses(system.phi, system.phi_obs, omega, zeta,
                                  float(system.fp[kn.FP_MMODAL]), h, n_steps + 1)
     y0, closed = system.static_equilibrium()
-    regime = initial_regime(closed, system.fp, lay.tangential, False)
+    regime = initial_regime(closed, system.fp, lay.tangential, system.scene.friction.law)
     reg, rf = system.new_regime_arrays()
     regime.pack(reg, rf)
     y, _ = system.consistent(0.0, y0, reg, rf)

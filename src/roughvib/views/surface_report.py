@@ -26,10 +26,17 @@ import csv
 import json
 import math
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from roughvib.physics.surface.contact import contact_layout, contact_stiffness, scene_input
+from roughvib.physics.surface.contact import (
+    ContactLayout,
+    ContactStiffness,
+    contact_layout,
+    contact_stiffness,
+    scene_input,
+)
 from roughvib.physics.surface.field import hertz_filter
 from roughvib.physics.surface.roughness import Profile, band_psd
 from roughvib.scene import Scene, SceneError
@@ -163,8 +170,8 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
     roughvib.rundir.WriteError
         A file cannot be written (a full disk: the space needed and free).
     """
-    from roughvib.analysis.spectra import wavenumber_band_levels, wavenumber_spectrum
-    from roughvib.rundir import claim_files, output_folder, write_file, writing
+    from roughvib.analysis.spectra import wavenumber_spectrum
+    from roughvib.rundir import claim_files, output_folder, write_file
 
     out = Path(out_dir)
     claim_files([out / n for n in SURFACE_FILES], overwrite=overwrite)
@@ -174,7 +181,42 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
     inp = scene_input(scene, stroke=stroke if stroke > 0 else None)
     profile = inp.profile
     cl = contact_layout(scene, profile, inp.statistical)
-    s_pts, n_pts = cl.positions, cl.n
+    s_pts = cl.positions
+    cs, statistical = _statistical_contact(scene, profile, cl)
+    s_source = ("auto (statistical contact)" if cl.stiffness_source == "auto"
+                else "scene (contact.stiffness)")
+
+    paths: dict[str, Path] = {}
+    paths["profile_csv"] = _write_profile_csv(out / "profile.csv", scene, profile, stroke)
+    heights = _contact_heights(profile, s_pts)
+    rows = _contact_rows(scene, profile, cl, heights, lo, hi)
+    paths["contacts_csv"] = _write_contacts_csv(out / "contacts.csv", rows, cl, cs, s_source)
+    bands = _band_spectra(scene, profile, s_pts, lo, hi)
+    paths["spectrum_csv"] = _write_bands_csv(out / "spectrum_bands.csv", bands, lo, hi, how)
+    k_nb, psd_nb = wavenumber_spectrum(profile.z, profile.dx)
+    paths["psd_csv"] = _write_psd_csv(out / "spectrum_psd.csv", k_nb, psd_nb)
+    report = {"scene": scene.name, "stiffness_used_N_per_m": cl.stiffness_total,
+              "stiffness_source": s_source, "contact": cl.as_dict(),
+              "statistical_contact": statistical,
+              "contacts": rows, "profile": {"stats": profile.stats, "dx_m": profile.dx,
+                                            "s0_m": profile.s0,
+                                            "s_centre_m": profile.s_centre},
+              "stroke": {"from_m": lo, "to_m": hi, "peak_to_peak_m": stroke, "estimate": how,
+                         "reference_contact": bands.j_ref}}
+    paths["contacts_json"] = _write_json(out / "contacts.json", report)
+    paths["profile_png"] = write_file(out / "profile.png", lambda tmp: _plot_profile(
+        tmp, profile, s_pts, heights, scene.block.length, bands.j_ref, lo, hi))
+    paths["spectrum_png"] = write_file(out / "spectrum.png", lambda tmp: _plot_spectrum(
+        tmp, bands.wavelength, bands.global_db, bands.contact_db, bands.model_db, stroke,
+        k_nb, psd_nb))
+    return paths
+
+
+def _statistical_contact(scene: Scene, profile: Profile, cl: ContactLayout
+                         ) -> tuple[ContactStiffness | None, dict]:
+    """The statistical contact of the report: the layout's, or solved for the report from
+    the profile's spectrum, and its JSON form (``{"error": message}`` where it cannot be
+    solved)."""
     cs = cl.statistical
     if cs is None:
         try:
@@ -183,47 +225,63 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
             statistical = {"error": str(err)}
     if cs is not None:
         statistical = cs.as_dict()
-    s_used = cl.stiffness_total
-    s_source = ("auto (statistical contact)" if cl.stiffness_source == "auto"
-                else "scene (contact.stiffness)")
+    return cs, statistical
 
-    paths: dict[str, Path] = {}
-    s = profile.s
-    z = profile.z
-    dx = profile.dx
 
-    # ---- profile ----------------------------------------------------------------------
-    p = out / "profile.csv"
+def _write_profile_csv(path: Path, scene: Scene, profile: Profile, stroke: float) -> Path:
+    """``profile.csv``: the input z(s) [m] under the block and its stroke [m], the profile's
+    statistics as comments."""
+    from roughvib.rundir import writing
+
     rows_z = _csv_rows(profile, scene.block.length + stroke)
-    with writing(p, newline="") as fh:
+    with writing(path, newline="") as fh:
         fh.write(f"# roughvib surface report, scene {scene.name!r}\n")
         for key, val in profile.stats.items():
             fh.write(f"# {key} = {val}\n")
         fh.write(f"# s_centre = {profile.s_centre} m (block centre at t = 0)\n")
         fh.write(f"# rows: the input under the block and its stroke, every "
-                 f"{rows_z.step or 1}. sample of its grid of {dx:.6g} m (exact values of the "
-                 f"field there)\n")
+                 f"{rows_z.step or 1}. sample of its grid of {profile.dx:.6g} m (exact values "
+                 f"of the field there)\n")
         w = csv.writer(fh)
         w.writerow(["s_m", "z_m"])
-        w.writerows(zip(s[rows_z].tolist(), z[rows_z].tolist(), strict=True))
-    paths["profile_csv"] = p
+        w.writerows(zip(profile.s[rows_z].tolist(), profile.z[rows_z].tolist(), strict=True))
+    return path
 
-    # ---- contacts ---------------------------------------------------------------------
+
+def _contact_heights(profile: Profile, s_pts: np.ndarray) -> np.ndarray:
+    """The profile's heights [m] at the contact points ``s_pts`` [m]: the grid value where a
+    point lies on the grid, else linearly interpolated."""
+    dx, z = profile.dx, profile.z
     i_pts = np.rint((s_pts - profile.s0) / dx).astype(int)
     on_grid = np.abs(profile.s0 + i_pts * dx - s_pts) < 1e-6 * dx
-    heights = np.where(on_grid, z[np.clip(i_pts, 0, z.size - 1)],
-                       np.interp(s_pts, s, z))
+    return np.where(on_grid, z[np.clip(i_pts, 0, z.size - 1)], np.interp(s_pts, profile.s, z))
+
+
+def _contact_rows(scene: Scene, profile: Profile, cl: ContactLayout, heights: np.ndarray,
+                  lo: float, hi: float) -> list[dict]:
+    """One row per contact point: profile and plate coordinates [m], height [m], depth below
+    the highest contact [m], spring stiffness [N/m] and the range it scans over the stroke
+    ``lo`` .. ``hi`` [m]."""
     x0, y0 = scene.plate.block_position
+    k_spring = cl.stiffness_total / cl.n
     rows = []
-    for j, (sp, zh) in enumerate(zip(s_pts, heights, strict=True)):
+    for j, (sp, zh) in enumerate(zip(cl.positions, heights, strict=True)):
         rows.append({"index": j, "s_m": float(sp), "offset_m": float(sp - profile.s_centre),
                      "plate_x_m": float(x0 + sp - profile.s_centre), "plate_y_m": float(y0),
                      "height_m": float(zh), "below_top_m": float(heights.max() - zh),
-                     "stiffness_N_per_m": s_used / n_pts,
+                     "stiffness_N_per_m": k_spring,
                      "scan_from_m": float(sp + lo), "scan_to_m": float(sp + hi)})
-    p = out / "contacts.csv"
-    with writing(p, newline="") as fh:
-        fh.write(f"# s_total = {s_used} N/m ({s_source}), {n_pts} equal springs "
+    return rows
+
+
+def _write_contacts_csv(path: Path, rows: list[dict], cl: ContactLayout,
+                        cs: ContactStiffness | None, s_source: str) -> Path:
+    """``contacts.csv``: the contact rows, with the stiffness used and the statistical
+    contact as comments."""
+    from roughvib.rundir import writing
+
+    with writing(path, newline="") as fh:
+        fh.write(f"# s_total = {cl.stiffness_total} N/m ({s_source}), {cl.n} equal springs "
                  f"(contact.points: {cl.points_source}, selection {cl.selection})\n")
         if cs is not None:
             fh.write(f"# statistical ({cs.model}): s_total = {cs.s_total:.6g} N/m, "
@@ -234,9 +292,28 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    paths["contacts_csv"] = p
+    return path
 
-    # ---- spectra ----------------------------------------------------------------------
+
+class _Bands(NamedTuple):
+    """Third-octave wavelength band levels of a surface report [dB re 1 um]."""
+
+    wavelength: np.ndarray   #: band centres [m]
+    wavenumber: np.ndarray   #: band centres [rad/m]
+    global_db: np.ndarray    #: the whole profile
+    contact_db: np.ndarray   #: the stretch contact ``j_ref`` scans (NaN if too short)
+    model_db: np.ndarray     #: the synthesis target (NaN but for a synthetic profile)
+    j_ref: int               #: the contact nearest the block centre
+
+
+def _band_spectra(scene: Scene, profile: Profile, s_pts: np.ndarray, lo: float, hi: float
+                  ) -> _Bands:
+    """The band levels of the whole profile, of the stretch the contact nearest the block
+    centre scans over the stroke ``lo`` .. ``hi`` [m] (Hann-windowed) and of the model
+    target."""
+    from roughvib.analysis.spectra import wavenumber_band_levels
+
+    s, z, dx = profile.s, profile.z, profile.dx
     lam_min, lam_max = 2.0 * dx, profile.length
     lam_c, lev_global = wavenumber_band_levels(z, dx, lambda_min=lam_min, lambda_max=lam_max)
     j_ref = int(np.argmin(np.abs(s_pts - profile.s_centre)))
@@ -257,47 +334,45 @@ def write_surface_report(scene: Scene, out_dir: str | Path, *,
         lev_model = _model_band_levels(profile, scene, k_lo, k_hi)
     else:
         lev_model = np.full(lam_c.size, np.nan)
-    p = out / "spectrum_bands.csv"
-    with writing(p, newline="") as fh:
+    return _Bands(lam_c, k_c, lev_global, lev_contact, lev_model, j_ref)
+
+
+def _write_bands_csv(path: Path, bands: _Bands, lo: float, hi: float, how: str) -> Path:
+    """``spectrum_bands.csv``: the band levels (empty where a band has no FFT bin)."""
+    from roughvib.rundir import writing
+
+    with writing(path, newline="") as fh:
         fh.write("# third-octave wavelength bands, levels in dB re 1 um; contact = the stretch "
-                 f"of contact {j_ref} scanned over the stroke {lo:.6g} .. {hi:.6g} m ({how}); "
-                 "empty = no FFT bin in the band\n")
+                 f"of contact {bands.j_ref} scanned over the stroke {lo:.6g} .. {hi:.6g} m "
+                 f"({how}); empty = no FFT bin in the band\n")
         w = csv.writer(fh)
         w.writerow(["wavelength_m", "wavenumber_rad_per_m", "global_dB", "contact_dB",
                     "model_dB"])
-        for row in zip(lam_c, k_c, lev_global, lev_contact, lev_model, strict=True):
+        for row in zip(bands.wavelength, bands.wavenumber, bands.global_db, bands.contact_db,
+                       bands.model_db, strict=True):
             w.writerow([f"{v:.6g}" if np.isfinite(v) else "" for v in row])
-    paths["spectrum_csv"] = p
+    return path
 
-    k_nb, psd_nb = wavenumber_spectrum(z, dx)
-    p = out / "spectrum_psd.csv"
-    with writing(p, newline="") as fh:
+
+def _write_psd_csv(path: Path, k_nb: np.ndarray, psd_nb: np.ndarray) -> Path:
+    """``spectrum_psd.csv``: the narrow-band wavenumber PSD [m^2/(rad/m)] over k [rad/m]."""
+    from roughvib.rundir import writing
+
+    with writing(path, newline="") as fh:
         fh.write("# one-sided wavenumber PSD (Welch, Hann), integral psd dk = variance\n")
         w = csv.writer(fh)
         w.writerow(["wavenumber_rad_per_m", "psd_m2_per_rad_per_m"])
         w.writerows(zip(k_nb.tolist(), psd_nb.tolist(), strict=True))
-    paths["psd_csv"] = p
+    return path
 
-    # ---- json -------------------------------------------------------------------------
-    report = {"scene": scene.name, "stiffness_used_N_per_m": s_used,
-              "stiffness_source": s_source, "contact": cl.as_dict(),
-              "statistical_contact": statistical,
-              "contacts": rows, "profile": {"stats": profile.stats, "dx_m": dx,
-                                            "s0_m": profile.s0,
-                                            "s_centre_m": profile.s_centre},
-              "stroke": {"from_m": lo, "to_m": hi, "peak_to_peak_m": stroke, "estimate": how,
-                         "reference_contact": j_ref}}
-    p = out / "contacts.json"
-    with writing(p) as fh:
+
+def _write_json(path: Path, report: dict) -> Path:
+    """``contacts.json``: the report's dict, JSON-ready (:func:`_json_ready`)."""
+    from roughvib.rundir import writing
+
+    with writing(path) as fh:
         fh.write(json.dumps(_json_ready(report), indent=2) + "\n")
-    paths["contacts_json"] = p
-
-    # ---- plots ------------------------------------------------------------------------
-    paths["profile_png"] = write_file(out / "profile.png", lambda tmp: _plot_profile(
-        tmp, profile, s_pts, heights, scene.block.length, j_ref, lo, hi))
-    paths["spectrum_png"] = write_file(out / "spectrum.png", lambda tmp: _plot_spectrum(
-        tmp, lam_c, lev_global, lev_contact, lev_model, stroke, k_nb, psd_nb))
-    return paths
+    return path
 
 
 def _figure(nrows: int):

@@ -48,6 +48,8 @@ from roughvib.physics.friction.laws import (
     is_set_valued,
     law_kind,
     single_valued_mu,
+    single_valued_mu_d2,
+    single_valued_mu_law,
 )
 from roughvib.physics.friction.setvalued import kinetic_coefficient
 from roughvib.physics.friction.table import (
@@ -92,5 +94,7 @@ __all__ = [
     "rms_over_periods",
     "simulate_tangential",
     "single_valued_mu",
+    "single_valued_mu_d2",
+    "single_valued_mu_law",
     "table_kinetic",
 ]

@@ -8,7 +8,8 @@ tangential-only model) plus one entry here:
   ``dynamic`` with internal states), how many states it adds to the state vector, how its
   parameters are packed for the kernels and the tangential model in which T0 is calibrated;
 * a branch in the numba dispatch below (:func:`law_kind`, :func:`dynamic_law`,
-  :func:`single_valued_mu`; a set-valued law's kinetic curve in
+  :func:`single_valued_mu`, :func:`single_valued_mu_d2`, :func:`single_valued_mu_law`; a
+  set-valued law's kinetic curve in
   ``setvalued.kinetic_coefficient``), which raises for an id no law registered: no kernel
   falls through to another law's physics.
 
@@ -26,7 +27,12 @@ import numpy as np
 from numba import njit
 
 from roughvib.physics.friction import coulomb, feldmann, lugre, setvalued, table
-from roughvib.physics.friction.feldmann import feldmann_mu, tangential_feldmann
+from roughvib.physics.friction.feldmann import (
+    feldmann_mu,
+    feldmann_mu_d2,
+    feldmann_mu_law,
+    tangential_feldmann,
+)
 from roughvib.physics.friction.setvalued import kinetic_coefficient, tangential_set_valued
 from roughvib.scene import FRICTION_LAWS
 from roughvib.solvers import registry
@@ -34,7 +40,7 @@ from roughvib.solvers import registry
 __all__ = ["KIND_DYNAMIC", "KIND_SET_VALUED", "KIND_SINGLE_VALUED", "LAWS", "LAW_COULOMB",
            "LAW_FELDMANN", "LAW_LUGRE", "LAW_TABLE", "FrictionLaw", "dynamic_law",
            "is_set_valued", "kinetic_coefficient", "law_kind", "model_keys",
-           "single_valued_mu"]
+           "single_valued_mu", "single_valued_mu_d2", "single_valued_mu_law"]
 
 #: ids of the friction laws as the kernels see them (``off[OFF_LAW]``, roughvib.model.layout)
 LAW_FELDMANN = feldmann.LAW_ID
@@ -216,6 +222,16 @@ if tuple(LAWS) != tuple(FRICTION_LAWS):  # pragma: no cover - a registration err
 # the kernels' dispatch: every branch on a law id is here
 # --------------------------------------------------------------------------------------------
 
+#: the Feldmann law's second-derivative form and its own-branch form inlined (numba IR) into
+#: their dispatch, so that a caller that inlines the dispatch (the Hermite step's residual,
+#: ``njit(inline="always")`` on its ``py_func``) has the law's expressions in place, as it had
+#: when it inlined the law itself (with the law called from the dispatch instead, a default
+#: solve took about 2 % more CPU). Same Python functions, same results to the bit.
+#: (``py_func``: the Python function of a dispatcher; with NUMBA_DISABLE_JIT it is the
+#: function)
+_feldmann_mu_d2 = njit(inline="always")(getattr(feldmann_mu_d2, "py_func", feldmann_mu_d2))
+_feldmann_mu_law = njit(inline="always")(getattr(feldmann_mu_law, "py_func", feldmann_mu_law))
+
 
 @njit(cache=True)
 def law_kind(law):
@@ -260,6 +276,59 @@ def single_valued_mu(law, x, b, mu_slip, mu_stick, a1, a2):
     if law == LAW_FELDMANN:
         return feldmann_mu(x, b, mu_slip, mu_stick, a1, a2)
     raise ValueError("friction law: single_valued_mu of a law that is not single-valued")
+
+
+@njit(cache=True)
+def single_valued_mu_d2(law, x, b, mu_slip, mu_stick, a1, a2):
+    """:func:`single_valued_mu` and the branch's second derivative (for the Newton matrices
+    of fourth-order steps, whose rate equations hold ``dmu/dx``).
+
+    Parameters
+    ----------
+    law : int
+        ``LAW_FELDMANN`` (any other id raises).
+    x, b, mu_slip, mu_stick, a1, a2
+        As :func:`single_valued_mu`.
+
+    Returns
+    -------
+    mu : float
+        [-].
+    dmu_dx : float
+        [s/m].
+    d2mu_dx2 : float
+        [s^2/m^2].
+    """
+    if law == LAW_FELDMANN:
+        return _feldmann_mu_d2(x, b, mu_slip, mu_stick, a1, a2)
+    raise ValueError("friction law: single_valued_mu_d2 of a law that is not single-valued")
+
+
+@njit(cache=True)
+def single_valued_mu_law(law, x, mu_slip, mu_stick, a1, a2):
+    """A single-valued law's coefficient and its slope on the branch the law itself takes at
+    ``x`` (the Feldmann law: ``b = sign(x)``, +1 at x = 0), for the schemes that keep no
+    branch as a discrete state (the fixed-step schemes).
+
+    Parameters
+    ----------
+    law : int
+        ``LAW_FELDMANN`` (any other id raises).
+    x : float
+        The law's argument [m/s] (the Feldmann law: ``v + s v_h``).
+    mu_slip, mu_stick, a1, a2 : float
+        As :func:`single_valued_mu`.
+
+    Returns
+    -------
+    mu : float
+        [-].
+    dmu_dx : float
+        [s/m].
+    """
+    if law == LAW_FELDMANN:
+        return _feldmann_mu_law(x, mu_slip, mu_stick, a1, a2)
+    raise ValueError("friction law: single_valued_mu_law of a law that is not single-valued")
 
 
 @njit(cache=True)

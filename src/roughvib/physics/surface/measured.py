@@ -151,6 +151,31 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
     if not p.is_absolute():
         p = Path(base_dir) / p
     where = f"roughness.path {p}"
+    raw, text = _read_text(p, path, where)
+    scale = _UNITS[units]
+    rows, lines, y_hdr = _data_rows(text, where, units)
+    x, z, y, layout = _columns(np.array(rows, dtype=float) * scale, y_hdr, where, scale)
+    dx = spacing if x is None else _x_spacing(x, lines, where, scale, units)
+    _check_scale(z, dx if x is not None else None, f"{where} (units = {units!r})", units)
+    n = z.shape[0]
+    if min_length is not None and (n - 1) * dx < min_length:
+        why = f" ({min_length_reason})" if min_length_reason else ""
+        raise SceneError(f"{where} line {lines[-1]}: too few points for the stroke plus the "
+                         f"block length: need a length >= {min_length:.6g} m{why}, got {n} "
+                         f"points x {dx:.6g} m = {(n - 1) * dx:.6g} m")
+    return MeasuredProfile(z=z, dx=float(dx), y=y, layout=layout, path=p,
+                           last_line=lines[-1], sha256=hashlib.sha256(raw).hexdigest())
+
+
+def _read_text(p: Path, path: str | Path, where: str) -> tuple[bytes, str]:
+    """The file's bytes and its text (UTF-8, a leading byte-order mark dropped); ``path`` as
+    given, for the message.
+
+    Raises
+    ------
+    SceneError
+        The file cannot be read, or is not UTF-8 (naming the line of the first bad byte).
+    """
     try:
         raw = p.read_bytes()
     except OSError as exc:
@@ -162,7 +187,22 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
         line = raw[:exc.start].count(b"\n") + 1
         raise SceneError(f"{where} line {line}: the file must be UTF-8 text (a binary file, or "
                          f"another encoding?), got byte 0x{raw[exc.start]:02x}") from None
-    scale = _UNITS[units]
+    return raw, text
+
+
+def _data_rows(text: str, where: str, units: str
+               ) -> tuple[list[list[float]], list[int], tuple[int, list[float]] | None]:
+    """The numeric rows of a profile file (in file units), the line number of each (1-based)
+    and the ``# y:`` header (its line and trace positions in file units) if there is one.
+
+    Comments and blank lines are skipped, and a first line of column names.
+
+    Raises
+    ------
+    SceneError
+        A bad ``# y:`` line, a value that is not a number or not finite, a row with another
+        number of columns than the first, or no data line at all.
+    """
     rows: list[list[float]] = []
     lines: list[int] = []
     y_hdr: tuple[int, list[float]] | None = None
@@ -198,7 +238,30 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
     if not rows:
         raise SceneError(f"{where} holds no data lines (only comments or blank lines), got "
                          f"{len(text.splitlines())} lines")
-    data = np.array(rows, dtype=float) * scale
+    return rows, lines, y_hdr
+
+
+def _columns(data: np.ndarray, y_hdr: tuple[int, list[float]] | None, where: str,
+             scale: float) -> tuple[np.ndarray | None, np.ndarray, np.ndarray | None, str]:
+    """Split the data (rows x columns, [m]) into the x column, the heights and the trace
+    positions, by the column count and the ``# y:`` header (positions in file units, times
+    ``scale`` to m).
+
+    Returns
+    -------
+    x : ndarray, shape (n,), or None
+        The x column [m], None without one.
+    z : ndarray, shape (n,) or (n, m)
+        Heights [m].
+    y : ndarray, shape (m,), or None
+        Trace positions [m].
+    layout : {"heights", "x-z", "traces"}
+
+    Raises
+    ------
+    SceneError
+        A column count that does not fit the header, or positions that do not increase.
+    """
     ncol = data.shape[1]
     y = None
     x = None
@@ -226,32 +289,35 @@ def read_profile_file(path: str | Path, units: str = "m", spacing: float = 10e-6
         x, z, layout = data[:, 0], data[:, 1], "x-z"
     else:
         z, layout = data, "traces"
-    dx = spacing
-    if x is not None:
-        if x.size < 2:
-            raise SceneError(f"{where} line {lines[-1]}: an x column needs at least two rows "
-                             f"to give the spacing, got {x.size}")
-        steps = np.diff(x)
-        dx = float((x[-1] - x[0]) / (x.size - 1))
-        if dx <= 0:
-            raise SceneError(f"{where} line {lines[1]}: x must increase, got x = "
-                             f"{x[0] / scale:g} then {x[1] / scale:g} {units}")
-        dev = np.abs(steps - dx)
-        j = int(np.argmax(dev))
-        if dev[j] > _X_STEP_RTOL * dx:
-            raise SceneError(f"{where} line {lines[j + 1]}: x must be uniformly spaced (within "
-                             f"{_X_STEP_RTOL:.0%} of the mean spacing {dx / scale:.6g} "
-                             f"{units}; resample non-uniform data), got a step of "
-                             f"{steps[j] / scale:.6g} {units}")
-    _check_scale(z, dx if x is not None else None, f"{where} (units = {units!r})", units)
-    n = z.shape[0]
-    if min_length is not None and (n - 1) * dx < min_length:
-        why = f" ({min_length_reason})" if min_length_reason else ""
-        raise SceneError(f"{where} line {lines[-1]}: too few points for the stroke plus the "
-                         f"block length: need a length >= {min_length:.6g} m{why}, got {n} "
-                         f"points x {dx:.6g} m = {(n - 1) * dx:.6g} m")
-    return MeasuredProfile(z=z, dx=float(dx), y=y, layout=layout, path=p,
-                           last_line=lines[-1], sha256=hashlib.sha256(raw).hexdigest())
+    return x, z, y, layout
+
+
+def _x_spacing(x: np.ndarray, lines: list[int], where: str, scale: float, units: str
+               ) -> float:
+    """The spacing of an x column [m]: its mean step, checked increasing and uniform within
+    :data:`_X_STEP_RTOL` (``lines``: the data rows' line numbers, for the message).
+
+    Raises
+    ------
+    SceneError
+        Fewer than two rows, x not increasing, or a step off the mean spacing.
+    """
+    if x.size < 2:
+        raise SceneError(f"{where} line {lines[-1]}: an x column needs at least two rows "
+                         f"to give the spacing, got {x.size}")
+    steps = np.diff(x)
+    dx = float((x[-1] - x[0]) / (x.size - 1))
+    if dx <= 0:
+        raise SceneError(f"{where} line {lines[1]}: x must increase, got x = "
+                         f"{x[0] / scale:g} then {x[1] / scale:g} {units}")
+    dev = np.abs(steps - dx)
+    j = int(np.argmax(dev))
+    if dev[j] > _X_STEP_RTOL * dx:
+        raise SceneError(f"{where} line {lines[j + 1]}: x must be uniformly spaced (within "
+                         f"{_X_STEP_RTOL:.0%} of the mean spacing {dx / scale:.6g} "
+                         f"{units}; resample non-uniform data), got a step of "
+                         f"{steps[j] / scale:.6g} {units}")
+    return dx
 
 
 def read_measured(roughness: Roughness, block: Block, base_dir: str | Path = ".", *,

@@ -422,67 +422,13 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     stats: dict = {"kind": r.kind}
     periodic = False
     if r.kind == "file":
-        meas = read_measured(r, block, base_dir, min_length=min_len, min_length_reason=reason)
-        dx = meas.dx
-        stats.update(path=str(meas.path), layout=meas.layout, sha256=meas.sha256)
-        if meas.z.ndim == 2:
-            traces = meas.z - meas.z.mean(axis=0)
-            y = meas.y if meas.y is not None else np.linspace(-block.width / 2,
-                                                              block.width / 2,
-                                                              traces.shape[1])
-            z = span_average(traces, y)
-            raw = float(np.mean(np.sqrt(np.mean(traces**2, axis=0))))
-            stats.update(n_traces=int(traces.shape[1]), raw_rms=raw,
-                         reduced_rms=float(np.sqrt(np.mean(z**2))),
-                         reduction_db=_reduction_db(z, raw),
-                         trace_span=float(np.ptp(y)))
-        else:
-            z = meas.z.copy()
-        # moments of the raw measured surface (before span averaging and filtering) feed the
-        # statistical contact model (contact.stiffness = "auto", docs/theory.md)
-        raw_traces = meas.z if meas.z.ndim == 2 else meas.z[:, None]
-        per = [profile_statistics(raw_traces[:, j], dx) for j in range(raw_traces.shape[1])]
-        stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
-                                     for key in ("rms", "rms_slope", "rms_curvature"))
-        raw_spectrum = _raw_spectrum(raw_traces, dx)
-        if r.filter != "none":
-            raw_z = z
-            z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
-            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
-        stats.update(shortest_wavelength=2.0 * meas.dx)
-        z = _contact_filtered(z, dx, spot_radius, periodic=False)
+        z, dx, raw_spectrum = _measured_input(r, block, base_dir, min_len, reason,
+                                              spot_radius, stats)
     elif r.kind == "synthetic" and not r.reduce_3d:
-        if band is None:
-            band = section_band(r)
-        if r.trace_length < min_len * (1.0 - 1e-12):
-            raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
-                             f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
         periodic = True
-        spec, info = synthetic_field(r, bl, band.shortest_wavelength, spot_radius)
-        z, dx = spec.sample(band.spacing)
-        stats.update(info)
-        m0, m2, m4 = spec.moments()  # exact, and an FFT of millions of points cheaper
-        moments = {"rms": math.sqrt(m0), "rms_slope": math.sqrt(m2),
-                   "rms_curvature": math.sqrt(m4), "derivatives": "spectral"}
+        z, dx, moments = _synthetic_input(r, bl, band, min_len, reason, spot_radius, stats)
     else:
-        dx = section_band(r).spacing
-        n = int(round(r.trace_length / dx)) + 1
-        if (n - 1) * dx < min_len * (1.0 - 1e-12):
-            raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
-                             f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
-        if r.kind == "none":
-            z = np.zeros(n)
-        elif r.kind == "sinusoid":
-            s = np.arange(n) * dx
-            z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
-        else:
-            periodic = True
-            r = _numeric_band(r)
-            raw_z = _reduce_3d(r, block, stats)
-            z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
-            _check_filtered(raw_z - raw_z.mean(), z, r, bl)
-            z = _contact_filtered(z, dx, spot_radius, periodic=True)
-            stats.update(seed=r.seed)
+        z, dx, r, periodic = _grid_input(r, block, min_len, reason, spot_radius, stats)
     if not np.all(np.isfinite(z)):  # the interpolant (spline) needs finite heights
         raise SceneError(f"roughness.kind = {r.kind!r} gives a profile with non-finite heights "
                          f"(check roughness.rms, amplitude, raw_rms and the band), got "
@@ -494,6 +440,126 @@ def build_profile(roughness: Roughness, block: Block, base_dir: str | Path = "."
     return Profile(z=np.ascontiguousarray(z, dtype=float), dx=float(dx), s0=0.0,
                    s_centre=float(s_centre), stats=stats, raw_spectrum=raw_spectrum,
                    periodic=periodic)
+
+
+def _measured_input(r: Roughness, block: Block, base_dir: str | Path, min_len: float,
+                    reason: str, spot_radius: float | None, stats: dict
+                    ) -> tuple[np.ndarray, float, DiscretePSD]:
+    """The input of a measured profile (``roughness.kind = "file"``): its traces span-averaged
+    over the block width, functional- and contact-filtered; what it is goes into ``stats``.
+
+    Returns
+    -------
+    z : ndarray
+        Heights [m].
+    dx : float
+        Spacing [m].
+    raw_spectrum : DiscretePSD
+        The raw traces' own spectrum (:func:`_raw_spectrum`), for the statistical contact.
+    """
+    bl = block.length
+    meas = read_measured(r, block, base_dir, min_length=min_len, min_length_reason=reason)
+    dx = meas.dx
+    stats.update(path=str(meas.path), layout=meas.layout, sha256=meas.sha256)
+    if meas.z.ndim == 2:
+        traces = meas.z - meas.z.mean(axis=0)
+        y = meas.y if meas.y is not None else np.linspace(-block.width / 2,
+                                                          block.width / 2,
+                                                          traces.shape[1])
+        z = span_average(traces, y)
+        raw = float(np.mean(np.sqrt(np.mean(traces**2, axis=0))))
+        stats.update(n_traces=int(traces.shape[1]), raw_rms=raw,
+                     reduced_rms=float(np.sqrt(np.mean(z**2))),
+                     reduction_db=_reduction_db(z, raw),
+                     trace_span=float(np.ptp(y)))
+    else:
+        z = meas.z.copy()
+    # moments of the raw measured surface (before span averaging and filtering) feed the
+    # statistical contact model (contact.stiffness = "auto", docs/theory.md)
+    raw_traces = meas.z if meas.z.ndim == 2 else meas.z[:, None]
+    per = [profile_statistics(raw_traces[:, j], dx) for j in range(raw_traces.shape[1])]
+    stats["raw_moments"] = tuple(float(np.mean([p[key] ** 2 for p in per]))
+                                 for key in ("rms", "rms_slope", "rms_curvature"))
+    raw_spectrum = _raw_spectrum(raw_traces, dx)
+    if r.filter != "none":
+        raw_z = z
+        z = functional_filter(z - z.mean(), dx, r.filter, bl, periodic=False)
+        _check_filtered(raw_z - raw_z.mean(), z, r, bl)
+    stats.update(shortest_wavelength=2.0 * meas.dx)
+    z = _contact_filtered(z, dx, spot_radius, periodic=False)
+    return z, dx, raw_spectrum
+
+
+def _synthetic_input(r: Roughness, bl: float, band: InputBand | None, min_len: float,
+                     reason: str, spot_radius: float | None, stats: dict
+                     ) -> tuple[np.ndarray, float, dict]:
+    """The input of a synthetic surface (``reduce_3d`` off): the field of
+    :func:`synthetic_field` sampled over one period on the band's grid (``band``, default
+    :func:`section_band`); ``bl`` the block length [m]. Returns the heights [m], the spacing
+    [m] and the field's exact spectral moments (rms height [m], slope [-], curvature [1/m]).
+
+    Raises
+    ------
+    SceneError
+        ``roughness.trace_length`` shorter than ``min_len`` [m].
+    """
+    if band is None:
+        band = section_band(r)
+    if r.trace_length < min_len * (1.0 - 1e-12):
+        raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
+                         f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
+    spec, info = synthetic_field(r, bl, band.shortest_wavelength, spot_radius)
+    z, dx = spec.sample(band.spacing)
+    stats.update(info)
+    m0, m2, m4 = spec.moments()  # exact, and an FFT of millions of points cheaper
+    moments = {"rms": math.sqrt(m0), "rms_slope": math.sqrt(m2),
+               "rms_curvature": math.sqrt(m4), "derivatives": "spectral"}
+    return z, dx, moments
+
+
+def _grid_input(r: Roughness, block: Block, min_len: float, reason: str,
+                spot_radius: float | None, stats: dict
+                ) -> tuple[np.ndarray, float, Roughness, bool]:
+    """The input of the kinds sampled on the section's own grid: ``none``, ``sinusoid``, and
+    a synthetic surface reduced from 3-D (span-averaged traces, filtered).
+
+    Returns
+    -------
+    z : ndarray
+        Heights [m].
+    dx : float
+        Spacing [m].
+    roughness : Roughness
+        The section, with its band made numeric for a reduced surface.
+    periodic : bool
+        Whether the profile is one period of a periodic field.
+
+    Raises
+    ------
+    SceneError
+        ``roughness.trace_length`` shorter than ``min_len`` [m].
+    """
+    bl = block.length
+    periodic = False
+    dx = section_band(r).spacing
+    n = int(round(r.trace_length / dx)) + 1
+    if (n - 1) * dx < min_len * (1.0 - 1e-12):
+        raise SceneError(f"roughness.trace_length must cover the stroke plus the block "
+                         f"length ({reason} = {min_len:.6g} m), got {r.trace_length} m")
+    if r.kind == "none":
+        z = np.zeros(n)
+    elif r.kind == "sinusoid":
+        s = np.arange(n) * dx
+        z = r.amplitude * np.cos(2 * np.pi * (s - s[n // 2]) / r.wavelength)
+    else:
+        periodic = True
+        r = _numeric_band(r)
+        raw_z = _reduce_3d(r, block, stats)
+        z = functional_filter(raw_z - raw_z.mean(), dx, r.filter, bl)
+        _check_filtered(raw_z - raw_z.mean(), z, r, bl)
+        z = _contact_filtered(z, dx, spot_radius, periodic=True)
+        stats.update(seed=r.seed)
+    return z, dx, r, periodic
 
 
 #: the decade of a measured profile's own spectrum that its tail is fitted to: wavelengths

@@ -41,22 +41,70 @@ from roughvib.solvers.adaptive.propagators import (
     moment_map,
 )
 
-__all__ = ["Scratch", "derivatives", "forced_response", "free_response", "friction_force",
-           "holds_stick", "implicit_step", "moment_coefficient", "new_scratch"]
+__all__ = ["N_WS", "WS_F", "WS_IDX", "WS_NOISE", "WS_RHS", "WS_SDQ", "WS_SQ", "WS_UM",
+           "WS_WFREE", "WS_WM", "Scratch", "derivatives", "forced_response", "free_response",
+           "friction_force", "holds_stick", "implicit_step", "moment_coefficient",
+           "new_scratch", "ws_length", "ws_size", "ws_slice", "ws_start"]
 
 NEWTON_TOL = 1e-6    # Newton update, in units of the tolerance weights ...
 NEWTON_ULPS = 8.0    # ... or within this many round-offs of its equation's terms
 NEWTON_MAX_ITER = 25  # Newton iterations before the step is given up (retried smaller)
 EPS = 2.220446049250313e-16  # double-precision unit round-off (numpy.finfo(float).eps)
 
-#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= 3 R + 6 K + 3),
+#: scratch of the kernels and of implicit_step: ``work`` (kernels), ``ws`` (>= :func:`ws_size`),
 #: ``jac`` (K + 1, K + 1), ``ipiv`` (K + 1,) int64
 Scratch = collections.namedtuple("Scratch", ["work", "ws", "jac", "ipiv"])
+
+#: the slices of implicit_step's float scratch ``ws``, in this order (lengths :func:`ws_length`,
+#: starts :func:`ws_start`, views :func:`ws_slice`)
+WS_SQ = 0      #: the modes' free response q over the step (R)
+WS_SDQ = 1     #: and its rate q' (R)
+WS_WFREE = 2   #: the plate's free displacement at the contacts [m] (K)
+WS_F = 3       #: the contact forces, Newton's iterate [N] (K)
+WS_RHS = 4     #: Newton's right-hand side, then its update (K + 1: forces, velocity)
+WS_IDX = 5     #: the closed contacts' indices, as floats (K + 1)
+WS_NOISE = 6   #: the round-off level of each update (K + 1)
+WS_UM = 7      #: the friction moment's modal force at t1 [m/s^2] (R)
+WS_WM = 8      #: its plate displacement at the contacts [m], divided by the coefficient c (K)
+N_WS = 9
+
+
+@njit(cache=True, inline="always")
+def ws_length(i, R, K):
+    """Length of slice ``i`` (``WS_*``) of implicit_step's float scratch for R modes and K
+    contacts."""
+    if i == WS_SQ or i == WS_SDQ or i == WS_UM:
+        return R
+    if i == WS_RHS or i == WS_IDX or i == WS_NOISE:
+        return K + 1  # the Newton unknowns: the forces and the velocity
+    return K
+
+
+@njit(cache=True, inline="always")
+def ws_start(i, R, K):
+    """Start of slice ``i`` (``WS_*``) of implicit_step's float scratch: the lengths of the
+    slices before it (``i = N_WS``: the scratch's whole length)."""
+    start = 0
+    for j in range(i):
+        start += ws_length(j, R, K)
+    return start
+
+
+@njit(cache=True, inline="always")
+def ws_slice(ws, i, R, K):
+    """The view of slice ``i`` (``WS_*``) of implicit_step's float scratch ``ws``."""
+    start = ws_start(i, R, K)
+    return ws[start:start + ws_length(i, R, K)]
+
+
+def ws_size(R: int, K: int) -> int:
+    """Length of implicit_step's float scratch ``ws`` for R modes and K contacts."""
+    return int(ws_start(N_WS, R, K))
 
 
 def new_scratch(work: np.ndarray, R: int, K: int) -> Scratch:
     """implicit_step's scratch for R modes and K contacts, with the kernels' ``work``."""
-    return Scratch(work, np.zeros(3 * R + 6 * K + 3), np.zeros((K + 1, K + 1)),
+    return Scratch(work, np.zeros(ws_size(R, K)), np.zeros((K + 1, K + 1)),
                    np.zeros(K + 1, dtype=np.int64))
 
 
@@ -368,7 +416,8 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     smaller step).
 
     ``prop``: the ``Propagators`` cache; ``scratch``: ``Scratch`` (``ws`` of length
-    >= 3 R + 6 K + 3, ``jac`` of shape >= (K + 1, K + 1), ``ipiv`` (int64) of length >= K + 1).
+    >= :func:`ws_size`, cut by :func:`ws_slice`), ``jac`` of shape >= (K + 1, K + 1), ``ipiv``
+    (int64) of length >= K + 1).
     """
     G1c = prop.G1c
     ws, jac, ipiv = scratch.ws, scratch.jac, scratch.ipiv
@@ -376,19 +425,19 @@ def implicit_step(t0, h, y0, d0, u0, y1, d1, u1, slot, prop, wts, off, fp, cdamp
     m = fp[kn.FP_MASS]
     r1 = fp[kn.FP_R1]
     t1 = t0 + h
-    sq = ws[0:R]
-    sdq = ws[R:2 * R]
-    wfree = ws[2 * R:2 * R + K]
-    F = ws[2 * R + K:2 * R + 2 * K]
-    rhs = ws[2 * R + 2 * K:2 * R + 3 * K + 1]
-    idx = ws[2 * R + 3 * K + 1:2 * R + 4 * K + 2]
-    noise = ws[2 * R + 4 * K + 2:2 * R + 5 * K + 3]  # round-off level of each update
+    sq = ws_slice(ws, WS_SQ, R, K)
+    sdq = ws_slice(ws, WS_SDQ, R, K)
+    wfree = ws_slice(ws, WS_WFREE, R, K)
+    F = ws_slice(ws, WS_F, R, K)
+    rhs = ws_slice(ws, WS_RHS, R, K)
+    idx = ws_slice(ws, WS_IDX, R, K)
+    noise = ws_slice(ws, WS_NOISE, R, K)  # round-off level of each update
     # friction moment (contact.friction_moment): the modal force holds c Psi^T F / M too
     # (c: moment_coefficient); u0 is the whole modal force of y0 (state_modal_force), u1
     # receives that of y1
     moment = ix >= 0 and kn.moment_on(off)
-    um = ws[2 * R + 5 * K + 3:3 * R + 5 * K + 3]  # the moment's modal force at t1
-    wm = ws[3 * R + 5 * K + 3:3 * R + 6 * K + 3]  # its displacement at the contacts / c
+    um = ws_slice(ws, WS_UM, R, K)  # the moment's modal force at t1
+    wm = ws_slice(ws, WS_WM, R, K)  # its displacement at the contacts / c
     # free modal response and plate displacement at the contacts (unit-stride loops over the
     # modes: the maps' rows of P, the state's plate.q and plate.dq)
     P = prop.P[slot]

@@ -126,69 +126,16 @@ def sweep_report(directory: str | os.PathLike, *,
     import pandas as pd
 
     d = Path(directory)
-    if not (d / "sweep.csv").is_file() or not (d / "sweep.json").is_file():
-        raise FileNotFoundError(f"{d} is not a sweep directory (no sweep.csv / sweep.json)")
-    meta = json.loads((d / "sweep.json").read_text())
-    table = pd.read_csv(d / "sweep.csv", keep_default_na=False,
-                        na_values=[""]).astype({"status": str, "message": str})
+    meta, table = _read_sweep(d)
     varied = [k for k in meta.get("varied_keys", []) if k in table.columns]
     seed_keys = [k for k in meta.get("seed_keys", []) if k in table.columns]
     ok = table[table["status"] == SUCCESS]
     rep = output_folder(d / "report")  # a file in its way: one line
 
     blocks: list[tuple[str, Any]] = []  # (kind, payload): h2, p, table, img
-    fit_rows = []
-    for study, keys, measured, xlabel in _STUDIES:
-        key = next((k for k in keys if k in varied and ok[k].nunique() >= 2), None)
-        if key is None:
-            continue
-        df = ok.copy()
-        xcol = key
-        if measured and measured in df and df[measured].notna().all() \
-                and (df[measured] > 0).all():
-            xcol = measured
-        df = df[df[xcol] > 0]
-        seed_col = seed_keys[0] if seed_keys and df[seed_keys[0]].nunique() >= 2 else None
-        others = [k for k in varied if k not in keys and k not in seed_keys
-                  and df[k].astype(str).nunique() >= 2]
-        if others:
-            groups = [(", ".join(f"{k}={v}" for k, v in
-                                 zip(others, g if isinstance(g, tuple) else (g,), strict=True)),
-                       sub) for g, sub in df.groupby(others, sort=False)]
-        else:
-            groups = [("all", df)]
-        fits = {}
-        for which, col in _LEVELS:
-            for label, sub in groups:
-                sub = sub[sub[col].notna()]
-                if sub[xcol].nunique() < 2:
-                    continue
-                f = _fit(sub[xcol], sub[col], sub[seed_col] if seed_col else None)
-                fits[(which, label)] = f
-                fit_rows.append({"study": study, "x": xcol, "quantity": f"{which} level",
-                                 "group": label, **{k: v for k, v in f.items()
-                                                    if k != "per_seed"},
-                                 "per_seed": " ".join(f"{s:.3f}" for s in f["per_seed"])})
-        png = rep / f"{study}.png"
-        study_figure(study, xlabel if xcol == measured or not measured else
-                     f"{key} (target)", groups, xcol, seed_col, fits, png, _LEVELS)
-        blocks.append(("h2", f"{study.capitalize()}: total levels vs {xlabel.split(' [')[0]}"))
-        blocks.append(("p", f"x = `{xcol}`" + (f" (measured; the target `{key}` is in the "
-                                                 f"table)" if xcol != key else "")
-                       + (f"; seeds: `{seed_col}`" if seed_col else "")
-                       + f"; {len(df)} successful cases."))
-        blocks.append(("img", png.name))
-        header = ["quantity", "group", "dB per doubling", "95 % interval",
-                  "n (a² ∝ x^n)", "how"]
-        rows = [[f"{w} level", lab, _g(f["db_per_doubling"], ".2f"),
-                 f"[{_g(f['ci_low'], '.2f')}, {_g(f['ci_high'], '.2f')}]"
-                 if math.isfinite(f["ci_low"]) else "n/a",
-                 _g(f["exponent_power"], ".2f"), f["method"]]
-                for (w, lab), f in fits.items()]
-        blocks.append(("table", (header, rows)))
-        if study == "velocity":
-            blocks.append(("p", "The paper reads its velocity study on the power basis: a² ∝ "
-                                "v^n with n = 3 to 3.5, i.e. 9 to 10.5 dB per doubling."))
+    fit_rows: list[dict] = []
+    for study in _STUDIES:
+        blocks += _study_blocks(study, ok, varied, seed_keys, rep, fit_rows)
     joint = _joint_blocks(ok, varied, rep)
     blocks += joint
     if not fit_rows and not joint:
@@ -200,7 +147,111 @@ def sweep_report(directory: str | os.PathLike, *,
 
     if (ens := ensemble if ensemble is not None else ensemble_tables(d)) is not None:
         blocks += ensemble_blocks(ens, rep)
+    blocks += _case_blocks(table, varied)
 
+    title = f"Sweep report: {meta.get('name', d.name)}"
+    descr = str(meta.get("description", "")).strip()
+    if descr and not descr.endswith("."):
+        descr += "."
+    intro = (f"{descr} Base scene `{meta.get('base')}`; "
+             f"{len(table)} cases, {len(ok)} succeeded, {len(table) - len(ok)} failed or "
+             f"missing. Tables: `sweep.csv`, `sweep.nc`; fits: `report/fits.csv`.").strip()
+    _replace_file(rep / "report.md", render_markdown(title, intro, blocks))
+    _replace_file(rep / "report.html", render_html(title, intro, blocks, directory=rep))
+    return rep / "report.md"
+
+
+def _read_sweep(d: Path) -> tuple[dict, Any]:
+    """A sweep directory's ``sweep.json`` (dict) and ``sweep.csv`` (a DataFrame, the
+    ``status`` and ``message`` columns as text).
+
+    Raises
+    ------
+    FileNotFoundError
+        Either file is missing.
+    """
+    import pandas as pd
+
+    if not (d / "sweep.csv").is_file() or not (d / "sweep.json").is_file():
+        raise FileNotFoundError(f"{d} is not a sweep directory (no sweep.csv / sweep.json)")
+    meta = json.loads((d / "sweep.json").read_text())
+    table = pd.read_csv(d / "sweep.csv", keep_default_na=False,
+                        na_values=[""]).astype({"status": str, "message": str})
+    return meta, table
+
+
+def _study_groups(df, keys: tuple[str, ...], varied: list[str], seed_keys: list[str]
+                  ) -> list[tuple[str, Any]]:
+    """The groups of a study's cases, one fit each: by the other varied keys (not the
+    study's, not a seed) that take two or more values, or ``all``."""
+    others = [k for k in varied if k not in keys and k not in seed_keys
+              and df[k].astype(str).nunique() >= 2]
+    if not others:
+        return [("all", df)]
+    return [(", ".join(f"{k}={v}" for k, v in
+                       zip(others, g if isinstance(g, tuple) else (g,), strict=True)), sub)
+            for g, sub in df.groupby(others, sort=False)]
+
+
+def _study_blocks(study_row: tuple, ok, varied: list[str], seed_keys: list[str], rep: Path,
+                  fit_rows: list[dict]) -> list[tuple[str, Any]]:
+    """One study of :data:`_STUDIES` (velocity, load or roughness): its slope fits of the
+    block and plate levels (dB per doubling of x) per group, appended to ``fit_rows``, its
+    figure ``rep/<study>.png`` and its report blocks; none if its key does not vary over
+    two or more successful cases (``ok``)."""
+    study, keys, measured, xlabel = study_row
+    key = next((k for k in keys if k in varied and ok[k].nunique() >= 2), None)
+    if key is None:
+        return []
+    df = ok.copy()
+    xcol = key
+    if measured and measured in df and df[measured].notna().all() \
+            and (df[measured] > 0).all():
+        xcol = measured
+    df = df[df[xcol] > 0]
+    seed_col = seed_keys[0] if seed_keys and df[seed_keys[0]].nunique() >= 2 else None
+    groups = _study_groups(df, keys, varied, seed_keys)
+    fits = {}
+    for which, col in _LEVELS:
+        for label, sub in groups:
+            sub = sub[sub[col].notna()]
+            if sub[xcol].nunique() < 2:
+                continue
+            f = _fit(sub[xcol], sub[col], sub[seed_col] if seed_col else None)
+            fits[(which, label)] = f
+            fit_rows.append({"study": study, "x": xcol, "quantity": f"{which} level",
+                             "group": label, **{k: v for k, v in f.items()
+                                                if k != "per_seed"},
+                             "per_seed": " ".join(f"{s:.3f}" for s in f["per_seed"])})
+    png = rep / f"{study}.png"
+    study_figure(study, xlabel if xcol == measured or not measured else
+                 f"{key} (target)", groups, xcol, seed_col, fits, png, _LEVELS)
+    blocks: list[tuple[str, Any]] = []
+    blocks.append(("h2", f"{study.capitalize()}: total levels vs {xlabel.split(' [')[0]}"))
+    blocks.append(("p", f"x = `{xcol}`" + (f" (measured; the target `{key}` is in the "
+                                             f"table)" if xcol != key else "")
+                   + (f"; seeds: `{seed_col}`" if seed_col else "")
+                   + f"; {len(df)} successful cases."))
+    blocks.append(("img", png.name))
+    header = ["quantity", "group", "dB per doubling", "95 % interval",
+              "n (a² ∝ x^n)", "how"]
+    rows = [[f"{w} level", lab, _g(f["db_per_doubling"], ".2f"),
+             f"[{_g(f['ci_low'], '.2f')}, {_g(f['ci_high'], '.2f')}]"
+             if math.isfinite(f["ci_low"]) else "n/a",
+             _g(f["exponent_power"], ".2f"), f["method"]]
+            for (w, lab), f in fits.items()]
+    blocks.append(("table", (header, rows)))
+    if study == "velocity":
+        blocks.append(("p", "The paper reads its velocity study on the power basis: a² ∝ "
+                            "v^n with n = 3 to 3.5, i.e. 9 to 10.5 dB per doubling."))
+    return blocks
+
+
+def _case_blocks(table, varied: list[str]) -> list[tuple[str, Any]]:
+    """The report's tables of cases: the failed or missing ones with their messages, then
+    every case with its varied keys, status, levels [dB re 1e-6 m/s^2], friction velocity
+    [m/s], stick fraction and wall time [s]."""
+    blocks: list[tuple[str, Any]] = []
     failed = table[table["status"] != SUCCESS]
     if len(failed):
         blocks.append(("h2", f"Failed or missing cases ({len(failed)})"))
@@ -214,14 +265,4 @@ def sweep_report(directory: str | os.PathLike, *,
     blocks.append(("table", (["case", *varied, "status", *(c for c, _ in cols)],
                              [[r["case"], *(_g(r[k]) for k in varied), r["status"],
                                *(_g(r[c]) for _, c in cols)] for _, r in table.iterrows()])))
-
-    title = f"Sweep report: {meta.get('name', d.name)}"
-    descr = str(meta.get("description", "")).strip()
-    if descr and not descr.endswith("."):
-        descr += "."
-    intro = (f"{descr} Base scene `{meta.get('base')}`; "
-             f"{len(table)} cases, {len(ok)} succeeded, {len(table) - len(ok)} failed or "
-             f"missing. Tables: `sweep.csv`, `sweep.nc`; fits: `report/fits.csv`.").strip()
-    _replace_file(rep / "report.md", render_markdown(title, intro, blocks))
-    _replace_file(rep / "report.html", render_html(title, intro, blocks, directory=rep))
-    return rep / "report.md"
+    return blocks
