@@ -21,12 +21,18 @@ from roughvib.scene import (
 DOCS = Path(__file__).parents[2] / "docs"
 
 
+def _num(x):
+    """A number as the page writes it: 1e8, 5e-5, 0.001."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + m.group(1).replace("+", "") + m.group(2),
+                  f"{x:g}")
+
+
 def _row(law, name, key):
     if key.kind == "file":
         default, rng = "required", "a file name"
     else:
-        default = "none" if key.default is None else f"{key.default:g}"
-        rng = f"{'(' if key.positive else '['}{key.lowest:g}, {key.highest:g}]"
+        default = "none" if key.default is None else _num(key.default)
+        rng = f"{'(' if key.positive else '['}{_num(key.lowest)}, {_num(key.highest)}]"
     return f"| `{law}` | `{name}` | {default} | {key.unit or '–'} | {rng} | {key.meaning} |"
 
 
