@@ -33,7 +33,7 @@ def _toml_value(v: Any) -> str:
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, list | tuple):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):  # an inline table (friction.parameters)
+    if isinstance(v, dict):  # an inline table
         return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
@@ -55,9 +55,17 @@ def scene_to_toml(scene: Scene, *, comments: dict[str, str] | None = None) -> st
     for sec in _SECTIONS:
         lines.append("")
         lines.append(f"[{sec}]")
+        tables = {k: v for k, v in d[sec].items() if isinstance(v, dict)}
         for k, v in d[sec].items():
-            c = comments.get(f"{sec}.{k}")
-            lines.append(f"{k} = {_toml_value(v)}" + (f"  # {c}" if c else ""))
+            if k not in tables:
+                c = comments.get(f"{sec}.{k}")
+                lines.append(f"{k} = {_toml_value(v)}" + (f"  # {c}" if c else ""))
+        for name, table in tables.items():  # [friction.parameters], after the section's keys
+            lines.append("")
+            lines.append(f"[{sec}.{name}]")
+            for k, v in table.items():
+                c = comments.get(f"{sec}.{name}.{k}")
+                lines.append(f"{k} = {_toml_value(v)}" + (f"  # {c}" if c else ""))
     return "\n".join(lines) + "\n"
 
 
