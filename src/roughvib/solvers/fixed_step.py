@@ -378,12 +378,21 @@ def _start_powers(tangential, moreau, v0, S0, vz0, latch, Fv, dhk, dq, cdamp, la
         p_exc = fp[kn.FP_T0] * v0
         p_fric = mu0 * S0 * v0
     p_r2 = r2 * v0 * v0
-    p_r1 = r1 * vz0 * vz0
+    p_r1, p_pl, p_ro = _vertical_powers(v0, vz0, r1, Fv, dhk, dq, cdamp, M)
+    _powers_at(p_exc, p_fric, p_r2, p_r1, p_pl, p_ro, pw)
+
+
+@njit(cache=True, inline="always")
+def _vertical_powers(v, vz, r1, F, dhk, dq, cdamp, M):
+    """The vertical damper's, the plate's damping and the roughness input's powers [W] at
+    block velocities v, vz [m/s], contact forces F [N] and profile slopes dhk [-]: the part
+    the start and the end of a step share (``_start_powers``, ``_end_powers``)."""
+    p_r1 = r1 * vz * vz
     p_pl = M * kn.weighted_square_sum(cdamp, dq)
     p_ro = 0.0
-    for k in range(Fv.size):
-        p_ro += Fv[k] * dhk[k] * v0
-    _powers_at(p_exc, p_fric, p_r2, p_r1, p_pl, p_ro, pw)
+    for k in range(F.size):
+        p_ro += F[k] * dhk[k] * v
+    return p_r1, p_pl, p_ro
 
 
 @njit(cache=True, inline="always")
@@ -528,11 +537,7 @@ def _end_powers(tangential, moreau, t1, v1, vz1, S0, S1, lam, latch, Fn, dhk, dq
         q_exc = fp[kn.FP_T0] * math.cos(fp[kn.FP_OMEGA] * t1) * v1
         q_fric = mu1 * S1 * v1
     q_r2 = r2 * v1 * v1 if tangential else 0.0
-    q_r1 = r1 * vz1 * vz1
-    q_pl = M * kn.weighted_square_sum(cdamp, dq)
-    q_ro = 0.0
-    for k in range(Fn.size):
-        q_ro += Fn[k] * dhk[k] * v1
+    q_r1, q_pl, q_ro = _vertical_powers(v1, vz1, r1, Fn, dhk, dq, cdamp, M)
     _powers_at(q_exc, q_fric, q_r2, q_r1, q_pl, q_ro, qw)
     return fric1, mu1
 
