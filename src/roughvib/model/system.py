@@ -23,6 +23,7 @@ from roughvib.model.jacobian import jacobian_pattern
 from roughvib.model.layout import ENERGY_TERMS, StateLayout
 from roughvib.model.regimes import Regime
 from roughvib.physics.friction import LAWS, FrictionLaw, calibrated_force_amplitude
+from roughvib.physics.friction.feldmann import effective_latch_velocity
 from roughvib.physics.structures import Structure, build_structure
 from roughvib.physics.surface.contact import (
     ContactLayout,
@@ -629,7 +630,7 @@ def assemble(scene: Scene, *, force_amplitude: float | None = None,
     par = fr.parameters  # the law's own keys, in their slots (0 where it has none)
     for key, slot in kn.FP_LAW_KEYS.items():
         fp[slot] = par.get(key) or 0.0
-    fp[kn.FP_EPS] = max(par.get("latch_velocity", 0.0), par.get("hysteresis_velocity", 0.0))
+    fp[kn.FP_EPS] = effective_latch_velocity(par)
     fp[kn.FP_VSTICK] = fr.stick_velocity
     fp[kn.FP_PV] = exc.velocity if not tangential else 0.0
     fp[kn.FP_PA] = exc.amplitude if not tangential else 0.0

@@ -119,7 +119,7 @@ class Scene:
             own = FRICTION_LAWS[self.friction.law].keys
             data["friction"]["parameters"] = {
                 k: v for k, v in data["friction"].get("parameters", {}).items()
-                if k not in own or v != own[k].default}
+                if k not in own or not own[k].holds_default(v)}
         for key, value in items.items():
             _assign(data, key, value)
         return scene_from_dict(data, base_dir=self.base_dir)

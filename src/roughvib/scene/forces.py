@@ -54,6 +54,12 @@ class LawKey:
     kind: str = "real"
     positive: bool = False
 
+    def holds_default(self, value: Any) -> bool:
+        """Whether ``value`` is this key's default (``"none"`` counts as None)."""
+        if self.default is None:
+            return value is None or value == "none"
+        return value == self.default
+
 
 @dataclass(frozen=True)
 class LawDeclaration:
@@ -210,11 +216,6 @@ class Friction:
             raise SceneError(refusal)
 
     @property
-    def effective_latch_velocity(self) -> float:
-        """The Feldmann law's epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s]."""
-        return max(self.parameters["latch_velocity"], self.parameters["hysteresis_velocity"])
-
-    @property
     def kind(self) -> str:
         """The law's kind: ``"single-valued"``, ``"set-valued"`` or ``"dynamic"``."""
         return FRICTION_LAWS[self.law].kind
@@ -312,7 +313,7 @@ def _law_parameters(law: str, given) -> dict[str, Any]:
     for name, value in given.items():
         if name not in keys:
             owners = [n for n, d in FRICTION_LAWS.items() if name in d.keys]
-            if owners and all(_is_default(FRICTION_LAWS[o].keys[name], value)
+            if owners and all(FRICTION_LAWS[o].keys[name].holds_default(value)
                               for o in owners):
                 continue
             whose = (f"a key of friction.law = {owners[0]!r}" if owners else "no law's key")
@@ -327,12 +328,6 @@ def _law_parameters(law: str, given) -> dict[str, Any]:
                                  f"friction.law = {law!r}, got none")
             out[name] = key.default
     return out
-
-
-def _is_default(key: LawKey, value: Any) -> bool:
-    if key.default is None:
-        return value is None or value == "none"
-    return value == key.default
 
 
 @dataclass(frozen=True)

@@ -30,9 +30,9 @@ from numba import njit
 
 from roughvib.physics.friction.regime import RootValues, StartValues, Transition
 
-__all__ = ["EXP_ZERO_BELOW", "LAW_ID", "ROOTS", "exp_or_zero", "feldmann_mu", "feldmann_mu_d2",
-           "feldmann_mu_law", "latch_margin", "latch_update", "mu_reference",
-           "regime_at_start", "regime_notation", "regime_transition",
+__all__ = ["EXP_ZERO_BELOW", "LAW_ID", "ROOTS", "effective_latch_velocity", "exp_or_zero",
+           "feldmann_mu", "feldmann_mu_d2", "feldmann_mu_law", "latch_margin", "latch_update",
+           "mu_reference", "regime_at_start", "regime_notation", "regime_transition",
            "tangential_feldmann"]
 
 #: the law's id in the kernels (``off[OFF_LAW]``; ``roughvib.physics.friction.laws``)
@@ -163,6 +163,23 @@ def latch_update(s, v_ext, v, eps):
     if v_ext - v > eps:
         return 1.0, v, True
     return -1.0, v_ext, False
+
+
+def effective_latch_velocity(parameters) -> float:
+    """epsilon_v = max(latch_velocity, hysteresis_velocity) [m/s] of a law's own keys
+    (``friction.parameters``; 0 for a law without them): the latch's margin.
+
+    Parameters
+    ----------
+    parameters : mapping
+        The law's own keys.
+
+    Returns
+    -------
+    float
+    """
+    return max(float(parameters.get("latch_velocity", 0.0)),
+               float(parameters.get("hysteresis_velocity", 0.0)))
 
 
 @njit(cache=True)

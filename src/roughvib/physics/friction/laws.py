@@ -28,6 +28,7 @@ from numba import njit
 
 from roughvib.physics.friction import coulomb, feldmann, lugre, setvalued, table
 from roughvib.physics.friction.feldmann import (
+    effective_latch_velocity,
     feldmann_mu,
     feldmann_mu_d2,
     feldmann_mu_law,
@@ -93,10 +94,10 @@ def model_keys(friction, model: str) -> dict:
 # v, x, table): fill v, x (length n + 1) from rest
 def _feldmann_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, table):
     par = model_keys(friction, "feldmann")
-    vh = float(par["hysteresis_velocity"])
     tangential_feldmann(T0, mass, r2, normal_force, omega, float(friction.mu_slip),
-                        float(friction.mu_stick), float(par["a1"]), float(par["a2"]), vh,
-                        max(float(par["latch_velocity"]), vh), dt, n, v, x)
+                        float(friction.mu_stick), float(par["a1"]), float(par["a2"]),
+                        float(par["hysteresis_velocity"]), effective_latch_velocity(par), dt,
+                        n, v, x)
 
 
 def _set_valued_tangential(T0, mass, r2, normal_force, omega, friction, dt, n, v, x, curve):
