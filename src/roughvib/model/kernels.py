@@ -527,7 +527,13 @@ def column_group(A, v, i0, k0, n):
     ``COLUMN_GROUP``) columns from k0 (the rest repeat column k0 + n - 1), side by side in
     one pass over the rows, each in its own accumulator. Inlined: the caller's floating-point
     liberties apply (none: each sum in the order of the rows, the same operations to the bit
-    as one column after the other)."""
+    as one column after the other). A single column is summed alone (four copies of it would
+    cost more than the one chain)."""
+    if n == 1:
+        s = 0.0
+        for r in range(A.shape[0]):
+            s += A[r, k0] * v[i0 + r]
+        return s, s, s, s
     a0 = 0.0
     a1 = 0.0
     a2 = 0.0
